@@ -1,0 +1,23 @@
+# Sourced by every script: the venv, the colcon overlay and safe DDS defaults.
+# Usage: source scripts/env.sh   (from any directory)
+REPLAN_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+export REPLAN_ROOT
+if [ ! -f "$REPLAN_ROOT/.venv/bin/activate" ] || [ ! -f "$REPLAN_ROOT/install/setup.bash" ]; then
+    echo "replan: not set up yet; run $REPLAN_ROOT/scripts/setup.sh" >&2
+    return 1 2>/dev/null || exit 1
+fi
+# shellcheck disable=SC1091
+source "$REPLAN_ROOT/.venv/bin/activate"
+# colcon's setup scripts read unset variables; relax nounset while sourcing them.
+_replan_nounset=$(set -o | awk '$1=="nounset"{print $2}')
+set +u
+# shellcheck disable=SC1091
+source "$REPLAN_ROOT/install/setup.bash"
+[ "$_replan_nounset" = "on" ] && set -u
+unset _replan_nounset
+# Never talk to other machines unless the user asks for it.
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
+export PYTHONUNBUFFERED=1
+export REPLAN_CONFIG="${REPLAN_CONFIG:-$REPLAN_ROOT/config}"
+export REPLAN_URDF="${REPLAN_URDF:-$REPLAN_ROOT/urdf/hyq.urdf}"

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# The whole test suite: ruff, the package unit tests (colcon test, per-package pytest
+# arguments from colcon.meta) and the node-graph tests in test/ (real processes on a reserved
+# ROS_DOMAIN_ID). Exit code 0 only if everything passed.
+#   ./scripts/test.sh            everything but tests marked slow
+#   ./scripts/test.sh --slow     everything
+#   ./scripts/test.sh -- ARGS    extra pytest arguments for test/ (e.g. -k sim)
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+marker=(-m "not slow")
+extra=()
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --slow) marker=(); shift ;;
+        --) shift; extra=("$@"); break ;;
+        *) echo "usage: $0 [--slow] [-- PYTEST_ARGS]" >&2; exit 2 ;;
+    esac
+done
+start=$(date +%s)
+./scripts/setup.sh
+echo "test: setup took $(( $(date +%s) - start )) s"
+# shellcheck disable=SC1091
+source scripts/env.sh
+
+echo "test: ruff"
+ruff check src test
+
+echo "test: package unit tests (colcon test)"
+rm -rf build/*/pytest.xml log/test
+colcon --log-base log test --base-paths src --metas colcon.meta \
+    --event-handlers console_direct+ ${marker[@]+--pytest-args "${marker[@]}"}
+colcon --log-base log test-result --test-result-base build --verbose
+
+echo "test: node-graph tests (pytest test/)"
+python -m pytest test ${marker[@]+"${marker[@]}"} ${extra[@]+"${extra[@]}"} \
+    -o console_output_style=classic -rfE

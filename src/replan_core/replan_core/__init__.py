@@ -1,0 +1,1 @@
+"""ROS-free core of the quadruped MPC re-planning stack."""

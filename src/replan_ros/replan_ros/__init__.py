@@ -1,0 +1,1 @@
+"""rclpy nodes of the quadruped MPC re-planning stack."""

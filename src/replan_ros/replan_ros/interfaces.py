@@ -1,0 +1,360 @@
+"""Conversions between common_interfaces messages and the core dataclasses.
+
+The encodings are specified in docs/ARCHITECTURE.md; this module is their single implementation,
+used by every producer and consumer so the two sides cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from builtin_interfaces.msg import Duration, Time
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, Twist, Vector3
+from nav_msgs.msg import Odometry, Path
+from sensor_msgs.msg import JointState as JointStateMsg
+from sensor_msgs.msg import PointCloud2, PointField
+from std_msgs.msg import Header
+from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
+
+from replan_core.types import (
+    BASE_FRAME,
+    JOINT_NAMES,
+    WORLD_FRAME,
+    BaseState,
+    ComPlan,
+    ContactState,
+    FootholdPlan,
+    JointState,
+    Step,
+)
+
+# ---------------------------------------------------------------------------------------------
+# Time
+
+
+def stamp_to_sec(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def sec_to_ns(t: float) -> int:
+    return round(t * 1e9)
+
+
+def ns_to_stamp(ns: int) -> Time:
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def sec_to_stamp(t: float) -> Time:
+    return ns_to_stamp(sec_to_ns(t))
+
+
+def sec_to_duration(t: float) -> Duration:
+    ns = sec_to_ns(t)
+    return Duration(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def duration_to_sec(d: Duration) -> float:
+    return d.sec + d.nanosec * 1e-9
+
+
+def header(t: float, frame_id: str = WORLD_FRAME) -> Header:
+    return Header(stamp=sec_to_stamp(t), frame_id=frame_id)
+
+
+# ---------------------------------------------------------------------------------------------
+# Rotations (quaternions x, y, z, w)
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    x, y, z, w = q / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def yaw_of(q: np.ndarray) -> float:
+    x, y, z, w = q
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+# ---------------------------------------------------------------------------------------------
+# Joint states and torque commands
+
+
+def joint_state_to_msg(js: JointState) -> JointStateMsg:
+    msg = JointStateMsg()
+    msg.header = header(js.stamp, '')
+    msg.name = list(JOINT_NAMES)
+    msg.position = [float(v) for v in js.position]
+    msg.velocity = [float(v) for v in js.velocity]
+    msg.effort = [float(v) for v in js.effort]
+    return msg
+
+
+def _reorder(names: list[str], values, what: str) -> np.ndarray:
+    if len(values) != len(names):
+        raise ValueError(f'{what}: {len(values)} values for {len(names)} names')
+    index = {n: i for i, n in enumerate(names)}
+    unknown = [n for n in names if n not in JOINT_NAMES]
+    if unknown:
+        raise ValueError(f'{what}: unknown joints {unknown}')
+    missing = [n for n in JOINT_NAMES if n not in index]
+    if missing:
+        raise ValueError(f'{what}: missing joints {missing}')
+    return np.array([values[index[n]] for n in JOINT_NAMES], dtype=float)
+
+
+def joint_state_from_msg(msg: JointStateMsg) -> JointState:
+    """Joint state in JOINT_NAMES order; ValueError if names or sizes do not match."""
+    names = list(msg.name)
+    if len(names) != len(JOINT_NAMES):
+        raise ValueError(f'joint_states: {len(names)} joints, expected {len(JOINT_NAMES)}')
+    position = _reorder(names, msg.position, 'joint_states.position')
+    velocity = _reorder(names, msg.velocity, 'joint_states.velocity')
+    effort = (_reorder(names, msg.effort, 'joint_states.effort') if len(msg.effort)
+              else np.zeros(len(JOINT_NAMES)))
+    return JointState(stamp_to_sec(msg.header.stamp), position, velocity, effort)
+
+
+def torque_cmd_to_msg(t: float, torques: np.ndarray) -> JointStateMsg:
+    msg = JointStateMsg()
+    msg.header = header(t, '')
+    msg.name = list(JOINT_NAMES)
+    msg.effort = [float(v) for v in torques]
+    return msg
+
+
+def torque_cmd_from_msg(msg: JointStateMsg) -> tuple[int, np.ndarray]:
+    """(stamp in ns, torques in JOINT_NAMES order); ValueError on a malformed or non-finite one."""
+    names = list(msg.name)
+    if len(names) != len(JOINT_NAMES):
+        raise ValueError(f'torque command with {len(names)} joints, expected {len(JOINT_NAMES)}')
+    torques = _reorder(names, msg.effort, 'torque command effort')
+    if not np.all(np.isfinite(torques)):
+        bad = [n for n, v in zip(JOINT_NAMES, torques, strict=True) if not math.isfinite(v)]
+        raise ValueError(f'torque command with non-finite effort for {bad}')
+    return stamp_to_ns(msg.header.stamp), torques
+
+
+# ---------------------------------------------------------------------------------------------
+# Base state <-> nav_msgs/Odometry (twist in the child frame, REP-105)
+
+
+def odom_from_base_state(bs: BaseState) -> Odometry:
+    msg = Odometry()
+    msg.header = header(bs.stamp, WORLD_FRAME)
+    msg.child_frame_id = BASE_FRAME
+    p, q = bs.position, bs.quaternion
+    msg.pose.pose = Pose(position=Point(x=float(p[0]), y=float(p[1]), z=float(p[2])),
+                         orientation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]),
+                                                w=float(q[3])))
+    rot_t = quat_to_matrix(q).T
+    v = rot_t @ bs.linear_velocity
+    w = rot_t @ bs.angular_velocity
+    msg.twist.twist = Twist(linear=Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2])),
+                            angular=Vector3(x=float(w[0]), y=float(w[1]), z=float(w[2])))
+    return msg
+
+
+def base_state_from_odom(msg: Odometry) -> BaseState:
+    p, o = msg.pose.pose.position, msg.pose.pose.orientation
+    q = np.array([o.x, o.y, o.z, o.w])
+    rot = quat_to_matrix(q)
+    lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
+    return BaseState(stamp=stamp_to_sec(msg.header.stamp),
+                     position=np.array([p.x, p.y, p.z]), quaternion=q,
+                     linear_velocity=rot @ np.array([lin.x, lin.y, lin.z]),
+                     angular_velocity=rot @ np.array([ang.x, ang.y, ang.z]))
+
+
+# ---------------------------------------------------------------------------------------------
+# sensor_msgs/PointCloud2 as a typed table
+
+_NUMPY_OF_FIELD = {PointField.INT8: 'i1', PointField.UINT8: 'u1', PointField.INT16: '<i2',
+                   PointField.UINT16: '<u2', PointField.INT32: '<i4', PointField.UINT32: '<u4',
+                   PointField.FLOAT32: '<f4', PointField.FLOAT64: '<f8'}
+_FIELD_OF_NUMPY = {np.dtype(v).str: k for k, v in _NUMPY_OF_FIELD.items()}
+
+
+def table_to_cloud(hdr: Header, table: np.ndarray) -> PointCloud2:
+    """Pack a 1-D numpy structured array (no padding) into a PointCloud2."""
+    fields = []
+    for name in table.dtype.names:
+        dtype, offset = table.dtype.fields[name][:2]
+        fields.append(PointField(name=name, offset=offset, datatype=_FIELD_OF_NUMPY[dtype.str],
+                                 count=1))
+    msg = PointCloud2(header=hdr, height=1, width=len(table), fields=fields,
+                      is_bigendian=False, point_step=table.dtype.itemsize,
+                      row_step=table.dtype.itemsize * len(table), is_dense=True)
+    msg.data = table.tobytes()
+    return msg
+
+
+def cloud_to_table(msg: PointCloud2, required: tuple[str, ...] = ()) -> np.ndarray:
+    """Unpack a PointCloud2 written by ``table_to_cloud`` (or any little-endian flat one)."""
+    if msg.is_bigendian:
+        raise ValueError('big-endian PointCloud2 tables are not supported')
+    dtype = np.dtype({'names': [f.name for f in msg.fields],
+                      'formats': [_NUMPY_OF_FIELD[f.datatype] for f in msg.fields],
+                      'offsets': [f.offset for f in msg.fields],
+                      'itemsize': msg.point_step})
+    missing = [name for name in required if name not in dtype.names]
+    if missing:
+        raise ValueError(f'table misses fields {missing}')
+    count = msg.width * msg.height
+    return np.frombuffer(bytes(msg.data), dtype=dtype, count=count)
+
+
+CONTACT_DTYPE = np.dtype([('x', '<f8'), ('y', '<f8'), ('z', '<f8'), ('leg', 'u1'),
+                          ('fx', '<f8'), ('fy', '<f8'), ('fz', '<f8'), ('contact', 'u1'),
+                          ('touchdown', 'u1'), ('liftoff', 'u1')])
+
+FOOTHOLD_DTYPE = np.dtype([('x', '<f8'), ('y', '<f8'), ('z', '<f8'), ('leg', 'u1'),
+                           ('step', '<i4'), ('liftoff_time', '<f8'), ('touchdown_time', '<f8'),
+                           ('step_height', '<f8'), ('haptic', 'u1'), ('replan', 'u1'),
+                           ('yaw', '<f8')])
+
+
+def _contact_table(cs: ContactState, rows: np.ndarray) -> np.ndarray:
+    table = np.zeros(len(rows), dtype=CONTACT_DTYPE)
+    for out, leg in enumerate(rows):
+        pos, force = cs.foot_position[leg], cs.force[leg]
+        table[out] = (pos[0], pos[1], pos[2], leg, force[0], force[1], force[2],
+                      cs.contact[leg], cs.touchdown[leg], cs.liftoff[leg])
+    return table
+
+
+def contacts_to_msg(cs: ContactState) -> PointCloud2:
+    return table_to_cloud(header(cs.stamp), _contact_table(cs, np.arange(4)))
+
+
+def contact_events_to_msg(cs: ContactState) -> PointCloud2 | None:
+    """Rows of the feet whose contact flag changed at this tick; None if none did."""
+    rows = np.flatnonzero(np.asarray(cs.touchdown) | np.asarray(cs.liftoff))
+    if len(rows) == 0:
+        return None
+    return table_to_cloud(header(cs.stamp), _contact_table(cs, rows))
+
+
+def contacts_from_msg(msg: PointCloud2) -> ContactState:
+    table = cloud_to_table(msg, CONTACT_DTYPE.names)
+    if len(table) != 4 or sorted(table['leg']) != [0, 1, 2, 3]:
+        raise ValueError(f'contacts table must have one row per leg, got legs {list(table["leg"])}')
+    table = table[np.argsort(table['leg'])]
+    return ContactState(
+        stamp=stamp_to_sec(msg.header.stamp),
+        foot_position=np.stack([table['x'], table['y'], table['z']], axis=1).astype(float),
+        force=np.stack([table['fx'], table['fy'], table['fz']], axis=1).astype(float),
+        contact=table['contact'].astype(bool), touchdown=table['touchdown'].astype(bool),
+        liftoff=table['liftoff'].astype(bool))
+
+
+def contact_events_from_msg(msg: PointCloud2) -> list[tuple[int, str, np.ndarray, np.ndarray]]:
+    """Events as (leg, 'touchdown' | 'liftoff', position (3,), force (3,))."""
+    table = cloud_to_table(msg, CONTACT_DTYPE.names)
+    events = []
+    for row in table:
+        kind = 'touchdown' if row['touchdown'] else 'liftoff'
+        events.append((int(row['leg']), kind, np.array([row['x'], row['y'], row['z']]),
+                       np.array([row['fx'], row['fy'], row['fz']])))
+    return events
+
+
+# ---------------------------------------------------------------------------------------------
+# Footholds and contact schedule
+
+
+def footholds_to_msg(plan: FootholdPlan) -> PointCloud2:
+    table = np.zeros(4 + len(plan.steps), dtype=FOOTHOLD_DTYPE)
+    for leg in range(4):
+        p = plan.initial_feet[leg]
+        table[leg] = (p[0], p[1], p[2], leg, -1, 0.0, 0.0, 0.0, 0, 0, plan.initial_yaw)
+    for i, s in enumerate(plan.steps):
+        table[4 + i] = (s.target[0], s.target[1], s.target[2], s.leg, i,
+                        s.liftoff_time - plan.start_time, s.touchdown_time - plan.start_time,
+                        s.step_height, s.haptic, s.replan, s.yaw)
+    return table_to_cloud(header(plan.start_time), table)
+
+
+def footholds_from_msg(msg: PointCloud2) -> FootholdPlan:
+    table = cloud_to_table(msg, FOOTHOLD_DTYPE.names)
+    t0 = stamp_to_sec(msg.header.stamp)
+    initial = table[table['step'] < 0]
+    if len(initial) != 4 or sorted(initial['leg']) != [0, 1, 2, 3]:
+        raise ValueError('footholds table must start with the four initial feet')
+    initial = initial[np.argsort(initial['leg'])]
+    steps_table = table[table['step'] >= 0]
+    steps_table = steps_table[np.argsort(steps_table['step'], kind='stable')]
+    if not np.all(np.isfinite(table['x'])) or not np.all(np.isfinite(table['touchdown_time'])):
+        raise ValueError('footholds table holds non-finite values')
+    steps = [Step(leg=int(r['leg']), liftoff_time=t0 + float(r['liftoff_time']),
+                  touchdown_time=t0 + float(r['touchdown_time']),
+                  target=np.array([r['x'], r['y'], r['z']], dtype=float),
+                  step_height=float(r['step_height']), haptic=bool(r['haptic']),
+                  replan=bool(r['replan']), yaw=float(r['yaw']))
+             for r in steps_table]
+    return FootholdPlan(start_time=t0,
+                        initial_feet=np.stack([initial['x'], initial['y'], initial['z']],
+                                              axis=1).astype(float),
+                        initial_yaw=float(initial['yaw'][0]), steps=steps)
+
+
+# ---------------------------------------------------------------------------------------------
+# CoM plan and paths
+
+
+def _vec(v: np.ndarray) -> Vector3:
+    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def com_plan_to_msg(plan: ComPlan) -> MultiDOFJointTrajectory:
+    msg = MultiDOFJointTrajectory()
+    msg.header = header(plan.start_time)
+    msg.joint_names = ['com']
+    for k in range(len(plan.position)):
+        p = plan.position[k]
+        point = MultiDOFJointTrajectoryPoint()
+        point.transforms = [Transform(translation=_vec(p),
+                                      rotation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))]
+        point.velocities = [Twist(linear=_vec(plan.velocity[k]))]
+        point.accelerations = [Twist(linear=_vec(plan.acceleration[k]))]
+        point.time_from_start = sec_to_duration(k * plan.dt)
+        msg.points.append(point)
+    return msg
+
+
+def com_plan_from_msg(msg: MultiDOFJointTrajectory) -> ComPlan:
+    if list(msg.joint_names) != ['com'] or len(msg.points) < 2:
+        raise ValueError('com_plan must have joint_names ["com"] and at least two points')
+    def xyz(v):
+        return (v.x, v.y, v.z)
+    pos = np.array([xyz(pt.transforms[0].translation) for pt in msg.points])
+    vel = np.array([xyz(pt.velocities[0].linear) for pt in msg.points])
+    acc = np.array([xyz(pt.accelerations[0].linear) for pt in msg.points])
+    times = np.array([duration_to_sec(pt.time_from_start) for pt in msg.points])
+    dt = float(times[1] - times[0])
+    if dt <= 0 or not np.allclose(np.diff(times), dt, atol=1e-6):
+        raise ValueError('com_plan samples must be evenly spaced')
+    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel)) and np.all(np.isfinite(acc))):
+        raise ValueError('com_plan holds non-finite values')
+    return ComPlan(start_time=stamp_to_sec(msg.header.stamp), dt=dt, position=pos,
+                   velocity=vel, acceleration=acc)
+
+
+def path_msg(start_time: float, dt: float, points: np.ndarray,
+             frame_id: str = WORLD_FRAME) -> Path:
+    """nav_msgs/Path with one pose per row of ``points`` (n, 2 or 3), stamped every ``dt``."""
+    msg = Path(header=header(start_time, frame_id))
+    for k, p in enumerate(points):
+        pose = PoseStamped(header=header(start_time + k * dt, frame_id))
+        pose.pose.position = Point(x=float(p[0]), y=float(p[1]),
+                                   z=float(p[2]) if len(p) > 2 else 0.0)
+        pose.pose.orientation.w = 1.0
+        msg.poses.append(pose)
+    return msg

@@ -1,0 +1,33 @@
+"""QoS profiles by role (docs/ARCHITECTURE.md, topic table)."""
+
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+# Sensor-like streams: the newest sample matters, a lost one is replaced by the next tick.
+SENSOR = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                    reliability=ReliabilityPolicy.BEST_EFFORT,
+                    durability=DurabilityPolicy.VOLATILE)
+
+# Contact sensing drives the touchdown rule in two nodes that must agree tick by tick, so no
+# sample may be lost; depth covers a subscriber that is busy for a re-plan.
+CONTACTS = QoSProfile(depth=50, history=HistoryPolicy.KEEP_LAST,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+# Commands and events: every message counts.
+COMMAND = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.VOLATILE)
+
+# Input schedules (stamped set-points, pushes) may be sent in a burst ahead of time.
+SCHEDULE = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+# Plans and footholds: a late joiner gets the last one.
+LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+CLOCK = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                   reliability=ReliabilityPolicy.RELIABLE,
+                   durability=DurabilityPolicy.VOLATILE)

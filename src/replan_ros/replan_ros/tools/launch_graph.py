@@ -1,0 +1,259 @@
+"""Start the node graph (sim, gait, mpc, wbc, optionally the recorder) and supervise it.
+
+There is no `ros2 launch` in the PyPI wheels; this is the project's launcher, behind
+``scripts/launch.sh``. Each node is its own process (own process group) with its log in the run
+folder. A node that dies is reported (which, when, exit code) and started again (respawn), or,
+with ``--no-respawn``, the rest is stopped and the exit code is non-zero. Ctrl-C, SIGTERM or the
+sim-time ``--duration`` stop everything cleanly (SIGINT, then SIGKILL after a timeout).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import rclpy
+from ament_index_python.packages import get_package_prefix
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+
+NODES = ('sim', 'wbc', 'mpc', 'gait')
+STOP_TIMEOUT = 10.0     # s, SIGINT -> SIGKILL
+RESPAWN_DELAY = 1.0     # s, wall
+
+
+def _executable(name: str) -> str:
+    return str(Path(get_package_prefix('replan_ros')) / 'lib' / 'replan_ros' / name)
+
+
+def _stamp() -> str:
+    return datetime.datetime.now().strftime('%H:%M:%S')
+
+
+@dataclass
+class ManagedNode:
+    name: str
+    cmd: list[str]
+    log_path: Path
+    respawn: bool
+    process: subprocess.Popen | None = None
+    starts: int = 0
+    log_file: object = field(default=None, repr=False)
+
+    def start(self, env: dict[str, str]) -> None:
+        if self.log_file is None:
+            self.log_file = open(self.log_path, 'ab')  # noqa: SIM115 (closed in stop)
+        self.starts += 1
+        self.log_file.write(f'\n[launch {_stamp()}] start #{self.starts}: '
+                            f'{" ".join(self.cmd)}\n'.encode())
+        self.log_file.flush()
+        self.process = subprocess.Popen(self.cmd, env=env, stdout=self.log_file,
+                                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                        start_new_session=True)
+
+    @property
+    def alive(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def signal(self, sig: int) -> None:
+        if self.alive:
+            try:
+                os.killpg(self.process.pid, sig)
+            except ProcessLookupError:
+                pass
+
+    def close(self) -> None:
+        if self.log_file is not None:
+            self.log_file.close()
+            self.log_file = None
+
+
+class Graph:
+    """The node graph of one run: start, supervise, stop."""
+
+    def __init__(self, run_dir: Path, *, config_dir: Path, param_files: list[Path] = (),
+                 record_dir: Path | None = None, gui: bool = False, respawn: bool = True,
+                 extra_params: dict[str, dict[str, str]] | None = None,
+                 env: dict[str, str] | None = None, log=print) -> None:
+        self.run_dir = run_dir
+        self.log_dir = run_dir / 'logs'
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.env = dict(env or os.environ)
+        self.env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+        self.env['PYTHONUNBUFFERED'] = '1'
+        self.log = log
+        self.nodes: list[ManagedNode] = []
+        extra_params = extra_params or {}
+        names = (['recorder'] if record_dir is not None else []) + list(NODES)
+        for name in names:
+            cmd = [_executable(f'{name}_node'), '--ros-args', '-r', f'__node:={name}',
+                   '--params-file', str(config_dir / f'{name}.yaml')]
+            for extra in param_files:
+                cmd += ['--params-file', str(extra)]
+            if name == 'sim' and gui:
+                cmd += ['-p', 'gui:=true']
+            if name == 'recorder':
+                cmd += ['-p', f'output_dir:={record_dir}']
+                cmd += ['-p', 'config_files:=[' + ', '.join(
+                    str(p) for p in [*(config_dir / f'{n}.yaml' for n in NODES), *param_files])
+                    + ']']
+            for key, value in extra_params.get(name, {}).items():
+                cmd += ['-p', f'{key}:={value}']
+            self.nodes.append(ManagedNode(name, cmd, self.log_dir / f'{name}.log', respawn))
+        self.failed: list[str] = []
+
+    def start(self) -> None:
+        for node in self.nodes:
+            node.start(self.env)
+            self.log(f'[launch {_stamp()}] started {node.name} (pid {node.process.pid}), '
+                     f'log {node.log_path}')
+            if node.name == 'recorder':
+                time.sleep(1.0)   # let it subscribe before the first messages flow
+
+    def poll(self) -> bool:
+        """Check the nodes once; respawn the dead ones. False when the graph must stop."""
+        for node in self.nodes:
+            if node.process is None or node.alive:
+                continue
+            code = node.process.returncode
+            self.log(f'[launch {_stamp()}] node {node.name} died (exit code {code}) '
+                     f'after start #{node.starts}; log {node.log_path}')
+            self.failed.append(node.name)
+            if not node.respawn:
+                return False
+            time.sleep(RESPAWN_DELAY)
+            node.start(self.env)
+            self.log(f'[launch {_stamp()}] respawned {node.name} (pid {node.process.pid})')
+        return True
+
+    def stop(self) -> None:
+        # Stop the producers of commands first so the sim does not log a dead controller.
+        for node in reversed(self.nodes):
+            node.signal(signal.SIGINT)
+        deadline = time.monotonic() + STOP_TIMEOUT
+        for node in self.nodes:
+            if node.process is None:
+                continue
+            try:
+                node.process.wait(max(deadline - time.monotonic(), 0.1))
+            except subprocess.TimeoutExpired:
+                self.log(f'[launch {_stamp()}] {node.name} ignored SIGINT, killing it')
+                node.signal(signal.SIGKILL)
+                node.process.wait(5)
+            node.close()
+        self.log(f'[launch {_stamp()}] all nodes stopped')
+
+
+class ClockWatch:
+    """Follows /clock from the launcher's own process, to stop after a sim-time duration."""
+
+    def __init__(self, env: dict[str, str]) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=int(env.get('ROS_DOMAIN_ID', '0')))
+        self.node = Node('launch_clock_watch', context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.sim_time = 0.0
+        self.node.create_subscription(
+            Clock, '/clock', self._on_clock,
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+
+    def _on_clock(self, msg: Clock) -> None:
+        self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    def spin(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=max(end - time.monotonic(), 0.0))
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None = None,
+              on_tick=None) -> int:
+    """Start, supervise until the sim-time duration, Ctrl-C, a death (no respawn) or a wall
+    timeout; stop. ``on_tick(sim_time)`` is called about every 0.1 s. Returns an exit code."""
+    stop_requested = []
+
+    def request_stop(signum, _frame):
+        stop_requested.append(signum)
+
+    old_int = signal.signal(signal.SIGINT, request_stop)
+    old_term = signal.signal(signal.SIGTERM, request_stop)
+    watch = ClockWatch(graph.env)
+    code = 0
+    start_wall = time.monotonic()
+    try:
+        graph.start()
+        while not stop_requested:
+            watch.spin(0.1)
+            if on_tick is not None:
+                on_tick(watch.sim_time)
+            if not graph.poll():
+                graph.log(f'[launch {_stamp()}] --no-respawn: stopping the rest')
+                code = 1
+                break
+            if duration is not None and watch.sim_time >= duration:
+                graph.log(f'[launch {_stamp()}] reached {duration} s of sim time')
+                break
+            if wall_timeout is not None and time.monotonic() - start_wall > wall_timeout:
+                graph.log(f'[launch {_stamp()}] wall-time limit {wall_timeout} s reached at '
+                          f'sim time {watch.sim_time:.2f} s')
+                code = 3
+                break
+        if stop_requested:
+            graph.log(f'[launch {_stamp()}] signal {stop_requested[0]}: stopping')
+    finally:
+        graph.stop()
+        watch.close()
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+    return code
+
+
+def default_run_dir(root: Path) -> Path:
+    return root / 'runs' / datetime.datetime.now().strftime('%Y%m%d-%H%M%S')
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='launch.sh', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--gui', action='store_true', help='PyBullet GUI window')
+    parser.add_argument('--record', metavar='DIR', type=Path,
+                        help='record an mcap bag into DIR')
+    parser.add_argument('--params', metavar='FILE', type=Path, nargs='+', default=[],
+                        help='extra parameter YAML files (sections per node name)')
+    parser.add_argument('--duration', metavar='SIM_SECONDS', type=float,
+                        help='stop after this much sim time')
+    parser.add_argument('--no-respawn', action='store_true',
+                        help='if a node dies, stop the others and exit non-zero')
+    parser.add_argument('--run-dir', type=Path, help='folder for logs (default runs/<time>)')
+    parser.add_argument('--config-dir', type=Path,
+                        default=Path(os.environ.get('REPLAN_CONFIG', 'config')))
+    args = parser.parse_args(argv)
+    for path in args.params:
+        if not path.is_file():
+            parser.error(f'parameter file {path} does not exist')
+    root = Path(os.environ.get('REPLAN_ROOT', '.'))
+    run_dir = args.run_dir or default_run_dir(root)
+    graph = Graph(run_dir, config_dir=args.config_dir, param_files=args.params,
+                  record_dir=args.record, gui=args.gui, respawn=not args.no_respawn)
+    print(f'[launch] run folder {run_dir} (domain {os.environ.get("ROS_DOMAIN_ID", "0")})')
+    return run_graph(graph, args.duration)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,80 @@
+"""Fixtures for node-graph tests (see harness.py).
+
+- ``ros_domain``: the ROS_DOMAIN_ID reserved for this test session (also set in os.environ).
+- ``launcher``: ``launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml', params={...})``
+  starts a real node process; all are stopped (SIGINT, then SIGKILL) after the test, and their
+  logs are printed when the test failed.
+- ``probe``: a test-side rclpy node on the session domain (``probe.node``, ``spin_until``,
+  ``collect``, ``subscribe``, ``wait_for_topics``).
+- ``reserve_domain``: reserve one more domain inside a test (for isolation tests).
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+from harness import CONFIG_DIR, DomainReservation, Launcher, Probe
+
+__all__ = ['CONFIG_DIR']
+
+_session_domain: DomainReservation | None = None
+
+
+def pytest_configure(config):
+    global _session_domain  # the reservation must outlive every fixture of the session
+    if _session_domain is None:
+        _session_domain = DomainReservation()
+        os.environ['ROS_DOMAIN_ID'] = str(_session_domain.domain_id)
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+
+
+def pytest_unconfigure(config):
+    if _session_domain is not None:
+        _session_domain.release()
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    setattr(item, f'rep_{report.when}', report)
+    return report
+
+
+def _failed(request) -> bool:
+    return any(getattr(request.node, f'rep_{when}', None) is not None
+               and getattr(request.node, f'rep_{when}').failed for when in ('setup', 'call'))
+
+
+@pytest.fixture(scope='session')
+def ros_domain() -> int:
+    return _session_domain.domain_id
+
+
+@pytest.fixture
+def reserve_domain():
+    held: list[DomainReservation] = []
+
+    def reserve() -> int:
+        held.append(DomainReservation())
+        return held[-1].domain_id
+
+    yield reserve
+    for reservation in held:
+        reservation.release()
+
+
+@pytest.fixture
+def launcher(request, ros_domain, tmp_path):
+    launch = Launcher(ros_domain, tmp_path)
+    yield launch
+    launch.stop_all()
+    if _failed(request):
+        print(f'\n----- node logs (domain {ros_domain}) -----\n{launch.logs()}')
+
+
+@pytest.fixture
+def probe(ros_domain):
+    test_probe = Probe(ros_domain)
+    yield test_probe
+    test_probe.close()
