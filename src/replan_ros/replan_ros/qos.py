@@ -18,10 +18,12 @@ COMMAND = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                      reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.VOLATILE)
 
-# Input schedules (stamped set-points, pushes) may be sent in a burst ahead of time.
+# Input schedules (stamped set-points, pushes) are sent in a burst ahead of time, often before
+# the node that consumes them is up: transient local, so a late joiner still gets them all.
+# Publishers and subscribers of these topics must both use this profile.
 SCHEDULE = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                       reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE)
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 # Plans and footholds: a late joiner gets the last one.
 LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,

@@ -10,6 +10,7 @@ sim-time ``--duration`` stop everything cleanly (SIGINT, then SIGKILL after a ti
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import os
 import signal
@@ -67,10 +68,8 @@ class ManagedNode:
 
     def signal(self, sig: int) -> None:
         if self.alive:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.process.pid, sig)
-            except ProcessLookupError:
-                pass
 
     def close(self) -> None:
         if self.log_file is not None:
@@ -183,9 +182,11 @@ class ClockWatch:
 
 
 def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None = None,
-              on_tick=None) -> int:
+              on_start=None, on_tick=None) -> int:
     """Start, supervise until the sim-time duration, Ctrl-C, a death (no respawn) or a wall
-    timeout; stop. ``on_tick(sim_time)`` is called about every 0.1 s. Returns an exit code."""
+    timeout; stop. ``on_start(node)`` gets the launcher's own rclpy node before the graph
+    starts (to publish inputs); ``on_tick(sim_time)`` is called about every 0.1 s. Returns an
+    exit code: 0 done, 1 a node died without respawn, 3 wall-time limit."""
     stop_requested = []
 
     def request_stop(signum, _frame):
@@ -197,6 +198,8 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
     code = 0
     start_wall = time.monotonic()
     try:
+        if on_start is not None:
+            on_start(watch.node)
         graph.start()
         while not stop_requested:
             watch.spin(0.1)

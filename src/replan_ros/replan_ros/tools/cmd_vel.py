@@ -1,0 +1,92 @@
+"""Publish a velocity set-point on /cmd_vel, as a joystick would.
+
+    scripts/cmd_vel.sh VX VY WZ [--for SECONDS] [--rate HZ]
+
+VX, VY in m/s (body frame), WZ in rad/s. The set-point is repeated at --rate (the gait node
+stops the robot when /cmd_vel falls silent for its cmd_vel_timeout). With --for it stops after
+that many seconds of sim time (read from /clock; wall time if no clock is running), then sends
+one zero set-point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+import rclpy
+from geometry_msgs.msg import Twist
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+
+from replan_ros import qos
+from replan_ros.interfaces import stamp_to_sec
+
+
+class CmdVelPublisher(Node):
+    """Repeats one Twist set-point until a sim-time (or wall-time) deadline."""
+
+    def __init__(self, twist: Twist, rate: float) -> None:
+        super().__init__('cmd_vel_publisher')
+        self.twist = twist
+        self.sim_time: float | None = None
+        self.pub = self.create_publisher(Twist, 'cmd_vel', qos.COMMAND)
+        self.create_subscription(Clock, '/clock', self._on_clock,
+                                 QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+        self.create_timer(1.0 / rate, lambda: self.pub.publish(self.twist))
+
+    def _on_clock(self, msg: Clock) -> None:
+        self.sim_time = stamp_to_sec(msg.clock)
+
+    def elapsed_since(self, sim_start: float | None, wall_start: float) -> float:
+        if self.sim_time is not None and sim_start is not None:
+            return self.sim_time - sim_start
+        return time.monotonic() - wall_start
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='cmd_vel.sh', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('vx', type=float)
+    parser.add_argument('vy', type=float)
+    parser.add_argument('wz', type=float)
+    parser.add_argument('--for', dest='duration', type=float, metavar='SECONDS')
+    parser.add_argument('--rate', type=float, default=10.0)
+    args, ros_args = parser.parse_known_args(argv if argv is not None else sys.argv[1:])
+    if not all(math.isfinite(v) for v in (args.vx, args.vy, args.wz)):
+        parser.error('VX VY WZ must be finite numbers')
+    if args.rate <= 0 or (args.duration is not None and args.duration <= 0):
+        parser.error('--rate and --for must be positive')
+    twist = Twist()
+    twist.linear.x, twist.linear.y, twist.angular.z = args.vx, args.vy, args.wz
+    rclpy.init(args=[sys.argv[0], *ros_args])
+    node = None
+    try:
+        node = CmdVelPublisher(twist, args.rate)
+        print(f'cmd_vel: publishing vx={args.vx} m/s vy={args.vy} m/s wz={args.wz} rad/s '
+              f'at {args.rate} Hz' + (f' for {args.duration} s' if args.duration else
+                                      ' until Ctrl-C'))
+        wall_start = time.monotonic()
+        rclpy.spin_once(node, timeout_sec=0.5)
+        sim_start = node.sim_time
+        while args.duration is None or node.elapsed_since(sim_start, wall_start) < args.duration:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if sim_start is None and node.sim_time is not None:
+                sim_start = node.sim_time
+        node.pub.publish(Twist())
+        rclpy.spin_once(node, timeout_sec=0.2)
+        print('cmd_vel: done, sent a zero set-point')
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,249 @@
+"""Run a scripted scenario headless and write the bag, metrics.json and plots.
+
+    scripts/scenario.sh FILE.yaml [--out DIR] [--gui]
+
+A scenario file (see config/scenarios/ and the README):
+
+    name: forward                       # optional, for the summary
+    duration: 20.0                      # s of sim time
+    terrain: flat                       # flat | step_up | step_down | rough, or a mapping
+                                        #   {type: step_up, <sim terrain parameters>}
+    params:                             # parameter overrides per node (as in config/<node>.yaml)
+      gait: {haptic: true}
+    events:                             # timed inputs, sim time
+      - {t: 0.5, cmd_vel: [0.15, 0.0, 0.0]}            # vx, vy (m/s), wz (rad/s)
+      - {t: 8.0, push: {force: [0.0, 150.0, 0.0], duration: 0.2}}   # N, s
+
+Events are sent before the simulation starts, stamped with their sim time, on the transient-local
+schedule topics (`cmd_vel_stamped`, `external_wrench`), so the same file always gives the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+from geometry_msgs.msg import TwistStamped, WrenchStamped
+
+from replan_ros import qos
+from replan_ros.interfaces import sec_to_stamp
+from replan_ros.tools.launch_graph import Graph, run_graph
+
+NODE_NAMES = ('sim', 'gait', 'mpc', 'wbc', 'recorder')
+TOP_KEYS = {'name', 'description', 'duration', 'terrain', 'params', 'events', 'fall_limits'}
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot be run, with the reason."""
+
+
+@dataclass
+class Scenario:
+    name: str
+    duration: float
+    terrain: dict
+    params: dict[str, dict]
+    cmd_vel_events: list[tuple[float, tuple[float, float, float]]] = field(default_factory=list)
+    push_events: list[tuple[float, tuple[float, float, float], float]] = field(
+        default_factory=list)
+    fall_limits: dict = field(default_factory=dict)
+    source_text: str = ''
+
+
+def _finite_numbers(value, count: int, where: str) -> tuple[float, ...]:
+    if (not isinstance(value, (list, tuple)) or len(value) != count
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+        raise ScenarioError(f'{where}: expected a list of {count} numbers, got {value!r}')
+    if not all(math.isfinite(v) for v in value):
+        raise ScenarioError(f'{where}: non-finite value in {value!r}')
+    return tuple(float(v) for v in value)
+
+
+def parse_scenario(text: str, source: str = '<scenario>') -> Scenario:
+    """Validate a scenario document; ScenarioError says what is wrong and where."""
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ScenarioError(f'{source}: not valid YAML: {err}') from err
+    if not isinstance(doc, dict):
+        raise ScenarioError(f'{source}: the top level must be a mapping')
+    unknown = set(doc) - TOP_KEYS
+    if unknown:
+        raise ScenarioError(f'{source}: unknown keys {sorted(unknown)} (known: {sorted(TOP_KEYS)})')
+    duration = doc.get('duration')
+    if not isinstance(duration, (int, float)) or isinstance(duration, bool) or not (
+            0 < duration < 3600):
+        raise ScenarioError(f'{source}: duration must be a number of sim seconds in (0, 3600)')
+    terrain = doc.get('terrain', 'flat')
+    if isinstance(terrain, str):
+        terrain = {'type': terrain}
+    if not isinstance(terrain, dict) or not isinstance(terrain.get('type'), str):
+        raise ScenarioError(f'{source}: terrain must be a name or a mapping with a type')
+    params = doc.get('params') or {}
+    if not isinstance(params, dict) or not all(
+            isinstance(v, dict) for v in params.values()):
+        raise ScenarioError(f'{source}: params must map node names to parameter mappings')
+    bad_nodes = set(params) - set(NODE_NAMES)
+    if bad_nodes:
+        raise ScenarioError(f'{source}: params for unknown nodes {sorted(bad_nodes)}')
+    scenario = Scenario(name=str(doc.get('name', Path(source).stem)), duration=float(duration),
+                        terrain=terrain, params=params, fall_limits=doc.get('fall_limits') or {},
+                        source_text=text)
+    for i, event in enumerate(doc.get('events') or []):
+        where = f'{source}: events[{i}]'
+        if not isinstance(event, dict) or 't' not in event:
+            raise ScenarioError(f'{where}: each event needs a time t')
+        t = event['t']
+        if not isinstance(t, (int, float)) or isinstance(t, bool) or not 0 <= t <= duration:
+            raise ScenarioError(f'{where}: t must be within [0, duration]')
+        kinds = set(event) - {'t'}
+        if kinds == {'cmd_vel'}:
+            scenario.cmd_vel_events.append((float(t), _finite_numbers(
+                event['cmd_vel'], 3, f'{where}.cmd_vel')))
+        elif kinds == {'push'}:
+            push = event['push']
+            if not isinstance(push, dict) or set(push) != {'force', 'duration'}:
+                raise ScenarioError(f'{where}.push: needs exactly force and duration')
+            force = _finite_numbers(push['force'], 3, f'{where}.push.force')
+            length = _finite_numbers([push['duration']], 1, f'{where}.push.duration')[0]
+            if length <= 0:
+                raise ScenarioError(f'{where}.push.duration must be positive')
+            scenario.push_events.append((float(t), force, length))
+        else:
+            raise ScenarioError(f'{where}: an event is either cmd_vel or push, got {sorted(kinds)}')
+    return scenario
+
+
+def load_scenario(path: Path) -> Scenario:
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise ScenarioError(f'cannot read {path}: {err}') from err
+    return parse_scenario(text, str(path))
+
+
+def params_document(scenario: Scenario) -> dict:
+    """The parameter override file of the run: per-node params plus the terrain for the sim."""
+    doc: dict = {}
+    for node, values in scenario.params.items():
+        doc.setdefault(node, {'ros__parameters': {}})['ros__parameters'].update(values)
+    sim = doc.setdefault('sim', {'ros__parameters': {}})['ros__parameters']
+    sim['terrain'] = scenario.terrain['type']
+    for key, value in scenario.terrain.items():
+        if key != 'type':
+            sim[f'terrain_{key}'] = value
+    return doc
+
+
+class EventPublisher:
+    """Publishes the scenario's inputs up front, stamped with their sim times."""
+
+    def __init__(self, node, scenario: Scenario) -> None:
+        self.cmd_pub = node.create_publisher(TwistStamped, 'cmd_vel_stamped', qos.SCHEDULE)
+        self.wrench_pub = node.create_publisher(WrenchStamped, 'external_wrench', qos.SCHEDULE)
+        self.scenario = scenario
+
+    def publish_all(self) -> int:
+        count = 0
+        for t, (vx, vy, wz) in sorted(self.scenario.cmd_vel_events):
+            msg = TwistStamped()
+            msg.header.stamp = sec_to_stamp(t)
+            msg.header.frame_id = 'base_link'
+            msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z = vx, vy, wz
+            self.cmd_pub.publish(msg)
+            count += 1
+        for t, force, length in sorted(self.scenario.push_events):
+            for stamp, f in ((t, force), (t + length, (0.0, 0.0, 0.0))):
+                msg = WrenchStamped()
+                msg.header.stamp = sec_to_stamp(stamp)
+                msg.header.frame_id = 'odom'
+                msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = f
+                self.wrench_pub.publish(msg)
+                count += 1
+        return count
+
+
+def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
+                 config_dir: Path | None = None, extra_param_files: list[Path] = (),
+                 log=print) -> dict:
+    """Run, then analyse; returns the metrics (also written to out_dir/metrics.json)."""
+    from replan_ros.tools.run_analysis import analyse_run  # matplotlib only when needed
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / 'scenario.yaml').write_text(scenario.source_text)
+    params_file = out_dir / 'params.yaml'
+    params_file.write_text(yaml.safe_dump(params_document(scenario), sort_keys=False))
+    config_dir = config_dir or Path(os.environ.get('REPLAN_CONFIG', 'config'))
+    bag_dir = out_dir / 'bag'
+    graph = Graph(out_dir, config_dir=config_dir,
+                  param_files=[params_file, *extra_param_files], record_dir=bag_dir,
+                  gui=gui, respawn=False,
+                  extra_params={'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}},
+                  log=log)
+    def publish_events(node) -> None:
+        count = EventPublisher(node, scenario).publish_all()
+        log(f'[scenario] sent {count} timed inputs')
+
+    wall_start = time.monotonic()
+    code = run_graph(graph, scenario.duration,
+                     wall_timeout=max(300.0, 20.0 * scenario.duration), on_start=publish_events)
+    wall = time.monotonic() - wall_start
+    metrics = analyse_run(bag_dir, scenario, out_dir, launch_exit_code=code,
+                          dead_nodes=graph.failed, wall_time_total=wall)
+    (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2))
+    return metrics
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='scenario.sh', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('scenario', type=Path)
+    parser.add_argument('--out', type=Path, help='output folder (default runs/<name>-<time>)')
+    parser.add_argument('--gui', action='store_true')
+    parser.add_argument('--params', type=Path, nargs='+', default=[],
+                        help='extra parameter files, applied after the scenario\'s')
+    args = parser.parse_args(argv)
+    try:
+        scenario = load_scenario(args.scenario)
+    except ScenarioError as err:
+        print(f'scenario: {err}', file=sys.stderr)
+        return 2
+    root = Path(os.environ.get('REPLAN_ROOT', '.'))
+    out = args.out or root / 'runs' / f'{scenario.name}-{time.strftime("%Y%m%d-%H%M%S")}'
+    print(f'[scenario] {scenario.name}: {scenario.duration} s of sim time, output in {out}')
+    metrics = run_scenario(scenario, out, gui=args.gui, extra_param_files=args.params)
+    print(summary(metrics, out))
+    return 0 if metrics.get('completed') else 1
+
+
+def summary(metrics: dict, out: Path) -> str:
+    fall = f'FELL ({metrics.get("fall_reason", "")})' if metrics.get('fell') else 'no fall'
+    lines = [f'[scenario] {metrics.get("scenario")}: {fall}'
+             f', {metrics.get("sim_time_s", 0):.1f} s sim in {metrics.get("wall_time_s", 0):.1f} s '
+             f'wall (real-time factor {metrics.get("real_time_factor", 0):.2f})',
+             f'  distance {metrics.get("distance_m", 0):.2f} m, re-plans {metrics.get("replans")}, '
+             f'MPC solve median {metrics.get("mpc_solve_ms_median")} ms, '
+             f'p99 {metrics.get("mpc_solve_ms_p99")} ms, '
+             f'min ZMP margin {metrics.get("min_zmp_margin_m")} m']
+    for seg in metrics.get('velocity_tracking', []):
+        if seg.get('achieved') is None:
+            continue
+        cmd = ', '.join(f'{c:+.2f}' for c in seg['commanded'])
+        ach = ', '.join(f'{c:+.3f}' for c in seg['achieved'])
+        lines.append(f'  {seg["start_s"]:5.1f}-{seg["end_s"]:5.1f} s  commanded ({cmd})  '
+                     f'achieved ({ach})')
+    if metrics.get('dead_nodes'):
+        lines.append(f'  nodes that died: {metrics["dead_nodes"]}')
+    lines.append(f'  bag: {out / "bag"}   metrics: {out / "metrics.json"}   plots: {out}/*.png')
+    return '\n'.join(lines)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
