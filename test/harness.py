@@ -97,7 +97,8 @@ class NodeProcess:
         return self.process.poll() is None
 
     def log(self) -> str:
-        self._log_file.flush()
+        if not self._log_file.closed:
+            self._log_file.flush()
         return self.log_path.read_text(errors='replace')
 
     def signal(self, sig: int) -> None:
