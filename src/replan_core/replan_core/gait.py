@@ -1,0 +1,308 @@
+"""Crawl gait schedule and foothold planner (Algorithm 1: gaitSchedule.next, compFootholds).
+
+A crawl moves one leg at a time, in a fixed sequence (default LH, LF, RH, RF), with a
+four-feet phase of ``four_feet_duration`` before every swing of ``swing_duration``. A re-plan
+at time ``t0`` (a touchdown) asks for the next ``n`` steps starting with the leg after the one
+that just touched down.
+
+Footholds come from a reference trunk trajectory: the actual base pose at ``t0`` moved with the
+velocity set-point (vx, vy in the body frame, wz), i.e. along an arc. The reference foot of a
+leg is its hip plus the nominal stance offset, both rotated by the reference yaw about the
+reference base position. Each foothold is the reference foot at the middle of the coming
+stance (Raibert-style: the hip position at touchdown plus half the distance the trunk travels
+while the foot is on the ground, evaluated along the arc, so turning is exact), so the foot
+stays symmetric about its hip over its stance.
+
+Foothold correction (section V.B): the first foothold of each leg in the horizon is placed about
+the *actual* hip; without it, it is the foot's previous (actual) position plus one stride. The
+later footholds of a leg are its previous foothold plus one stride in both cases.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from replan_core.types import LEGS, FootholdPlan, Step
+
+# HyQ hips (haa joints) in the base frame, m, leg order LF, RF, LH, RH.
+HYQ_HIP_OFFSETS: tuple[tuple[float, float], ...] = (
+    (0.3735, 0.207), (0.3735, -0.207), (-0.3735, 0.207), (-0.3735, -0.207))
+
+# Nominal feet about the hips, base frame xy, m: HyQ standing with haa = -0.2 rad.
+HYQ_STANCE_OFFSETS: tuple[tuple[float, float], ...] = (
+    (0.0, 0.117), (0.0, -0.117), (0.0, 0.117), (0.0, -0.117))
+
+# Default crawl sequence LH, LF, RH, RF as leg indices.
+DEFAULT_SEQUENCE: tuple[int, ...] = (LEGS.index('lh'), LEGS.index('lf'),
+                                     LEGS.index('rh'), LEGS.index('rf'))
+
+_EPS = 1e-9
+
+
+@dataclass
+class GaitParams:
+    """Crawl parameters. Times in s, lengths in m, velocities in m/s and rad/s.
+
+    Defaults: one step per second (0.5 s swing + 0.5 s four-feet phase), so the paper's 8
+    footholds span its 8 s MPC horizon; a cycle of 4 s; at the 0.15 m/s target each foot moves
+    0.6 m per step and stays within +-0.26 m of its hip along x (HFE-to-sole 0.57 m, standing
+    0.51 m, of HyQ's 0.70 m straight leg at the 0.6 m standing trunk height). Velocity limits
+    are chosen so that a full cycle never exceeds the step-length limits: 0.15 * 4 = 0.6 <= 0.65
+    and 0.10 * 4 = 0.4 <= 0.45; combinations are scaled down by ``clamp_velocity``.
+    """
+
+    swing_duration: float = 0.5            # s, one swing
+    four_feet_duration: float = 0.5        # s, all four feet down before each swing
+    step_height: float = 0.10              # m, apex above the higher of lift-off and target
+    sequence: tuple[int, ...] = DEFAULT_SEQUENCE   # swing order, leg indices
+    hip_offsets: tuple[tuple[float, float], ...] = HYQ_HIP_OFFSETS   # m, base frame xy
+    # m, nominal foot about its hip, base frame xy: the simulator's standing pose (config/sim.yaml,
+    # haa -0.2 rad) puts the feet 0.117 m outside the hips, a wider base for the support triangles.
+    stance_offsets: tuple[tuple[float, float], ...] = HYQ_STANCE_OFFSETS
+    max_step_length_x: float = 0.65        # m, |foot displacement| per step, body x
+    max_step_length_y: float = 0.45        # m, |foot displacement| per step, body y
+    max_linear_x: float = 0.15             # m/s, |vx| limit of the set-point
+    max_linear_y: float = 0.10             # m/s, |vy| limit
+    max_angular_z: float = 0.25            # rad/s, |wz| limit
+    n_footholds: int = 8                   # steps per plan (paper: 8 over an 8 s horizon)
+    replan_window: int = 1                 # K: re-plan at every K-th touchdown (paper: 1)
+    haptic: bool = True                    # swings end at sensed contact (section V.A)
+    foothold_correction: bool = True       # section V.B
+
+    @property
+    def step_period(self) -> float:
+        """s, time from one touchdown to the next."""
+        return self.swing_duration + self.four_feet_duration
+
+    @property
+    def cycle_duration(self) -> float:
+        """s, time between two lift-offs of the same leg."""
+        return len(self.sequence) * self.step_period
+
+    @property
+    def stance_duration(self) -> float:
+        """s, time a foot stays on the ground between its touchdown and its next lift-off."""
+        return self.cycle_duration - self.swing_duration
+
+    def validate(self) -> None:
+        """ValueError on inconsistent parameters."""
+        if sorted(self.sequence) != [0, 1, 2, 3]:
+            raise ValueError(f'sequence must hold each leg once, got {self.sequence}')
+        if self.swing_duration <= 0 or self.four_feet_duration < 0:
+            raise ValueError('swing_duration must be > 0 and four_feet_duration >= 0')
+        if self.n_footholds < 1 or self.replan_window < 1:
+            raise ValueError('n_footholds and replan_window must be >= 1')
+        if len(self.hip_offsets) != 4 or len(self.stance_offsets) != 4:
+            raise ValueError('hip_offsets and stance_offsets need one (x, y) per leg')
+        values = (self.step_height, self.max_step_length_x, self.max_step_length_y,
+                  self.max_linear_x, self.max_linear_y, self.max_angular_z)
+        if not all(math.isfinite(v) and v >= 0 for v in values):
+            raise ValueError('heights, step-length and velocity limits must be finite, >= 0')
+
+
+@dataclass
+class CrawlSchedule:
+    """gaitSchedule of Algorithm 1: which leg swings next; survives re-plans."""
+
+    sequence: tuple[int, ...] = DEFAULT_SEQUENCE
+    next_leg: int = field(default=-1)
+
+    def __post_init__(self) -> None:
+        if self.next_leg < 0:
+            self.next_leg = self.sequence[0]
+
+    def successor(self, leg: int) -> int:
+        """The leg that swings after ``leg``."""
+        return self.sequence[(self.sequence.index(leg) + 1) % len(self.sequence)]
+
+    def touched_down(self, leg: int) -> int:
+        """Record that ``leg`` ended its swing; returns the next leg to swing."""
+        self.next_leg = self.successor(leg)
+        return self.next_leg
+
+
+def _cycle_displacements(twist: np.ndarray, params: GaitParams) -> np.ndarray:
+    """(4, 2) displacement of each nominal foot over one cycle at a constant ``twist``, in the
+    body frame at the end of the cycle (the same for every cycle)."""
+    ref = ReferenceTrajectory(0.0, np.zeros(2), 0.0, twist)
+    nominal = np.asarray(params.hip_offsets, dtype=float) + np.asarray(params.stance_offsets)
+    _, yaw = ref.pose(params.cycle_duration)
+    return np.array([_rot(yaw).T @ (ref.foot(params.cycle_duration, off) - ref.foot(0.0, off))
+                     for off in nominal])
+
+
+def clamp_velocity(set_point, params: GaitParams) -> np.ndarray:
+    """(vx, vy, wz) within the limits; ValueError if a value is not finite.
+
+    Each component is clipped to its limit; then, if the combination asks for steps longer than
+    the step-length limits (e.g. walking and turning at once: the outer feet travel further),
+    the whole twist is scaled down (same turning radius) until every foot's stride fits.
+    """
+    v = np.asarray(set_point, dtype=float).reshape(3)
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f'non-finite velocity set-point {v.tolist()}')
+    limits = np.array([params.max_linear_x, params.max_linear_y, params.max_angular_z])
+    v = np.clip(v, -limits, limits)
+    step_limits = np.array([params.max_step_length_x, params.max_step_length_y]) + _EPS
+
+    def fits(scale: float) -> bool:
+        return bool(np.all(np.abs(_cycle_displacements(scale * v, params)) <= step_limits))
+
+    if fits(1.0):
+        return v
+    low, high = 0.0, 1.0          # bisection on the scale: fits(low) holds, fits(high) not
+    for _ in range(40):
+        mid = 0.5 * (low + high)
+        if fits(mid):
+            low = mid
+        else:
+            high = mid
+    return v * low
+
+
+def _rot(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+@dataclass
+class ReferenceTrajectory:
+    """Trunk reference: pose at ``t0`` moved with a constant body twist (vx, vy, wz) from
+    ``t0 + delay`` on (an arc). Before that it stands; with ``delay == 0`` it extends backward
+    along the same arc (used for the previous stride of a foot)."""
+
+    t0: float
+    position: np.ndarray              # (2,) m, world xy at t0
+    yaw: float                        # rad at t0
+    twist: np.ndarray                 # (3,) vx, vy (m/s, body), wz (rad/s)
+    delay: float = 0.0                # s
+
+    def _moving_time(self, t: float) -> float:
+        s = t - self.t0 - self.delay
+        return max(s, 0.0) if self.delay > 0.0 else s
+
+    def pose(self, t: float) -> tuple[np.ndarray, float]:
+        """Reference base xy (2,) and yaw at sim time ``t``."""
+        s = self._moving_time(t)
+        vx, vy, wz = self.twist
+        yaw = self.yaw + wz * s
+        theta = wz * s
+        # Integral of R(yaw0 + wz u) du over [0, s] = R(yaw0) @ [[a, -b], [b, a]] * s with
+        # a = sin(theta) / theta, b = (1 - cos(theta)) / theta; series near theta = 0.
+        if abs(theta) < 1e-6:
+            a, b = 1.0 - theta**2 / 6.0, theta / 2.0
+        else:
+            a, b = math.sin(theta) / theta, (1.0 - math.cos(theta)) / theta
+        local = np.array([a * vx - b * vy, b * vx + a * vy]) * s
+        return self.position + _rot(self.yaw) @ local, yaw
+
+    def foot(self, t: float, offset_xy: np.ndarray) -> np.ndarray:
+        """World xy of a point fixed to the reference trunk at ``offset_xy`` (base frame)."""
+        p, yaw = self.pose(t)
+        return p + _rot(yaw) @ offset_xy
+
+
+def _clamp_step(prev_xy: np.ndarray, target_xy: np.ndarray, yaw: float,
+                params: GaitParams) -> np.ndarray:
+    """Limit the foot displacement per step, in the reference body frame."""
+    d_body = _rot(yaw).T @ (target_xy - prev_xy)
+    d_body = np.clip(d_body, [-params.max_step_length_x, -params.max_step_length_y],
+                     [params.max_step_length_x, params.max_step_length_y])
+    return prev_xy + _rot(yaw) @ d_body
+
+
+def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_position: np.ndarray,
+                      base_yaw: float, hips: np.ndarray | None, next_leg: int,
+                      start_time: float, params: GaitParams, n: int | None = None,
+                      delay: float = 0.0) -> FootholdPlan:
+    """compFootholds of Algorithm 1: the next ``n`` steps from the actual state at ``start_time``.
+
+    velocity_set_point: (vx, vy, wz), body frame, m/s and rad/s; clamped to the limits.
+    initial_feet: (4, 3) actual feet, world, all in stance at ``start_time``.
+    base_position, base_yaw: actual base (3,) world and yaw (rad) at ``start_time``.
+    hips: (4, 3) actual hip positions, world (used by foothold correction); None: from the base
+        pose and ``params.hip_offsets``.
+    next_leg: the leg that swings first (its lift-off comes after a four-feet phase).
+    delay: s of standing before the first lift-off and before the reference starts to move
+        (the start of a run); 0 for a re-plan at a touchdown.
+    Footholds keep each foot's actual height (flat terrain).
+    """
+    params.validate()
+    n = params.n_footholds if n is None else int(n)
+    feet = np.asarray(initial_feet, dtype=float).reshape(4, 3).copy()
+    base_xy = np.asarray(base_position, dtype=float).reshape(-1)[:2]
+    hip_offsets = np.asarray(params.hip_offsets, dtype=float)
+    stance = np.asarray(params.stance_offsets, dtype=float)
+    if hips is None:
+        hips_xy = base_xy + hip_offsets @ _rot(base_yaw).T
+    else:
+        hips_xy = np.asarray(hips, dtype=float).reshape(4, 3)[:, :2]
+    twist = clamp_velocity(velocity_set_point, params)
+    ref = ReferenceTrajectory(start_time, base_xy.copy(), float(base_yaw), twist, float(delay))
+    half_stance = 0.5 * params.stance_duration
+
+    plan = FootholdPlan(start_time=start_time, initial_feet=feet.copy(),
+                        initial_yaw=float(base_yaw))
+    last_xy = {leg: feet[leg, :2].copy() for leg in range(4)}   # previous foothold per leg
+    last_mid: dict[int, float] = {}                             # its mid-stance time
+    order = params.sequence
+    if next_leg not in order:
+        raise ValueError(f'next_leg {next_leg} is not in the sequence {order}')
+    k0 = order.index(next_leg)
+    # The first lift-off comes after a four-feet phase (or the standing delay at the start).
+    next_liftoff = start_time + max(float(delay), params.four_feet_duration)
+    for j in range(n):
+        leg = order[(k0 + j) % len(order)]
+        liftoff = next_liftoff
+        touchdown = liftoff + params.swing_duration
+        next_liftoff = touchdown + params.four_feet_duration
+        mid = touchdown + half_stance                 # middle of the coming stance
+        offset = hip_offsets[leg] + stance[leg]
+        _, yaw_td = ref.pose(touchdown)
+        if leg in last_mid:
+            # Later footholds of a leg: previous foothold plus one stride of the reference.
+            target = last_xy[leg] + ref.foot(mid, offset) - ref.foot(last_mid[leg], offset)
+        elif params.foothold_correction:
+            # First foothold, corrected: about the actual hip, moved as the reference hip moves.
+            hip_now = ref.foot(start_time, hip_offsets[leg])
+            hip_mid = ref.foot(mid, hip_offsets[leg])
+            _, yaw_mid = ref.pose(mid)
+            target = hips_xy[leg] + (hip_mid - hip_now) + _rot(yaw_mid) @ stance[leg]
+        else:
+            # First foothold, uncorrected: the foot's actual position plus one stride.
+            prev_mid = mid - params.cycle_duration
+            target = last_xy[leg] + ref.foot(mid, offset) - ref.foot(prev_mid, offset)
+        target = _clamp_step(last_xy[leg], target, yaw_td, params)
+        last_xy[leg] = target
+        last_mid[leg] = mid
+        plan.steps.append(Step(
+            leg=leg, liftoff_time=liftoff, touchdown_time=touchdown,
+            target=np.array([target[0], target[1], feet[leg, 2]]),
+            step_height=params.step_height, haptic=params.haptic,
+            replan=(j + 1) % params.replan_window == 0, yaw=yaw_td))
+    return plan
+
+
+def stance_phases(plan: FootholdPlan) -> list[tuple[float, float, np.ndarray, np.ndarray]]:
+    """Support phases of a plan: (t_start, t_end, feet (4, 3), in_stance (4,) bool) each.
+
+    Phases follow the planned times: four feet, then three during each swing, ...; the last
+    four-feet phase has ``t_end = inf`` (the final stance holds).
+    """
+    feet = plan.initial_feet.copy()
+    phases = []
+    t = plan.start_time
+    for step in plan.steps:
+        all_down = np.ones(4, dtype=bool)
+        if step.liftoff_time > t + _EPS:
+            phases.append((t, step.liftoff_time, feet.copy(), all_down))
+        swing = all_down.copy()
+        swing[step.leg] = False
+        phases.append((step.liftoff_time, step.touchdown_time, feet.copy(), swing))
+        feet[step.leg] = step.target
+        t = step.touchdown_time
+    phases.append((t, math.inf, feet.copy(), np.ones(4, dtype=bool)))
+    return phases

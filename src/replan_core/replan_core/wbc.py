@@ -1,0 +1,454 @@
+"""Whole-body controller: CoM/trunk tracking by force distribution + swing-foot impedance.
+
+One ``WholeBodyController`` is built once (pinocchio data through ``RobotModel``, one proxsuite
+QP of fixed size) and ``compute`` is called once per control tick (250 Hz):
+
+- stance legs: a QP distributes the ground reaction forces (GRF) ``f`` (4 x 3, world axes) over
+  the stance feet to realise the desired CoM acceleration (plan feed-forward + PD on the CoM
+  error) and the trunk angular acceleration (PD on the orientation: level roll/pitch, commanded
+  yaw), with unilateral contact ``fz >= fz_min`` and inner linearised friction pyramids; swing
+  feet are forced to ``f = 0`` by the box bounds, so the QP keeps its 12 variables every tick and
+  is only updated and warm started. Torques ``tau_leg = -J_leg^T f_leg + h_leg``: the foot pushes
+  the ground with ``-f`` and ``h`` (pinocchio nonLinearEffects) compensates the leg's own
+  gravity and Coriolis terms;
+- swing legs: Cartesian impedance ``J^T (Kp e + Kd de)`` plus the feed-forward of the reference
+  acceleration through the leg's inverse dynamics, plus ``h_leg``;
+- torques are clipped to the URDF effort limits; any non-finite intermediate result gives a
+  joint-space stand (PD to the last good posture + gravity), reported in the result.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+import proxsuite
+
+from replan_core.contact import StepEvent, StepTracker
+from replan_core.robot_model import GRAVITY, RobotModel, quaternion_to_matrix
+from replan_core.swing import swing_reference as swing_trajectory
+from replan_core.types import LEGS, BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
+
+N_LEGS = len(LEGS)
+_INF = 1e20  # proxsuite's "no bound"
+
+
+@dataclass
+class WbcParams:
+    """Gains and limits of the whole-body controller (the node fills them from config/wbc.yaml)."""
+
+    com_kp: np.ndarray = field(default_factory=lambda: np.array([150.0, 150.0, 250.0]))  # 1/s^2
+    com_kd: np.ndarray = field(default_factory=lambda: np.array([25.0, 25.0, 35.0]))     # 1/s
+    trunk_kp: np.ndarray = field(
+        default_factory=lambda: np.array([250.0, 250.0, 150.0]))   # 1/s^2, roll pitch yaw
+    trunk_kd: np.ndarray = field(default_factory=lambda: np.array([35.0, 35.0, 25.0]))  # 1/s
+    swing_kp: np.ndarray = field(default_factory=lambda: np.array([1500.0, 1500.0, 1500.0]))  # N/m
+    swing_kd: np.ndarray = field(default_factory=lambda: np.array([50.0, 50.0, 50.0]))  # N s/m
+    friction: float = 0.6           # friction coefficient mu; the pyramid uses mu / sqrt(2)
+    fz_min: float = 10.0            # N, least normal force of a stance foot
+    fz_max: float = 800.0           # N, largest normal force of a stance foot
+    weight_force: float = 1.0       # QP weight of the linear (force) rows, 1/N^2
+    weight_moment: float = 10.0     # QP weight of the angular (moment) rows, 1/(N m)^2
+    regularization: float = 1e-4    # QP weight of |f|^2: spreads the load, keeps H definite
+    haptic_velocity: float = 0.15   # m/s, descent of a haptic swing foot after planned touchdown
+    fallback_kp: float = 300.0      # N m/rad, joint PD of the safe stand
+    fallback_kd: float = 10.0       # N m s/rad
+    qp_max_iter: int = 200
+    qp_eps_abs: float = 1e-6
+
+
+@dataclass
+class SwingReference:
+    """Desired world position, velocity and acceleration of one swing foot."""
+
+    leg: int
+    position: np.ndarray        # (3,) m
+    velocity: np.ndarray        # (3,) m/s
+    acceleration: np.ndarray    # (3,) m/s^2
+
+
+@dataclass
+class WbcResult:
+    """Torques of one tick and their diagnostics."""
+
+    torque: np.ndarray              # (12,) N m, JOINT_NAMES order, clipped, always finite
+    forces: np.ndarray              # (4, 3) N, planned GRF per foot (world axes)
+    com_error: np.ndarray           # (3,) m, desired - actual CoM
+    com_velocity_error: np.ndarray  # (3,) m/s
+    orientation_error: np.ndarray   # (3,) rad, rotation vector desired * actual^T (world)
+    swing_error: np.ndarray         # (4,) m, |desired - actual| of swing feet (0 for stance)
+    stance: np.ndarray              # (4,) bool, legs in the force distribution
+    active_contacts: np.ndarray     # (4,) bool, sensed contact flags
+    qp_status: str                  # 'solved', 'max_iter', 'primal_infeasible', ...
+    qp_iterations: int
+    fallback: bool                  # True: a numerical failure, the safe stand was applied
+    message: str                    # why the fallback was used ('' otherwise)
+    compute_time: float             # s, wall time of compute()
+    saturated: int                  # number of joints clipped to the effort limit
+
+
+def skew(vector: np.ndarray) -> np.ndarray:
+    """Cross-product matrix: skew(a) @ b == a x b."""
+    x, y, z = vector
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def yaw_of(quaternion: np.ndarray) -> float:
+    """Yaw (rad) of a quaternion (x, y, z, w), ZYX convention."""
+    x, y, z, w = quaternion
+    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+def haptic_reference(touchdown_position: np.ndarray, touchdown_time: float, t: float,
+                     velocity: float, leg: int) -> SwingReference:
+    """Haptic mode after the planned touchdown: keep descending at ``velocity`` (m/s) until
+    contact is sensed (the caller switches the leg to stance then)."""
+    dt = max(t - touchdown_time, 0.0)
+    position = np.asarray(touchdown_position, dtype=float) + np.array([0.0, 0.0, -velocity * dt])
+    return SwingReference(leg, position, np.array([0.0, 0.0, -velocity]), np.zeros(3))
+
+
+def swing_reference(step: Step, liftoff_position: np.ndarray, t: float,
+                    trajectory: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]],
+                    haptic_velocity: float) -> SwingReference:
+    """Reference of the swing foot of ``step`` at time ``t``.
+
+    ``trajectory(start, target, liftoff_time, touchdown_time, step_height, t)`` gives position,
+    velocity, acceleration (``replan_core.swing``). Past the planned touchdown a haptic step keeps
+    descending (``haptic_reference``); a non-haptic one holds the target.
+    """
+    if t <= step.touchdown_time:
+        p, v, a = trajectory(np.asarray(liftoff_position, dtype=float), step.target,
+                             step.liftoff_time, step.touchdown_time, step.step_height, t)
+        return SwingReference(step.leg, np.asarray(p, dtype=float), np.asarray(v, dtype=float),
+                              np.asarray(a, dtype=float))
+    if step.haptic:
+        return haptic_reference(step.target, step.touchdown_time, t, haptic_velocity, step.leg)
+    return SwingReference(step.leg, np.asarray(step.target, dtype=float), np.zeros(3),
+                          np.zeros(3))
+
+
+Reference = tuple[tuple[np.ndarray, np.ndarray, np.ndarray], float, np.ndarray,
+                  tuple[SwingReference, ...]]
+
+
+class PlanFollower:
+    """Turns one (FootholdPlan, ComPlan) pair into ``compute`` arguments, tick by tick.
+
+    Swing/stance comes from ``contact.StepTracker`` fed with the sensed contact flags: the same
+    rule as the gait node, so both agree on every touchdown and on when a re-plan is due. The
+    swing reference starts at the foot position sensed at the actual lift-off tick; a haptic
+    swing keeps its planned duration from the actual lift-off, then descends (haptic mode); a
+    non-haptic one lands at its planned touchdown time (the tracker ends it there).
+    """
+
+    def __init__(self, footholds: FootholdPlan, com_plan: ComPlan,
+                 min_swing_fraction: float = 0.5, max_extension: float = 0.3,
+                 haptic_velocity: float = 0.15) -> None:
+        self.footholds = footholds
+        self.com_plan = com_plan
+        self.tracker = StepTracker(footholds, min_swing_fraction, max_extension)
+        self.haptic_velocity = haptic_velocity
+        self._liftoff_position: dict[int, np.ndarray] = {}
+        self._yaw = footholds.initial_yaw
+
+    def update(self, t: float, contacts: ContactState) -> list[StepEvent]:
+        """Feed the tick at ``t``; returns its lift-off/touchdown events."""
+        events = self.tracker.update(t, contacts.contact)
+        for event in events:
+            if event.kind == 'liftoff':
+                self._liftoff_position[event.step] = np.array(
+                    contacts.foot_position[event.leg], dtype=float)
+            else:
+                self._yaw = self.footholds.steps[event.step].yaw   # from this touchdown on
+        return events
+
+    @property
+    def replan_due(self) -> bool:
+        """A step with ``replan`` touched down at the last processed tick."""
+        return self.tracker.replan_due
+
+    def references(self, t: float) -> Reference:
+        """CoM reference, yaw, stance flags (4,) and swing references at ``t``."""
+        com_ref = self.com_plan.sample(t)
+        stance = np.ones(N_LEGS, dtype=bool)
+        swing: tuple[SwingReference, ...] = ()
+        index = self.tracker.active
+        if index is not None:
+            step = self.footholds.steps[index]
+            liftoff = self.tracker.liftoff_tick[index]
+            start = self._liftoff_position.get(index, step.target)
+            if step.haptic:
+                touchdown = liftoff + (step.touchdown_time - step.liftoff_time)
+            else:
+                touchdown = max(step.touchdown_time, liftoff + 1e-3)
+            timed = Step(step.leg, liftoff, touchdown, step.target, step.step_height,
+                         step.haptic, step.replan, step.yaw)
+            stance[step.leg] = False
+            swing = (swing_reference(timed, start, t, swing_trajectory, self.haptic_velocity),)
+        return com_ref, self._yaw, stance, swing
+
+
+class StandHold:
+    """Stable stand with the feet where they are: no plan, an old plan or stale inputs.
+
+    Holds the CoM (position at entry, zero velocity) and the trunk yaw at entry; legs in
+    contact stand; a leg in the air descends from where it was (haptic descent) until contact,
+    then stands for good.
+    """
+
+    def __init__(self, t: float, com: np.ndarray, yaw: float, contacts: ContactState,
+                 haptic_velocity: float = 0.15) -> None:
+        self.start_time = t
+        self.com = np.array(com, dtype=float)
+        self.yaw = float(yaw)
+        self.feet = np.array(contacts.foot_position, dtype=float)
+        self.standing = np.array(contacts.contact, dtype=bool)
+        self.haptic_velocity = haptic_velocity
+
+    def references(self, t: float, contacts: ContactState) -> Reference:
+        self.standing |= np.asarray(contacts.contact, dtype=bool)
+        stance = self.standing.copy() if self.standing.any() else np.ones(N_LEGS, dtype=bool)
+        swing = tuple(haptic_reference(self.feet[i], self.start_time, t, self.haptic_velocity, i)
+                      for i in range(N_LEGS) if not stance[i])
+        return (self.com, np.zeros(3), np.zeros(3)), self.yaw, stance, swing
+
+
+class WholeBodyController:
+    """Force-distribution QP + swing impedance; build once, ``compute`` every tick."""
+
+    def __init__(self, robot: RobotModel | str, params: WbcParams | None = None) -> None:
+        self.robot = robot if isinstance(robot, RobotModel) else RobotModel(robot)
+        self.params = params if params is not None else WbcParams()
+        self.model = self.robot.model
+        self.data = self.robot.data
+        self.mass = self.robot.total_mass
+        self._leg_v = self.robot.leg_v_index           # (4, 3) columns of each leg in v
+        self._limit = self.robot.effort_limit.copy()
+        self._hold_q: np.ndarray | None = None         # last good posture for the fallback
+        self._hold_torque = np.zeros(len(self._limit))  # last good stance torque (feed-forward)
+        self._build_qp()
+
+    # ------------------------------------------------------------------------------ QP setup
+    def _build_qp(self) -> None:
+        """One dense QP, 12 force variables, 16 friction rows, box bounds; built once."""
+        p = self.params
+        mu = p.friction / np.sqrt(2.0)      # inner pyramid of the friction cone
+        c = np.zeros((4 * N_LEGS, 3 * N_LEGS))
+        for i in range(N_LEGS):
+            rows = slice(4 * i, 4 * i + 4)
+            c[rows, 3 * i:3 * i + 3] = [[1.0, 0.0, -mu], [-1.0, 0.0, -mu],
+                                        [0.0, 1.0, -mu], [0.0, -1.0, -mu]]
+        self._c = c
+        self._l = np.full(4 * N_LEGS, -_INF)
+        self._u = np.zeros(4 * N_LEGS)                  # |fx|, |fy| <= mu fz
+        self._wrench_map = np.zeros((6, 3 * N_LEGS))    # [sum f; sum (p_i - c) x f_i]
+        for i in range(N_LEGS):
+            self._wrench_map[0:3, 3 * i:3 * i + 3] = np.eye(3)
+        self._weights = np.array([p.weight_force] * 3 + [p.weight_moment] * 3)
+        self._qp = proxsuite.proxqp.dense.QP(3 * N_LEGS, 0, 4 * N_LEGS, True)
+        self._qp.settings.eps_abs = p.qp_eps_abs
+        self._qp.settings.eps_rel = 0.0
+        self._qp.settings.max_iter = p.qp_max_iter
+        self._qp.settings.verbose = False
+        self._qp_initialized = False
+        self._qp_stance: tuple[bool, ...] = ()
+
+    def _bounds(self, stance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = self.params
+        lower = np.zeros(3 * N_LEGS)
+        upper = np.zeros(3 * N_LEGS)
+        for i in range(N_LEGS):
+            if stance[i]:
+                tangential = p.friction * p.fz_max
+                lower[3 * i:3 * i + 3] = (-tangential, -tangential, p.fz_min)
+                upper[3 * i:3 * i + 3] = (tangential, tangential, p.fz_max)
+        return lower, upper
+
+    def _solve_forces(self, feet: np.ndarray, com: np.ndarray, wrench: np.ndarray,
+                      stance: np.ndarray) -> tuple[np.ndarray, str, int]:
+        """GRF (4, 3) realising ``wrench`` = [force; moment about the CoM] on the stance feet."""
+        a = self._wrench_map
+        for i in range(N_LEGS):
+            a[3:6, 3 * i:3 * i + 3] = skew(feet[i] - com)
+        aw = a.T * self._weights
+        h = aw @ a
+        h[np.diag_indices_from(h)] += self.params.regularization
+        g = -aw @ wrench
+        lower, upper = self._bounds(stance)
+        # Warm start while the stance set holds; a new set changes the box bounds, and
+        # proxsuite's warm start from a point outside the new box can end in a spurious
+        # 'primal_infeasible': set up afresh then (one more init per touchdown/lift-off).
+        stance_key = tuple(bool(x) for x in stance)
+        warm = self._qp_initialized and stance_key == self._qp_stance
+        name = self._solve_qp(h, g, lower, upper, warm)
+        if name not in ('solved', 'max_iter') and warm:
+            name = self._solve_qp(h, g, lower, upper, False)      # retry cold once
+        self._qp_stance = stance_key
+        qp = self._qp
+        return qp.results.x.reshape(N_LEGS, 3).copy(), name, int(qp.results.info.iter)
+
+    def _solve_qp(self, h: np.ndarray, g: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                  warm: bool) -> str:
+        qp = self._qp
+        if warm:
+            qp.update(H=h, g=g, l_box=lower, u_box=upper)
+            qp.settings.initial_guess = (
+                proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT)
+        else:
+            qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+            qp.init(h, g, None, None, self._c, self._l, self._u, lower, upper)
+            self._qp_initialized = True
+        qp.solve()
+        return _STATUS_NAMES.get(qp.results.info.status, str(qp.results.info.status))
+
+    # ------------------------------------------------------------------------------ per tick
+    def compute(self, base: BaseState, joints: JointState, contact: np.ndarray,
+                com_reference: tuple[np.ndarray, np.ndarray, np.ndarray], yaw_reference: float,
+                stance: Sequence[bool] | np.ndarray,
+                swing: Sequence[SwingReference] = ()) -> WbcResult:
+        """Joint torques (JOINT_NAMES order) for one tick.
+
+        ``com_reference`` = desired CoM position, velocity, acceleration (world, e.g.
+        ``ComPlan.sample``); ``yaw_reference`` trunk yaw (rad), roll and pitch are kept level;
+        ``stance`` (4,) legs carrying the robot; ``swing`` one reference per swing leg (a leg
+        neither in stance nor in ``swing`` gets gravity compensation only).
+        """
+        start = time.perf_counter()
+        stance = np.asarray(stance, dtype=bool).copy()
+        contact = np.asarray(contact, dtype=bool).copy()
+        try:
+            result = self._compute(base, joints, contact, com_reference, yaw_reference, stance,
+                                   swing)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError, RuntimeError) as error:
+            result = self._fallback(joints, contact, stance, f'exception: {error}')
+        result.compute_time = time.perf_counter() - start
+        return result
+
+    def _compute(self, base: BaseState, joints: JointState, contact: np.ndarray,
+                 com_reference: tuple[np.ndarray, np.ndarray, np.ndarray], yaw_reference: float,
+                 stance: np.ndarray, swing: Sequence[SwingReference]) -> WbcResult:
+        p = self.params
+        # One isfinite over everything (numpy call overhead dominates at this size).
+        values = np.concatenate([
+            np.asarray(base.position, dtype=float), np.asarray(base.quaternion, dtype=float),
+            np.asarray(base.linear_velocity, dtype=float),
+            np.asarray(base.angular_velocity, dtype=float),
+            np.asarray(joints.position, dtype=float), np.asarray(joints.velocity, dtype=float)])
+        if not np.isfinite(values).all() or values[3:7] @ values[3:7] < 1e-12:
+            return self._fallback(joints, contact, stance, 'non-finite state')
+        com_des, vcom_des, acom_des = (np.asarray(x, dtype=float) for x in com_reference)
+        if not (np.isfinite(np.concatenate([com_des, vcom_des, acom_des])).all()
+                and np.isfinite(yaw_reference)):
+            return self._fallback(joints, contact, stance, 'non-finite reference')
+
+        model, data = self.model, self.data
+        _, v = self.robot.update(base, joints)     # one pinocchio pass per tick
+        com = data.com[0].copy()
+        vcom = data.vcom[0].copy()
+        nle = data.nle
+        jacobians = [pin.getFrameJacobian(model, data, f, pin.LOCAL_WORLD_ALIGNED)[:3]
+                     for f in self.robot.foot_frame_ids]
+        feet = np.array([data.oMf[f].translation for f in self.robot.foot_frame_ids])
+
+        # Desired CoM acceleration: plan feed-forward + PD on the CoM error (world).
+        com_error = com_des - com
+        vcom_error = vcom_des - vcom
+        acc = acom_des + p.com_kp * com_error + p.com_kd * vcom_error
+        # Trunk: level roll/pitch, commanded yaw; PD on the rotation vector (world axes).
+        rotation = quaternion_to_matrix(base.quaternion)
+        cy, sy = np.cos(yaw_reference), np.sin(yaw_reference)
+        rotation_des = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+        orientation_error = pin.log3(rotation_des @ rotation.T)
+        omega = np.asarray(base.angular_velocity, dtype=float)
+        # Gains are given about the trunk's roll/pitch/yaw axes: rotate them to the world.
+        yaw = yaw_of(base.quaternion)
+        rz = np.array([[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0],
+                       [0.0, 0.0, 1.0]])
+        kp_w = rz @ np.diag(p.trunk_kp) @ rz.T
+        kd_w = rz @ np.diag(p.trunk_kd) @ rz.T
+        omega_dot = kp_w @ orientation_error - kd_w @ omega
+        inertia = data.Ig.inertia               # centroidal composite inertia, world axes
+        wrench = np.concatenate([
+            self.mass * (acc + np.array([0.0, 0.0, GRAVITY])),     # sum f = m (a + g)
+            inertia @ omega_dot + skew(omega) @ (inertia @ omega)])
+
+        torque = np.zeros(len(self._limit))
+        forces = np.zeros((N_LEGS, 3))
+        qp_status, qp_iter = 'no_stance', 0
+        if stance.any():
+            forces, qp_status, qp_iter = self._solve_forces(feet, com, wrench, stance)
+            if qp_status not in ('solved', 'max_iter') or not np.all(np.isfinite(forces)):
+                return self._fallback(joints, contact, stance, f'force QP {qp_status}')
+            forces[~stance] = 0.0
+
+        swing_error = np.zeros(N_LEGS)
+        swing_legs = {s.leg: s for s in swing}
+        for i in range(N_LEGS):
+            cols = self._leg_v[i]
+            j_leg = jacobians[i][:, cols]                   # (3, 3) world axes
+            rows = slice(3 * i, 3 * i + 3)
+            tau = nle[cols].copy()                          # leg gravity + Coriolis
+            if stance[i]:
+                tau -= j_leg.T @ forces[i]                  # foot pushes the ground with -f
+            elif i in swing_legs:
+                ref = swing_legs[i]
+                foot_velocity = jacobians[i] @ v
+                error = np.asarray(ref.position, dtype=float) - feet[i]
+                derror = np.asarray(ref.velocity, dtype=float) - foot_velocity
+                swing_error[i] = float(np.linalg.norm(error))
+                force = p.swing_kp * error + p.swing_kd * derror
+                # Feed-forward: leg inverse dynamics of the reference acceleration minus the
+                # velocity-product drift, through a damped inverse of the (3, 3) leg Jacobian.
+                drift = pin.getFrameClassicalAcceleration(
+                    model, data, self.robot.foot_frame_ids[i], pin.LOCAL_WORLD_ALIGNED).linear
+                a_task = np.asarray(ref.acceleration, dtype=float) - drift
+                qdd = np.linalg.solve(j_leg.T @ j_leg + 1e-4 * np.eye(3), j_leg.T @ a_task)
+                m_leg = data.M[np.ix_(cols, cols)]
+                tau += j_leg.T @ force + m_leg @ qdd
+            torque[rows] = tau
+
+        if not np.all(np.isfinite(torque)):
+            return self._fallback(joints, contact, stance, 'non-finite torque')
+        clipped = np.clip(torque, -self._limit, self._limit)
+        saturated = int(np.count_nonzero(clipped != torque))
+        self._hold_q = np.asarray(joints.position, dtype=float).copy()
+        self._hold_torque = np.where(np.repeat(stance, 3), clipped, 0.0)
+        return WbcResult(
+            torque=clipped, forces=forces, com_error=com_error, com_velocity_error=vcom_error,
+            orientation_error=orientation_error, swing_error=swing_error, stance=stance,
+            active_contacts=contact, qp_status=qp_status, qp_iterations=qp_iter,
+            fallback=False, message='', compute_time=0.0, saturated=saturated)
+
+    def _fallback(self, joints: JointState, contact: np.ndarray, stance: np.ndarray,
+                  message: str) -> WbcResult:
+        """Safe stand: joint PD to the last good posture + the last good stance torques."""
+        p = self.params
+        q = np.asarray(joints.position, dtype=float)
+        qd = np.asarray(joints.velocity, dtype=float)
+        if self._hold_q is None and np.all(np.isfinite(q)):
+            self._hold_q = q.copy()
+        hold = self._hold_q if self._hold_q is not None else np.zeros(len(self._limit))
+        torque = self._hold_torque + p.fallback_kp * (hold - q) - p.fallback_kd * qd
+        torque = np.nan_to_num(torque, nan=0.0, posinf=0.0, neginf=0.0)
+        torque = np.clip(torque, -self._limit, self._limit)
+        self._qp_initialized = False    # the next solve starts cold
+        return WbcResult(
+            torque=torque, forces=np.zeros((N_LEGS, 3)), com_error=np.zeros(3),
+            com_velocity_error=np.zeros(3), orientation_error=np.zeros(3),
+            swing_error=np.zeros(N_LEGS), stance=stance, active_contacts=contact,
+            qp_status='fallback', qp_iterations=0, fallback=True, message=message,
+            compute_time=0.0, saturated=0)
+
+
+_STATUS_NAMES = {
+    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED: 'solved',
+    proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED: 'max_iter',
+    proxsuite.proxqp.QPSolverOutput.PROXQP_PRIMAL_INFEASIBLE: 'primal_infeasible',
+    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE: 'closest_feasible',
+    proxsuite.proxqp.QPSolverOutput.PROXQP_DUAL_INFEASIBLE: 'dual_infeasible',
+    proxsuite.proxqp.QPSolverOutput.PROXQP_NOT_RUN: 'not_run',
+}

@@ -1,0 +1,248 @@
+"""SimWorld: landing and touchdown events, standing, pushes, determinism, inputs, terrain."""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from replan_core.sim_world import STANDING_POSE, SimWorld
+from replan_core.types import FOOT_FRAMES, JOINT_NAMES
+
+URDF = os.environ.get(
+    'REPLAN_URDF', str(Path(__file__).resolve().parents[3] / 'urdf' / 'hyq.urdf'))
+G = 9.81
+FOOT_RADIUS = 0.02175       # m, urdf/hyq.urdf
+STAND_HEIGHT = 0.5775 + FOOT_RADIUS   # m, base_link above flat ground in the standing pose
+
+
+@pytest.fixture(scope='module')
+def model():
+    m = pin.buildModelFromUrdf(URDF, pin.JointModelFreeFlyer())
+    # pinocchio orders joints by name (lf lh rf rh): index of each JOINT_NAMES joint in q[7:].
+    idx = np.array([m.joints[m.getJointId(n)].idx_q - 7 for n in JOINT_NAMES])
+    return m, m.createData(), idx
+
+
+@pytest.fixture
+def world_factory():
+    worlds = []
+
+    def make(**kwargs):
+        worlds.append(SimWorld(URDF, **kwargs))
+        return worlds[-1]
+
+    yield make
+    for w in worlds:
+        w.close()
+
+
+def pin_q(world, idx) -> np.ndarray:
+    b, j = world.base_state(), world.joint_state()
+    q = np.zeros(19)
+    q[:3], q[3:7] = b.position, b.quaternion
+    q[7:][idx] = j.position
+    return q
+
+
+def pin_v(world, idx) -> np.ndarray:
+    """pinocchio free-flyer velocity: base twist in the base frame, then the joints."""
+    b, j = world.base_state(), world.joint_state()
+    R = pin.Quaternion(b.quaternion[3], *b.quaternion[:3]).toRotationMatrix()
+    v = np.zeros(18)
+    v[:3], v[3:6] = R.T @ b.linear_velocity, R.T @ b.angular_velocity
+    v[6:][idx] = j.velocity
+    return v
+
+
+def standing_torques(world, model) -> np.ndarray:
+    """Joint PD to the standing pose plus the torques holding a quarter of the weight per foot."""
+    m, d, idx = model
+    q = pin_q(world, idx)
+    pin.computeJointJacobians(m, d, q)
+    pin.framesForwardKinematics(m, d, q)
+    weight = pin.computeTotalMass(m) * G
+    tau = np.zeros(12)
+    for foot in FOOT_FRAMES:
+        J = pin.getFrameJacobian(m, d, m.getFrameId(foot), pin.LOCAL_WORLD_ALIGNED)[:3, 6:]
+        tau += (-J.T @ np.array([0.0, 0.0, weight / 4]))[idx]
+    j = world.joint_state()
+    return tau + 300.0 * (STANDING_POSE - j.position) - 10.0 * j.velocity
+
+
+def test_spawn_standing_feet_touching(world_factory):
+    w = world_factory()
+    b, c = w.base_state(), w.contact_state()
+    assert w.time == 0.0
+    assert b.position[2] == pytest.approx(STAND_HEIGHT, abs=1e-3)
+    np.testing.assert_allclose(c.foot_position[:, 2], FOOT_RADIUS, atol=1e-6)
+    assert c.contact.all()                       # spawned standing: in contact, no events
+    assert not c.touchdown.any() and not c.liftoff.any()
+
+
+def test_drop_lands_with_touchdown_events(world_factory):
+    w = world_factory(initial_base_height=STAND_HEIGHT + 0.15)
+    assert not w.contact_state().contact.any()
+    touchdown_time = np.full(4, np.nan)
+    for _ in range(150):                         # 0.6 s, zero torque
+        w.step(np.zeros(12))
+        c = w.contact_state()
+        first = c.touchdown & np.isnan(touchdown_time)
+        touchdown_time[first] = w.time
+    # The feet hit the ground after 0.175 s (0.15 m fall); with zero torque the legs first fold
+    # and carry little force, which rises above the threshold when the joints reach their limits.
+    assert np.all(np.isfinite(touchdown_time)), touchdown_time
+    assert np.all((touchdown_time > 0.17) & (touchdown_time < 0.45)), touchdown_time
+    assert w.base_state().position[2] > 0.1      # landed on the ground, not through it
+
+
+def test_standing_does_not_fall(world_factory, model):
+    w = world_factory()
+    for _ in range(500):                         # 2 s
+        w.step(standing_torques(w, model))
+    b, c = w.base_state(), w.contact_state()
+    assert b.position[2] == pytest.approx(STAND_HEIGHT, abs=0.02)
+    assert abs(b.position[0]) < 0.02 and abs(b.position[1]) < 0.02
+    assert np.linalg.norm(b.quaternion[:3]) < 0.02           # level within ~2 deg
+    assert c.contact.all()
+    weight = pin.computeTotalMass(model[0]) * G
+    np.testing.assert_allclose(c.force.sum(axis=0), [0.0, 0.0, weight], atol=0.02 * weight)
+
+
+def test_ground_reaction_balances_a_push(world_factory, model):
+    """Standing and pushed sideways, the summed GRFs carry the weight and oppose the push."""
+    w = world_factory()
+    w.set_external_wrench(np.array([100.0, -60.0, 0.0]), np.zeros(3))
+    for _ in range(750):                         # 3 s, settles under the push
+        w.step(standing_torques(w, model))
+    total = w.contact_state().force.sum(axis=0)
+    np.testing.assert_allclose(total[:2], [-100.0, 60.0], atol=10.0)
+
+
+def test_push_changes_momentum_by_impulse(world_factory, model):
+    """Robot in the air, zero torque: a push F for d changes the momentum by (F - M g) d."""
+    m, d, idx = model
+    mass = pin.computeTotalMass(m)
+    w = world_factory(initial_base_height=5.0)
+
+    def momentum():
+        pin.centerOfMass(m, d, pin_q(w, idx), pin_v(w, idx))
+        return mass * d.vcom[0].copy()
+
+    for _ in range(5):
+        w.step(np.zeros(12))
+    p0 = momentum()
+    force = np.array([400.0, -250.0, 300.0])
+    duration = 0.2
+    w.set_external_wrench(force, np.zeros(3))
+    for _ in range(round(duration / w.control_period)):
+        w.step(np.zeros(12))
+    w.set_external_wrench(np.zeros(3), np.zeros(3))
+    change = momentum() - p0 - np.array([0.0, 0.0, -mass * G * duration])
+    assert not w.contact_state().contact.any()
+    np.testing.assert_allclose(change, force * duration, rtol=0.10)
+    np.testing.assert_allclose(change, force * duration, rtol=0.01)   # in fact within 0.1 %
+
+
+def test_state_matches_pinocchio(world_factory, model):
+    """Feet from contact_state equal pinocchio's FK of base_state + joint_state in motion."""
+    m, d, idx = model
+    w = world_factory(initial_base_height=STAND_HEIGHT + 0.1)
+    rng = np.random.default_rng(1)
+    for _ in range(40):
+        w.step(rng.uniform(-60.0, 60.0, 12))
+        pin.framesForwardKinematics(m, d, pin_q(w, idx))
+        feet = np.array([d.oMf[m.getFrameId(f)].translation for f in FOOT_FRAMES])
+        np.testing.assert_allclose(w.contact_state().foot_position, feet, atol=1e-9)
+    # Base twist convention: velocity of the base_link origin, world axes. Semi-implicit Euler
+    # over 4 physics steps: the finite difference differs from the mean by ~g dt / 2.
+    b0 = w.base_state()
+    w.step(np.zeros(12))
+    b1 = w.base_state()
+    np.testing.assert_allclose((b1.position - b0.position) / w.control_period,
+                               (b0.linear_velocity + b1.linear_velocity) / 2, atol=1e-2)
+
+
+def test_deterministic(world_factory, model):
+    """Two worlds with the same torque sequence give bit-identical states."""
+    rng = np.random.default_rng(7)
+    noise = rng.normal(0.0, 20.0, size=(200, 12))
+    records = []
+    for _ in range(2):
+        w = world_factory(initial_base_height=STAND_HEIGHT + 0.02)
+        rec = []
+        for k in range(200):
+            w.step(standing_torques(w, model) + noise[k])
+            b, j, c = w.base_state(), w.joint_state(), w.contact_state()
+            rec.append(np.concatenate([b.position, b.quaternion, b.linear_velocity,
+                                       b.angular_velocity, j.position, j.velocity, j.effort,
+                                       c.foot_position.ravel(), c.force.ravel(), c.contact,
+                                       c.touchdown, c.liftoff]))
+        records.append(np.array(rec))
+    assert np.array_equal(records[0], records[1])
+
+
+def test_torque_clipping_and_bad_input(world_factory):
+    w = world_factory()
+    tau = np.linspace(-400.0, 400.0, 12)
+    w.step(tau)
+    np.testing.assert_array_equal(w.joint_state().effort, np.clip(tau, -150.0, 150.0))
+    np.testing.assert_array_equal(w.effort_limit, 150.0)
+    tick = w.tick
+    bad = np.zeros(12)
+    bad[3] = np.nan
+    with pytest.raises(ValueError):
+        w.step(bad)
+    with pytest.raises(ValueError):
+        w.step(np.full(12, np.inf))
+    with pytest.raises(ValueError):
+        w.step(np.zeros(11))
+    with pytest.raises(ValueError):
+        w.set_external_wrench(np.array([np.nan, 0.0, 0.0]), np.zeros(3))
+    assert w.tick == tick
+    assert w.time == pytest.approx(tick * 0.004)
+
+
+def test_damping_torques(world_factory):
+    w = world_factory(initial_base_height=STAND_HEIGHT + 0.1)
+    for _ in range(10):
+        w.step(np.full(12, 20.0))
+    np.testing.assert_array_equal(w.damping_torques(40.0), -40.0 * w.joint_state().velocity)
+
+
+def test_damping_sits_down_gently(world_factory):
+    """Controller dead: damping alone lowers the trunk without a crash."""
+    w = world_factory()
+    for _ in range(750):                         # 3 s
+        w.step(w.damping_torques(40.0))
+    b = w.base_state()
+    assert 0.1 < b.position[2] < STAND_HEIGHT
+    assert np.linalg.norm(b.linear_velocity) < 0.1
+
+
+@pytest.mark.parametrize(('terrain', 'params', 'ground'), [
+    ('step_up', {'step_x': -1.0, 'step_length': 3.0, 'step_height': 0.12}, 0.12),
+    ('step_down', {'step_x': 1.5, 'step_height': 0.2}, 0.0),
+    ('step_down', {'step_x': -1.0, 'step_height': 0.2}, -0.2),
+])
+def test_step_terrain_spawn_height(world_factory, terrain, params, ground):
+    w = world_factory(terrain=terrain, terrain_params=params)
+    assert w.base_state().position[2] == pytest.approx(ground + STAND_HEIGHT, abs=1e-3)
+    assert w.contact_state().contact.all()
+
+
+def test_rough_terrain_seeded(world_factory):
+    params = {'rough_start_x': -1.0, 'rough_amplitude': 0.05}
+    heights = [world_factory(terrain='rough', terrain_params=params, seed=s)
+               .base_state().position[2] for s in (3, 3, 4)]
+    assert heights[0] == heights[1]
+    assert heights[0] != heights[2]
+    assert STAND_HEIGHT <= heights[0] <= STAND_HEIGHT + 0.05 + 1e-6
+
+
+def test_bad_configuration():
+    with pytest.raises(ValueError):
+        SimWorld(URDF, terrain='lava')
+    with pytest.raises(ValueError):
+        SimWorld(URDF, control_period=0.0045)

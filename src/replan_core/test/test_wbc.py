@@ -1,0 +1,299 @@
+"""Closed-loop tests of replan_core.wbc in the PyBullet world (replan_core.sim_world)."""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from replan_core.bench.wbc_bench import crawl_plan
+from replan_core.robot_model import RobotModel
+from replan_core.sim_world import SimWorld
+from replan_core.swing import swing_reference as swing_trajectory
+from replan_core.types import BaseState, JointState, Step
+from replan_core.wbc import (
+    PlanFollower,
+    StandHold,
+    SwingReference,
+    WbcParams,
+    WholeBodyController,
+    haptic_reference,
+    swing_reference,
+    yaw_of,
+)
+
+ROOT = Path(__file__).resolve().parents[3]
+DT = 0.004  # s, control period
+
+
+@pytest.fixture(scope='module')
+def urdf() -> str:
+    path = os.environ.get('REPLAN_URDF') or str(ROOT / 'urdf' / 'hyq.urdf')
+    if not Path(path).is_file():
+        pytest.skip(f'no URDF at {path}')
+    return path
+
+
+@pytest.fixture(scope='module')
+def robot(urdf):
+    return RobotModel(urdf)
+
+
+@pytest.fixture
+def world(urdf):
+    sim = SimWorld(urdf, physics_dt=0.001, control_period=DT)
+    yield sim
+    sim.close()
+
+
+def roll_pitch(quaternion) -> tuple[float, float]:
+    x, y, z, w = quaternion
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
+    return float(roll), float(pitch)
+
+
+def run(world, wbc, reference, duration):
+    """Close the loop for ``duration`` s; ``reference(t, base, contact)`` gives the compute()
+    arguments after the state. Returns one record per tick."""
+    log = []
+    for _ in range(round(duration / DT)):
+        base, joints, contact = world.base_state(), world.joint_state(), world.contact_state()
+        com_ref, yaw_ref, stance, swing = reference(world.time, base, contact)
+        result = wbc.compute(base, joints, contact.contact, com_ref, yaw_ref, stance, swing)
+        assert np.all(np.isfinite(result.torque))
+        log.append((world.time, base, contact, result))
+        world.step(result.torque)
+    return log
+
+
+def initial_com(world, robot) -> np.ndarray:
+    return robot.com_state(world.base_state(), world.joint_state())[0]
+
+
+def test_standing_still(world, robot):
+    """10 s of sim time standing: CoM error < 1 cm, no drift, level trunk, no fallback."""
+    wbc = WholeBodyController(robot)
+    com0 = initial_com(world, robot)
+    ref = (com0, np.zeros(3), np.zeros(3))
+    log = run(world, wbc, lambda t, b, c: (ref, 0.0, np.ones(4, bool), ()), 10.0)
+    errors = np.array([np.linalg.norm(r.com_error) for *_, r in log])
+    assert errors.max() < 0.01
+    # No drift: the error over the last second is no larger than after the first one.
+    assert abs(errors[-250:].mean() - errors[250:500].mean()) < 0.002
+    final_base = log[-1][1]
+    assert np.linalg.norm(final_base.position[:2]) < 0.01
+    assert max(abs(a) for a in roll_pitch(final_base.quaternion)) < 0.02
+    assert all(r.qp_status == 'solved' and not r.fallback for *_, r in log)
+    assert log[-1][2].contact.all()
+
+
+def test_lateral_com_sine(world, robot):
+    """A slow lateral sine (5 cm, 0.25 Hz) inside the four-feet polygon: error < 2 cm."""
+    wbc = WholeBodyController(robot)
+    com0 = initial_com(world, robot)
+    amplitude, omega = 0.05, 2 * np.pi * 0.25
+
+    def reference(t, base, contact):
+        offset = np.array([0.0, amplitude, 0.0])
+        p = com0 + offset * np.sin(omega * t)
+        v = offset * omega * np.cos(omega * t)
+        a = -offset * omega**2 * np.sin(omega * t)
+        return (p, v, a), 0.0, np.ones(4, bool), ()
+
+    log = run(world, wbc, reference, 8.0)
+    errors = np.array([np.linalg.norm(r.com_error) for *_, r in log])
+    assert errors.max() < 0.02
+    # It really moved: the CoM swept most of the sine.
+    actual_y = np.array([com0[1] + amplitude * np.sin(omega * t) - r.com_error[1]
+                         for t, _, _, r in log])
+    assert actual_y.max() - com0[1] > 0.8 * amplitude
+    assert com0[1] - actual_y.min() > 0.8 * amplitude
+    assert all(not r.fallback for *_, r in log)
+
+
+def _shift_then_lift(world, robot, wbc, target_offset, haptic):
+    """Shift the CoM into the rf-lh-rh triangle, then swing lf to start + target_offset."""
+    com0 = initial_com(world, robot)
+    feet0 = world.contact_state().foot_position.copy()
+    support = feet0[[1, 2, 3]].mean(axis=0)
+    com_goal = com0.copy()
+    com_goal[:2] += 0.6 * (support[:2] - com0[:2])      # ~7 cm inside the triangle
+    t_shift, t_lift, t_td = 1.5, 1.6, 2.2
+    step = Step(leg=0, liftoff_time=t_lift, touchdown_time=t_td, target=feet0[0] + target_offset,
+                step_height=0.05, haptic=haptic, replan=False, yaw=0.0)
+    state = {}
+
+    def reference(t, base, contact):
+        s = min(t / t_shift, 1.0)
+        blend = s**3 * (10 - 15 * s + 6 * s * s)
+        dblend = 30 * s * s * (1 - s) ** 2 / t_shift
+        ddblend = 60 * s * (1 - s) * (1 - 2 * s) / t_shift**2
+        d = com_goal - com0
+        com_ref = (com0 + d * blend, d * dblend, d * ddblend)
+        swing = ()
+        stance = np.ones(4, bool)
+        if t >= t_lift and 'landed' not in state:
+            if haptic and t >= t_lift + 0.5 * (t_td - t_lift) and contact.contact[0]:
+                state['landed'] = t                     # sensed touchdown: back to stance
+            else:
+                stance[0] = False
+                swing = (swing_reference(step, feet0[0], t, swing_trajectory, 0.15),)
+        return com_ref, 0.0, stance, swing
+
+    return step, feet0, reference, state
+
+
+def test_one_leg_lifted_to_target(world, robot):
+    """Three legs stand, lf swings to a target 10 cm away (in the air): reached within 2 cm,
+    trunk stays up and level."""
+    wbc = WholeBodyController(robot)
+    offset = np.array([0.06, 0.0, 0.08])                 # |offset| = 10 cm
+    step, feet0, reference, _ = _shift_then_lift(world, robot, wbc, offset, haptic=False)
+    log = run(world, wbc, reference, 3.0)
+    foot = world.contact_state().foot_position[0]
+    assert np.linalg.norm(foot - step.target) < 0.02
+    base_z = [b.position[2] for _, b, *_ in log]
+    assert min(base_z) > log[0][1].position[2] - 0.03
+    for _, b, _, r in log:
+        assert max(abs(a) for a in roll_pitch(b.quaternion)) < 0.05
+        assert not r.fallback
+    # The three stance feet did not slip.
+    feet = world.contact_state().foot_position
+    assert np.linalg.norm(feet[1:] - feet0[1:], axis=1).max() < 0.01
+    assert np.linalg.norm(log[-1][3].com_error) < 0.02
+
+
+def test_haptic_step_to_ground(world, robot):
+    """lf steps 10 cm forward onto the ground; in haptic mode it keeps descending after the
+    planned touchdown (target 3 cm above the ground) until contact is sensed."""
+    wbc = WholeBodyController(robot)
+    offset = np.array([0.10, 0.0, 0.03])
+    step, feet0, reference, state = _shift_then_lift(world, robot, wbc, offset, haptic=True)
+    log = run(world, wbc, reference, 3.5)
+    assert 'landed' in state and state['landed'] > step.touchdown_time
+    contact = world.contact_state()
+    assert contact.contact.all()
+    foot = contact.foot_position[0]
+    np.testing.assert_allclose(foot[:2], step.target[:2], atol=0.02)
+    assert abs(foot[2] - feet0[0][2]) < 0.01
+    assert all(not r.fallback for *_, r in log)
+
+
+def test_haptic_reference_descends():
+    ref = haptic_reference(np.array([0.3, 0.2, 0.05]), 1.0, 1.2, 0.15, leg=2)
+    np.testing.assert_allclose(ref.position, [0.3, 0.2, 0.05 - 0.03])
+    np.testing.assert_allclose(ref.velocity, [0.0, 0.0, -0.15])
+    assert ref.leg == 2
+    before = haptic_reference(np.zeros(3), 1.0, 0.5, 0.15, leg=0)
+    np.testing.assert_allclose(before.position, np.zeros(3))
+
+
+def _state(world):
+    return world.base_state(), world.joint_state(), world.contact_state()
+
+
+def test_nan_inputs_fall_back(world, robot):
+    """Non-finite state or reference never gives non-finite torques; the result reports it."""
+    wbc = WholeBodyController(robot)
+    base, joints, contact = _state(world)
+    com0 = robot.com_state(base, joints)[0]
+    good = wbc.compute(base, joints, contact.contact, (com0, np.zeros(3), np.zeros(3)), 0.0,
+                       np.ones(4, bool))
+    assert not good.fallback and good.qp_status == 'solved'
+    bad_joints = JointState(joints.stamp, joints.position.copy(), joints.velocity.copy(),
+                            joints.effort)
+    bad_joints.velocity[4] = np.nan
+    res = wbc.compute(base, bad_joints, contact.contact, (com0, np.zeros(3), np.zeros(3)), 0.0,
+                      np.ones(4, bool))
+    assert res.fallback and np.all(np.isfinite(res.torque)) and 'state' in res.message
+    res = wbc.compute(base, joints, contact.contact,
+                      (com0 * np.nan, np.zeros(3), np.zeros(3)), 0.0, np.ones(4, bool))
+    assert res.fallback and np.all(np.isfinite(res.torque))
+    bad_base = BaseState(base.stamp, base.position, np.zeros(4), base.linear_velocity,
+                         base.angular_velocity)
+    res = wbc.compute(bad_base, joints, contact.contact, (com0, np.zeros(3), np.zeros(3)),
+                      0.0, np.ones(4, bool))
+    assert res.fallback and np.all(np.isfinite(res.torque))
+    # The fallback holds the stance torques (close to the good ones at rest).
+    assert np.abs(res.torque - good.torque).max() < 5.0
+    # Recovers at once on good input.
+    res = wbc.compute(base, joints, contact.contact, (com0, np.zeros(3), np.zeros(3)), 0.0,
+                      np.ones(4, bool))
+    assert not res.fallback and np.all(np.isfinite(res.torque))
+
+
+def test_torques_clipped_and_forces_consistent(world, robot):
+    """Forces respect the bounds and cones; swing legs get no force; torques within limits."""
+    params = WbcParams(friction=0.5, fz_min=15.0)
+    wbc = WholeBodyController(robot, params)
+    base, joints, contact = _state(world)
+    com0 = robot.com_state(base, joints)[0]
+    stance = np.array([True, True, True, False])
+    feet = contact.foot_position
+    swing = (SwingReference(3, feet[3] + [0, 0, 0.5], np.zeros(3), np.zeros(3)),)
+    res = wbc.compute(base, joints, contact.contact,
+                      (com0, np.zeros(3), np.array([0.0, 3.0, 0.0])), 0.3, stance, swing)
+    assert res.qp_status == 'solved'
+    np.testing.assert_allclose(res.forces[3], 0.0, atol=1e-6)
+    mu = 0.5 / np.sqrt(2)
+    for f in res.forces[:3]:
+        assert f[2] >= 15.0 - 1e-4
+        assert abs(f[0]) <= mu * f[2] + 1e-4 and abs(f[1]) <= mu * f[2] + 1e-4
+    assert np.all(np.abs(res.torque) <= robot.effort_limit + 1e-9)
+    assert res.swing_error[3] == pytest.approx(0.5, abs=0.01)
+    assert res.saturated >= 1                  # a 50 cm swing error saturates the leg
+
+
+def test_yaw_of():
+    for yaw in (-3.0, -0.5, 0.0, 1.2):
+        q = np.array([0.0, 0.0, np.sin(yaw / 2), np.cos(yaw / 2)])
+        assert yaw_of(q) == pytest.approx(yaw)
+
+
+def test_plan_follower_crawl(world, robot):
+    """A static crawl cycle (4 haptic steps, 8 cm each) through PlanFollower + StepTracker:
+    every step touches down by sensed contact, the robot advances, CoM error < 2 cm."""
+    wbc = WholeBodyController(robot)
+    contacts = world.contact_state()
+    com0 = initial_com(world, robot)
+    footholds, com_plan = crawl_plan(0.2, contacts.foot_position, com0, cycles=1)
+    follower = PlanFollower(footholds, com_plan)
+
+    def reference(t, base, contact):
+        follower.update(t, contact)
+        return follower.references(t)
+
+    log = run(world, wbc, reference, com_plan.end_time)
+    assert follower.tracker.touchdown_reason == ['contact'] * 4
+    assert max(np.linalg.norm(r.com_error) for *_, r in log) < 0.02
+    assert all(not r.fallback for *_, r in log)
+    final = world.contact_state()
+    assert final.contact.all()
+    np.testing.assert_allclose(final.foot_position[:, 0] - contacts.foot_position[:, 0], 0.08,
+                               atol=0.02)
+    for _, b, *_ in log:
+        assert max(abs(a) for a in roll_pitch(b.quaternion)) < 0.05
+
+
+def test_stand_hold_lowers_a_lifted_leg(world, robot):
+    """StandHold (no plan): a leg caught in the air descends until contact, then all stand."""
+    wbc = WholeBodyController(robot)
+    com0 = initial_com(world, robot)
+    feet0 = world.contact_state().foot_position.copy()
+    goal = com0.copy()
+    goal[:2] += 0.6 * (feet0[[1, 2, 3], :2].mean(axis=0) - com0[:2])
+    lifted = (SwingReference(0, feet0[0] + [0.0, 0.0, 0.08], np.zeros(3), np.zeros(3)),)
+    stance = np.array([False, True, True, True])
+    run(world, wbc, lambda t, b, c: ((goal, np.zeros(3), np.zeros(3)), 0.0,
+                                     np.ones(4, bool) if t < 1.5 else stance,
+                                     () if t < 1.5 else lifted), 2.2)
+    contacts = world.contact_state()
+    assert not contacts.contact[0]
+    base, joints = world.base_state(), world.joint_state()
+    hold = StandHold(world.time, robot.com_state(base, joints)[0], yaw_of(base.quaternion),
+                     contacts)
+    log = run(world, wbc, lambda t, b, c: hold.references(t, c), 1.5)
+    assert world.contact_state().contact.all()
+    assert hold.standing.all()
+    assert max(np.linalg.norm(r.com_error) for *_, r in log) < 0.02

@@ -1,0 +1,442 @@
+"""Gait node: crawl schedule, the shared touchdown rule and foothold re-planning (issue 4).
+
+- Every tick of ``contacts`` goes through ``contact.StepTracker`` (the rule the controller runs
+  too). When a step with ``replan`` touches down at ``t_k`` (and at the first state seen, the
+  start of a run), the footholds are computed from the actual state at ``t_k`` (feet from
+  ``contacts``, base from ``odom`` of that stamp) and published on ``footholds`` stamped ``t_k``,
+  with the set-point used on ``velocity_setpoint`` and RViz markers on ``gait_markers``.
+- Set-point: ``cmd_vel`` (Twist; clamped; non-finite or absurd values rejected, the last good one
+  kept; stand still after ``cmd_vel_timeout`` s of sim time without one) and ``cmd_vel_stamped``
+  (TwistStamped, effective from ``header.stamp``, never times out). A re-plan at ``t`` uses the
+  most recent of the two: the latest stamped one with stamp <= t, the last good ``cmd_vel`` by
+  the sim time it was received at.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import os
+import time
+from collections import deque
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Point, Twist, TwistStamped, Vector3
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
+
+from replan_core.contact import StepTracker
+from replan_core.gait import (
+    CrawlSchedule,
+    GaitParams,
+    clamp_velocity,
+    compute_footholds,
+    stance_phases,
+)
+from replan_core.robot_model import RobotModel
+from replan_core.types import LEGS, WORLD_FRAME, BaseState, ContactState, FootholdPlan
+from replan_ros import diagnostics
+from replan_ros.interfaces import (
+    base_state_from_odom,
+    contacts_from_msg,
+    footholds_from_msg,
+    footholds_to_msg,
+    header,
+    ns_to_stamp,
+    sec_to_stamp,
+    stamp_to_ns,
+    yaw_of,
+)
+from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR
+
+# Leg colours of the markers (r, g, b), LEGS order.
+_LEG_COLOURS = ((0.9, 0.2, 0.2), (0.2, 0.7, 0.2), (0.2, 0.4, 0.9), (0.9, 0.7, 0.1))
+# Support polygon corners in cyclic order around the trunk: lf, rf, rh, lh.
+_POLYGON_ORDER = (0, 1, 3, 2)
+_ODOM_BUFFER = 500       # odom samples kept (2 s at 250 Hz)
+
+
+class GaitNode(Node):
+    """Runs the touchdown rule on ``contacts`` and publishes footholds at every re-plan."""
+
+    def __init__(self) -> None:
+        super().__init__('gait')
+        d = GaitParams()
+        self._declared: list[str] = []
+        self._declare('urdf_path', '', "robot URDF for the hip positions; '' = $REPLAN_URDF")
+        self._declare('swing_duration', d.swing_duration, 'duration of one swing, s')
+        self._declare('four_feet_duration', d.four_feet_duration,
+                      'four feet on the ground before each swing, s')
+        self._declare('step_height', d.step_height,
+                      'swing apex above the higher of lift-off and foothold, m')
+        self._declare('sequence', [LEGS[i] for i in d.sequence],
+                      'crawl order, one swing leg at a time (leg names lf rf lh rh)')
+        self._declare('stance_offsets', [float(v) for xy in d.stance_offsets for v in xy],
+                      'nominal foot about its hip, base frame x, y per leg (lf rf lh rh), m')
+        self._declare('max_step_length_x', d.max_step_length_x,
+                      'max foot displacement per step along the body x axis, m')
+        self._declare('max_step_length_y', d.max_step_length_y,
+                      'max foot displacement per step along the body y axis, m')
+        self._declare('max_linear_x', d.max_linear_x, '|cmd_vel linear.x| clamp, m/s')
+        self._declare('max_linear_y', d.max_linear_y, '|cmd_vel linear.y| clamp, m/s')
+        self._declare('max_angular_z', d.max_angular_z, '|cmd_vel angular.z| clamp, rad/s')
+        self._declare('n_footholds', d.n_footholds, 'steps per plan (paper: 8 over 8 s)')
+        self._declare('replan_window', d.replan_window,
+                      're-plan at every K-th touchdown (paper: 1)')
+        self._declare('haptic', d.haptic, 'swings end at sensed contact (paper section V.A)')
+        self._declare('foothold_correction', d.foothold_correction,
+                      'first foothold of each leg about the actual hip (paper section V.B)')
+        self._declare('min_swing_fraction', 0.5,
+                      'haptic touchdown accepted after this fraction of the planned swing; '
+                      'must equal the controller\'s')
+        self._declare('max_extension', 0.3,
+                      'haptic swing forced to end this long after its planned touchdown, s; '
+                      'must equal the controller\'s')
+        self._declare('start_delay', 1.0,
+                      'first plan: stand this long before the first lift-off, s')
+        self._declare('cmd_vel_timeout', 0.5,
+                      'no cmd_vel for this long (sim s): stand still (cmd_vel_stamped does not '
+                      'time out)')
+        self._declare('cmd_vel_reject_above', 10.0,
+                      'a cmd_vel component above this magnitude is absurd and rejected (m/s, '
+                      'rad/s); smaller ones beyond the limits are clamped')
+        self._declare('warn_period', 2.0, 'throttle of repeated warnings, wall s')
+
+        p = {name: self.get_parameter(name).value for name in self._declared}
+        self.params = self._gait_params(p)
+        self.min_swing_fraction = float(p['min_swing_fraction'])
+        self.max_extension = float(p['max_extension'])
+        self.start_delay = max(float(p['start_delay']), 0.0)
+        self.cmd_vel_timeout = float(p['cmd_vel_timeout'])
+        self.reject_above = float(p['cmd_vel_reject_above'])
+        self.warn_period = float(p['warn_period'])
+        self.model = self._robot_model(p['urdf_path'])
+
+        self.footholds_pub = self.create_publisher(PointCloud2, 'footholds', LATCHED)
+        self.setpoint_pub = self.create_publisher(TwistStamped, 'velocity_setpoint', SCHEDULE)
+        self.markers_pub = self.create_publisher(MarkerArray, 'gait_markers', LATCHED)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
+        self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, COMMAND)
+        self.create_subscription(TwistStamped, 'cmd_vel_stamped', self._on_cmd_vel_stamped,
+                                 SCHEDULE)
+        self.create_subscription(PointCloud2, 'contacts', self._on_contacts, CONTACTS)
+        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR)
+
+        # Set-points: the last good cmd_vel and the sim time it arrived at; stamped ones by stamp.
+        self.cmd_vel: np.ndarray | None = None
+        self.cmd_vel_time = -math.inf
+        self.stamped: list[tuple[int, np.ndarray]] = []
+        self.latest_stamp = 0.0        # s, newest state stamp seen (sim time for cmd_vel)
+        self.rejected = 0
+        self.forced = 0
+        self._warned: dict[str, float] = {}
+        self._reset('start')
+        self.get_logger().info(
+            f'gait: crawl {"-".join(LEGS[i] for i in self.params.sequence)}, swing '
+            f'{self.params.swing_duration} s + four feet {self.params.four_feet_duration} s, '
+            f'{self.params.n_footholds} footholds, K={self.params.replan_window}, '
+            f'haptic={self.params.haptic}, correction={self.params.foothold_correction}')
+
+    # ----------------------------------------------------------------------------- set-up
+
+    def _declare(self, name, default, description):
+        self._declared.append(name)
+        self.declare_parameter(name, default, ParameterDescriptor(description=description))
+
+    def _gait_params(self, p) -> GaitParams:
+        defaults = GaitParams()
+        try:
+            sequence = tuple(LEGS.index(str(n).lower()) for n in p['sequence'])
+            offsets = [float(v) for v in p['stance_offsets']]
+            if len(offsets) != 8:
+                raise ValueError('stance_offsets needs 8 values (x, y per leg)')
+            params = GaitParams(
+                swing_duration=float(p['swing_duration']),
+                four_feet_duration=float(p['four_feet_duration']),
+                step_height=float(p['step_height']), sequence=sequence,
+                hip_offsets=defaults.hip_offsets,
+                stance_offsets=tuple((offsets[2 * i], offsets[2 * i + 1]) for i in range(4)),
+                max_step_length_x=float(p['max_step_length_x']),
+                max_step_length_y=float(p['max_step_length_y']),
+                max_linear_x=float(p['max_linear_x']), max_linear_y=float(p['max_linear_y']),
+                max_angular_z=float(p['max_angular_z']), n_footholds=int(p['n_footholds']),
+                replan_window=int(p['replan_window']), haptic=bool(p['haptic']),
+                foothold_correction=bool(p['foothold_correction']))
+            params.validate()
+            return params
+        except ValueError as err:
+            self.get_logger().error(f'invalid gait parameters ({err}); using the defaults')
+            return defaults
+
+    def _robot_model(self, urdf_path: str):
+        path = urdf_path or os.environ.get('REPLAN_URDF', '')
+        if not path:
+            self.get_logger().warn('no urdf_path and no $REPLAN_URDF: hips from the nominal '
+                                   'HyQ offsets')
+            return None
+        try:
+            model = RobotModel(path)
+        except Exception as err:   # any load error: fall back to the nominal hips, keep running
+            self.get_logger().error(f'cannot load {path} ({err}): hips from the nominal HyQ '
+                                    'offsets')
+            return None
+        offsets = model.hip_offsets[:, :2]
+        self.params.hip_offsets = tuple((float(x), float(y)) for x, y in offsets)
+        return model
+
+    def _reset(self, why: str) -> None:
+        """Forget the run (start, or sim time went backwards: a new run)."""
+        if why != 'start':
+            self.get_logger().warn(f'gait: {why}; starting over with a new initial plan')
+        self.schedule = CrawlSchedule(self.params.sequence)
+        self.plan: FootholdPlan | None = None
+        self.tracker: StepTracker | None = None
+        self.last_tick_ns: int | None = None
+        self.pending: tuple[int, ContactState, bool] | None = None   # (stamp, contacts, initial)
+        self.unprocessed: deque[ContactState] = deque()
+        self.odom: dict[int, BaseState] = {}
+        self.replans = 0
+
+    def _warn(self, key: str, text: str) -> None:
+        """Warning throttled per ``key`` (rclpy's throttle is per call site, and all of these
+        share one), at most one every ``warn_period`` wall seconds."""
+        now = time.monotonic()
+        if now - self._warned.get(key, -math.inf) >= self.warn_period:
+            self._warned[key] = now
+            self.get_logger().warn(text)
+
+    # ----------------------------------------------------------------------------- set-point
+
+    def _validate(self, values, source: str) -> np.ndarray | None:
+        v = np.array(values, dtype=float)
+        if not np.all(np.isfinite(v)) or np.any(np.abs(v) > self.reject_above):
+            self.rejected += 1
+            self._warn(f'{source} rejected',
+                       f'{source}: rejected (vx, vy, wz) = {v.tolist()}: non-finite or above '
+                       f'{self.reject_above}; keeping the last good set-point')
+            return None
+        clamped = clamp_velocity(v, self.params)
+        if not np.array_equal(clamped, v):
+            self._warn(f'{source} clamped',
+                       f'{source}: (vx, vy, wz) = {v.tolist()} clamped to {clamped.tolist()}')
+        return clamped
+
+    def _on_cmd_vel(self, msg: Twist) -> None:
+        v = self._validate((msg.linear.x, msg.linear.y, msg.angular.z), 'cmd_vel')
+        if v is not None:
+            self.cmd_vel = v
+            now = self.get_clock().now().nanoseconds * 1e-9
+            self.cmd_vel_time = max(self.latest_stamp, now)
+
+    def _on_cmd_vel_stamped(self, msg: TwistStamped) -> None:
+        t = msg.twist
+        v = self._validate((t.linear.x, t.linear.y, t.angular.z), 'cmd_vel_stamped')
+        if v is not None:
+            ns = stamp_to_ns(msg.header.stamp)
+            index = bisect.bisect_right([s for s, _ in self.stamped], ns)
+            self.stamped.insert(index, (ns, v))
+
+    def setpoint_at(self, t_ns: int) -> tuple[np.ndarray, str]:
+        """Set-point for a re-plan at ``t_ns`` and where it came from."""
+        index = bisect.bisect_right([s for s, _ in self.stamped], t_ns)
+        if index > 1:
+            del self.stamped[:index - 1]   # older ones can no longer be chosen
+            index = 1
+        stamped = self.stamped[index - 1] if index else None
+        t = t_ns * 1e-9
+        if self.cmd_vel is not None and (stamped is None
+                                         or self.cmd_vel_time >= stamped[0] * 1e-9):
+            if t - self.cmd_vel_time > self.cmd_vel_timeout:
+                return np.zeros(3), 'cmd_vel timed out'
+            return self.cmd_vel.copy(), 'cmd_vel'
+        if stamped is not None:
+            return stamped[1].copy(), 'cmd_vel_stamped'
+        return np.zeros(3), 'none'
+
+    # ----------------------------------------------------------------------------- state
+
+    def _on_odom(self, msg: Odometry) -> None:
+        try:
+            base = base_state_from_odom(msg)
+            if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
+                    and np.linalg.norm(base.quaternion) > 0.5):
+                raise ValueError('non-finite pose')
+        except ValueError as err:
+            self._warn('odom', f'odom rejected: {err}')
+            return
+        ns = stamp_to_ns(msg.header.stamp)
+        self.odom[ns] = base
+        self.latest_stamp = max(self.latest_stamp, base.stamp)
+        if len(self.odom) > _ODOM_BUFFER:
+            for old in sorted(self.odom)[:len(self.odom) - _ODOM_BUFFER]:
+                del self.odom[old]
+        self._process()
+
+    def _on_contacts(self, msg: PointCloud2) -> None:
+        try:
+            cs = contacts_from_msg(msg)
+            if not np.all(np.isfinite(cs.foot_position)):
+                raise ValueError('non-finite foot positions')
+        except ValueError as err:
+            self._warn('contacts', f'contacts rejected: {err}')
+            return
+        self.latest_stamp = max(self.latest_stamp, cs.stamp)
+        self.unprocessed.append(cs)
+        self._process()
+
+    def _process(self) -> None:
+        """Run the ticks in order; a re-plan waits for the odom of its stamp."""
+        while True:
+            if self.pending is not None and not self._replan():
+                return
+            if not self.unprocessed:
+                return
+            self._tick(self.unprocessed.popleft())
+
+    def _tick(self, cs: ContactState) -> None:
+        ns = round(cs.stamp * 1e9)
+        if self.last_tick_ns is not None and ns < self.last_tick_ns:
+            self._reset(f'sim time went back from {self.last_tick_ns * 1e-9:.3f} s to '
+                        f'{cs.stamp:.3f} s')
+        if self.last_tick_ns is not None and ns == self.last_tick_ns:
+            return                          # a republished state: already decided
+        self.last_tick_ns = ns
+        if self.tracker is None:
+            self.pending = (ns, cs, True)  # the first state seen: the initial plan
+            return
+        for event in self.tracker.update(cs.stamp, cs.contact):
+            if event.kind != 'touchdown':
+                continue
+            self.schedule.touched_down(event.leg)
+            if event.reason == 'forced':
+                self.forced += 1
+                self.get_logger().warn(
+                    f'{LEGS[event.leg]} touchdown forced at t={event.time:.3f} s: no contact '
+                    f'{self.max_extension} s after the planned touchdown')
+        if self.tracker.replan_due:
+            self.pending = (ns, cs, False)
+
+    def _replan(self) -> bool:
+        """Compute and publish the plan of the pending tick; False while its odom is missing."""
+        ns, cs, initial = self.pending
+        base = self.odom.get(ns)
+        if base is None:
+            if not self.odom or max(self.odom) <= ns:
+                return False               # may still come (the sim republishes while it waits)
+            # A newer odom came: the one of this stamp was lost (best effort, free-run mode).
+            nearest = min(self.odom, key=lambda s: abs(s - ns))
+            base = self.odom[nearest]
+            self._warn('odom lost', f'no odom stamped {ns * 1e-9:.3f} s: re-planning with the '
+                       f'one of {nearest * 1e-9:.3f} s')
+        t = cs.stamp                       # the very float the controller gets from the stamp
+        feet = cs.foot_position.copy()
+        if self.plan is not None:
+            # A foot whose touchdown was forced is still in the air: plan it at ground height.
+            targets = {s.leg: s.target for s in self.plan.steps
+                       if s.touchdown_time <= t + 1e-9}
+            for leg in range(4):
+                if not cs.contact[leg] and leg in targets:
+                    feet[leg, 2] = targets[leg][2]
+        yaw = yaw_of(base.quaternion)
+        hips = self.model.hip_positions(base) if self.model is not None else None
+        setpoint, source = self.setpoint_at(ns)
+        try:
+            plan = compute_footholds(setpoint, feet, base.position, yaw, hips,
+                                     self.schedule.next_leg, t, self.params,
+                                     delay=self.start_delay if initial else 0.0)
+        except ValueError as err:
+            self.get_logger().error(f'footholds at t={t:.3f} s failed ({err}); keeping the '
+                                    'previous plan')
+            self.pending = None
+            return True
+        msg = footholds_to_msg(plan)
+        # Track the plan exactly as the controller decodes it from the message, so both trackers
+        # compare bit-identical times.
+        self.plan = footholds_from_msg(msg)
+        self.tracker = StepTracker(self.plan, self.min_swing_fraction, self.max_extension)
+        self.pending = None
+        self.replans += 1
+        stamp = ns_to_stamp(ns)
+        self.footholds_pub.publish(msg)
+        sp = TwistStamped()
+        sp.header.stamp = stamp
+        sp.header.frame_id = 'base_link'
+        sp.twist.linear = Vector3(x=float(setpoint[0]), y=float(setpoint[1]), z=0.0)
+        sp.twist.angular = Vector3(x=0.0, y=0.0, z=float(setpoint[2]))
+        self.setpoint_pub.publish(sp)
+        self.markers_pub.publish(self._markers(plan))
+        self._publish_diagnostics(t, source)
+        if initial:
+            self.get_logger().info(f'initial plan at t={t:.3f} s: stand {self.start_delay} s, '
+                                   f'then {LEGS[self.schedule.next_leg]} first')
+        return True
+
+    # ----------------------------------------------------------------------------- output
+
+    def _publish_diagnostics(self, t: float, source: str) -> None:
+        level = diagnostics.WARN if self.forced else diagnostics.OK
+        values = {'replans': self.replans, 'last_replan_time': t, 'setpoint_source': source,
+                  'rejected_cmd_vel': self.rejected, 'forced_touchdowns': self.forced,
+                  'next_leg': LEGS[self.schedule.next_leg]}
+        message = 'forced touchdowns happened' if self.forced else 'ok'
+        self.diag_pub.publish(diagnostics.array(
+            sec_to_stamp(t), diagnostics.status('gait', level, message, values)))
+
+    def _markers(self, plan: FootholdPlan) -> MarkerArray:
+        hdr = header(plan.start_time, WORLD_FRAME)
+        markers = [Marker(header=hdr, action=Marker.DELETEALL)]
+        feet = Marker(header=hdr, ns='initial_feet', id=0, type=Marker.SPHERE_LIST,
+                      action=Marker.ADD)
+        feet.scale = Vector3(x=0.05, y=0.05, z=0.05)
+        feet.pose.orientation.w = 1.0
+        for p in plan.initial_feet:
+            feet.points.append(Point(x=float(p[0]), y=float(p[1]), z=float(p[2])))
+            feet.colors.append(ColorRGBA(r=0.5, g=0.5, b=0.5, a=1.0))
+        markers.append(feet)
+        holds = Marker(header=hdr, ns='footholds', id=0, type=Marker.SPHERE_LIST,
+                       action=Marker.ADD)
+        holds.scale = Vector3(x=0.04, y=0.04, z=0.04)
+        holds.pose.orientation.w = 1.0
+        for k, step in enumerate(plan.steps):
+            r, g, b = _LEG_COLOURS[step.leg]
+            holds.points.append(Point(x=float(step.target[0]), y=float(step.target[1]),
+                                      z=float(step.target[2])))
+            fade = 1.0 - 0.6 * k / max(len(plan.steps), 1)   # later footholds paler
+            holds.colors.append(ColorRGBA(r=r, g=g, b=b, a=fade))
+        markers.append(holds)
+        for k, (_t0, _t1, positions, stance) in enumerate(stance_phases(plan)):
+            poly = Marker(header=hdr, ns='support_polygons', id=k, type=Marker.LINE_STRIP,
+                          action=Marker.ADD)
+            poly.scale.x = 0.005
+            poly.pose.orientation.w = 1.0
+            three = int(stance.sum()) == 3
+            poly.color = (ColorRGBA(r=1.0, g=0.5, b=0.0, a=0.8) if three
+                          else ColorRGBA(r=0.1, g=0.8, b=0.3, a=0.5))
+            corners = [leg for leg in _POLYGON_ORDER if stance[leg]]
+            for leg in [*corners, corners[0]]:
+                p = positions[leg]
+                poly.points.append(Point(x=float(p[0]), y=float(p[1]),
+                                         z=float(p[2]) + 0.002 * k))   # stacked, readable
+            markers.append(poly)
+        return MarkerArray(markers=markers)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = GaitNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

@@ -1,0 +1,366 @@
+"""Simulator node `sim`: the PyBullet world behind a robot-driver interface; it owns time.
+
+Lock-step (docs/ARCHITECTURE.md, "Time and lock-step"): at tick t_k it publishes /clock,
+joint_states, odom, contacts (and contact_events on edges), all stamped t_k, then waits for the
+joint_torque_cmd stamped t_k, applies it for one control period and publishes t_{k+1}. Without
+that command it republishes the state of t_k every `republish_period`; after `command_timeout`
+wall seconds without one (the controller is dead) it free-runs in real time with joint damping
+so the robot sits down, reports ERROR on /diagnostics, and returns to lock-step as soon as the
+controller answers again. Before the first command the sim does not advance.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import os
+import time
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, PointCloud2
+
+from replan_core.sim_world import STANDING_POSE, TERRAINS, SimWorld
+from replan_core.types import JOINT_NAMES, WORLD_FRAME
+from replan_ros import diagnostics, qos
+from replan_ros.interfaces import (
+    contact_events_to_msg,
+    contacts_to_msg,
+    joint_state_to_msg,
+    ns_to_stamp,
+    odom_from_base_state,
+    sec_to_ns,
+    stamp_to_ns,
+    torque_cmd_from_msg,
+)
+
+WAITING, LOCK_STEP, FREE_RUN, DAMPING = 'waiting_first_command', 'lock_step', 'free_run', 'damping'
+_LOG_THROTTLE = 1.0          # wall s between two log lines of the same kind
+_MAX_CATCH_UP_TICKS = 25     # free-run: ticks stepped at most per timer call before slipping
+_WATCHDOG_PERIOD = 0.02      # wall s
+
+
+def _default_urdf() -> str:
+    env = os.environ.get('REPLAN_URDF', '')
+    if env:
+        return env
+    return str(Path(__file__).resolve().parents[3] / 'urdf' / 'hyq.urdf')
+
+
+class SimNode(Node):
+    """PyBullet simulator: torques in, sensed state, contact events and /clock out."""
+
+    def __init__(self) -> None:
+        super().__init__('sim')
+        p = self._declare_parameters()
+        urdf = p['urdf_path'] or _default_urdf()
+        terrain_params = {
+            'step_x': p['terrain_step_x'], 'step_height': p['terrain_step_height'],
+            'step_length': p['terrain_step_length'], 'width': p['terrain_width'],
+            'rough_start_x': p['terrain_rough_start_x'],
+            'rough_length': p['terrain_rough_length'],
+            'rough_amplitude': p['terrain_rough_amplitude'],
+            'rough_resolution': p['terrain_rough_resolution']}
+        standing = np.array(p['standing_joint_positions'], dtype=float)
+        if standing.shape != (len(JOINT_NAMES),) or not np.all(np.isfinite(standing)):
+            self.get_logger().error(
+                f'standing_joint_positions needs {len(JOINT_NAMES)} finite values; '
+                'using HyQ standing pose')
+            standing = STANDING_POSE.copy()
+        self.world = SimWorld(
+            urdf, physics_dt=p['physics_dt'], control_period=p['control_period'],
+            initial_joint_positions=standing,
+            initial_base_height=p['initial_base_height'] or None,
+            terrain=p['terrain'], terrain_params=terrain_params,
+            contact_threshold=p['contact_threshold'], debounce_ticks=p['debounce_ticks'],
+            friction=p['friction'], gui=p['gui'], seed=p['seed'])
+        self.lock_step: bool = p['lock_step']
+        self.republish_period: float = p['republish_period']
+        self.command_timeout: float = p['command_timeout']
+        self.damping_gain: float = p['damping_gain']
+        self.rtf_target: float = max(p['real_time_factor'], 1e-3)
+
+        self.clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK)
+        self.joint_pub = self.create_publisher(JointState, 'joint_states', qos.SENSOR)
+        self.odom_pub = self.create_publisher(Odometry, 'odom', qos.SENSOR)
+        self.contacts_pub = self.create_publisher(PointCloud2, 'contacts', qos.CONTACTS)
+        self.events_pub = self.create_publisher(PointCloud2, 'contact_events', qos.CONTACTS)
+        self.applied_pub = self.create_publisher(WrenchStamped, 'applied_wrench', qos.SCHEDULE)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.COMMAND)
+        self.create_subscription(JointState, 'joint_torque_cmd', self._on_command, qos.COMMAND)
+        self.create_subscription(WrenchStamped, 'external_wrench', self._on_wrench,
+                                 qos.SCHEDULE)
+
+        self.mode = WAITING
+        self.command = np.zeros(len(JOINT_NAMES))     # last accepted (safe) command, N m
+        self.last_command_wall = time.monotonic()
+        self.last_publish_wall = 0.0
+        self.rejected = 0
+        self.ignored = 0
+        self._log_times: dict[str, float] = {}
+        self._wrench_queue: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # (ns, seq, f, t)
+        self._wrench_seq = 0
+        self._rtf_samples: deque[tuple[float, float]] = deque()
+        self._free_ref = (0.0, 0)                     # (wall, tick) where free-running began
+
+        self.free_timer = self.create_timer(p['control_period'] / self.rtf_target,
+                                            self._on_free_run_timer)
+        self.free_timer.cancel()
+        self.create_timer(_WATCHDOG_PERIOD, self._on_watchdog)
+        self.create_timer(p['diagnostics_period'], self._on_diagnostics)
+        self._publish_state()
+        stepping = 'lock-step' if self.lock_step else 'free-run'
+        self.get_logger().info(
+            f'sim: {urdf} on {p["terrain"]} terrain, {stepping}, tick {p["control_period"]} s, '
+            f'physics {p["physics_dt"]} s; '
+            'waiting for the first joint_torque_cmd')
+
+    # ------------------------------------------------------------------ parameters
+    def _declare_parameters(self) -> dict:
+        specs = [
+            ('urdf_path', '', "robot URDF; '' = $REPLAN_URDF or <repo>/urdf/hyq.urdf"),
+            ('physics_dt', 0.001, 'physics step, s'),
+            ('control_period', 0.004, 'control tick, s (a multiple of physics_dt)'),
+            ('standing_joint_positions', STANDING_POSE.tolist(),
+             'spawn joint angles, rad, JOINT_NAMES order'),
+            ('initial_base_height', 0.0, 'spawn base_link height, m; 0 = feet touching ground'),
+            ('terrain', 'flat', f'terrain: {" | ".join(TERRAINS)}'),
+            ('terrain_step_x', 0.6, 'step_down/step_up: x of the step edge, m'),
+            ('terrain_step_height', 0.1, 'step_down: drop, step_up: rise, m'),
+            ('terrain_step_length', 2.0, 'step_up: box length along x, m'),
+            ('terrain_width', 4.0, 'step_up/rough: extent along y, m'),
+            ('terrain_rough_start_x', 0.6, 'rough: x where the heightfield begins, m'),
+            ('terrain_rough_length', 4.0, 'rough: extent along x, m'),
+            ('terrain_rough_amplitude', 0.03, 'rough: heights uniform in [0, amplitude], m'),
+            ('terrain_rough_resolution', 0.05, 'rough: cell size, m'),
+            ('seed', 0, 'rough: heightfield seed'),
+            ('friction', 0.8, 'foot/ground Coulomb friction coefficient'),
+            ('contact_threshold', 30.0, 'normal force for contact, N'),
+            ('debounce_ticks', 2, 'ticks the force must stay above/below the threshold'),
+            ('lock_step', True, 'advance one tick per joint_torque_cmd of the current stamp'),
+            ('republish_period', 0.1, 'lock-step: republish the state after this many wall s'),
+            ('command_timeout', 1.0, 'wall s without a command before damping mode'),
+            ('damping_gain', 40.0, 'controller-dead joint damping, N m s/rad'),
+            ('real_time_factor', 1.0, 'free-run/damping: sim s per wall s to aim for'),
+            ('gui', False, 'open the PyBullet GUI'),
+            ('diagnostics_period', 1.0, '/diagnostics period, wall s'),
+        ]
+        values = {}
+        for name, default, description in specs:
+            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+            values[name] = self.get_parameter(name).value
+        return values
+
+    # ------------------------------------------------------------------ helpers
+    def _log_throttled(self, level: str, key: str, text: str) -> None:
+        now = time.monotonic()
+        if now - self._log_times.get(key, -math.inf) >= _LOG_THROTTLE:
+            self._log_times[key] = now
+            getattr(self.get_logger(), level)(text)
+
+    @property
+    def now_ns(self) -> int:
+        """Current sim time (the state stamp), ns."""
+        return sec_to_ns(self.world.time)
+
+    def _publish_state(self, with_clock: bool = True, with_events: bool = True) -> None:
+        w = self.world
+        stamp = ns_to_stamp(self.now_ns)
+        if with_clock:
+            self.clock_pub.publish(Clock(clock=stamp))
+        self.joint_pub.publish(joint_state_to_msg(w.joint_state()))
+        self.odom_pub.publish(odom_from_base_state(w.base_state()))
+        contacts = w.contact_state()
+        self.contacts_pub.publish(contacts_to_msg(contacts))
+        if with_events:
+            events = contact_events_to_msg(contacts)
+            if events is not None:
+                self.events_pub.publish(events)
+        self.last_publish_wall = time.monotonic()
+
+    def _advance(self, torques: np.ndarray) -> None:
+        """One control tick: due wrenches, physics, state out."""
+        self._apply_due_wrenches()
+        try:
+            self.world.step(torques)
+        except ValueError as err:       # never reached with validated commands; be safe
+            self.get_logger().error(f'step failed ({err}); applying zero torques')
+            self.world.step(np.zeros(len(JOINT_NAMES)))
+        now = time.monotonic()
+        self._rtf_samples.append((now, self.world.time))
+        while len(self._rtf_samples) > 2 and now - self._rtf_samples[1][0] >= 1.0:
+            self._rtf_samples.popleft()
+        self._publish_state()
+
+    def _set_mode(self, mode: str) -> None:
+        if mode == self.mode:
+            return
+        if mode in (FREE_RUN, DAMPING):
+            self._free_ref = (time.monotonic(), self.world.tick)
+            if self.free_timer.is_canceled():
+                self.free_timer.reset()
+        else:
+            self.free_timer.cancel()
+        if mode == DAMPING:
+            self.get_logger().error(
+                f'no joint_torque_cmd for {self.command_timeout} s (controller dead): '
+                f'free-running in real time with joint damping {self.damping_gain} N m s/rad '
+                f'at t = {self.world.time:.3f} s')
+        elif self.mode == DAMPING:
+            self.get_logger().info(f'controller back: {mode} at t = {self.world.time:.3f} s')
+        self.mode = mode
+
+    # ------------------------------------------------------------------ inputs
+    def _on_command(self, msg: JointState) -> None:
+        try:
+            stamp_ns, torques = torque_cmd_from_msg(msg)
+        except ValueError as err:
+            self.rejected += 1
+            stamp = stamp_to_ns(msg.header.stamp) * 1e-9
+            self._log_throttled(
+                'warn', f'reject:{err}',
+                f'rejected joint_torque_cmd stamped {stamp:.3f} s: {err}; keeping the previous '
+                f'command ({self.rejected} rejected so far)')
+            return
+        if not self.lock_step:
+            self.command = torques
+            self.last_command_wall = time.monotonic()
+            if self.mode != FREE_RUN:
+                self._set_mode(FREE_RUN)
+            return
+        if stamp_ns == self.now_ns:
+            self.command = torques
+            self.last_command_wall = time.monotonic()
+            self._set_mode(LOCK_STEP)
+            self._advance(torques)
+            return
+        self.ignored += 1
+        if self.mode == DAMPING and stamp_ns < self.now_ns:
+            # The controller is alive again but answers an older state: stop here and wait
+            # for its command of the current stamp (it gets command_timeout to send it).
+            self.last_command_wall = time.monotonic()
+            self._set_mode(LOCK_STEP)
+            self._publish_state(with_clock=True, with_events=False)
+            return
+        self._log_throttled(
+            'debug', 'stale', f'ignored joint_torque_cmd stamped {stamp_ns * 1e-9:.3f} s '
+            f'(state is {self.world.time:.3f} s)')
+
+    def _on_wrench(self, msg: WrenchStamped) -> None:
+        f, t = msg.wrench.force, msg.wrench.torque
+        force, torque = np.array([f.x, f.y, f.z]), np.array([t.x, t.y, t.z])
+        if msg.header.frame_id not in ('', WORLD_FRAME):
+            self._log_throttled('warn', 'wrench-frame',
+                                f'rejected external_wrench in frame {msg.header.frame_id!r}: '
+                                f'only {WORLD_FRAME!r} (world axes) is supported')
+            return
+        if not (np.all(np.isfinite(force)) and np.all(np.isfinite(torque))):
+            self._log_throttled('warn', 'wrench-nan', 'rejected non-finite external_wrench')
+            return
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        if stamp_ns == 0:                  # zero stamp: from now on
+            stamp_ns = self.now_ns
+        entry = (stamp_ns, self._wrench_seq, force, torque)
+        self._wrench_seq += 1
+        bisect.insort(self._wrench_queue, entry, key=lambda e: (e[0], e[1]))
+        self.get_logger().info(
+            f'external_wrench F={force.tolist()} N, M={torque.tolist()} N m from '
+            f't = {stamp_ns * 1e-9:.3f} s queued')
+
+    def _apply_due_wrenches(self) -> None:
+        """Make the latest wrench stamped at or before the current tick the active one."""
+        now_ns = self.now_ns
+        due = None
+        while self._wrench_queue and self._wrench_queue[0][0] <= now_ns:
+            due = self._wrench_queue.pop(0)
+        if due is None:
+            return
+        _, _, force, torque = due
+        self.world.set_external_wrench(force, torque)
+        out = WrenchStamped()
+        out.header.stamp = ns_to_stamp(now_ns)
+        out.header.frame_id = WORLD_FRAME
+        out.wrench.force.x, out.wrench.force.y, out.wrench.force.z = map(float, force)
+        out.wrench.torque.x, out.wrench.torque.y, out.wrench.torque.z = map(float, torque)
+        self.applied_pub.publish(out)
+        self.get_logger().info(f'external wrench F={force.tolist()} N, M={torque.tolist()} N m '
+                               f'applied at t = {now_ns * 1e-9:.3f} s')
+
+    # ------------------------------------------------------------------ timers
+    def _on_watchdog(self) -> None:
+        now = time.monotonic()
+        silent = now - self.last_command_wall
+        if self.mode in (LOCK_STEP, FREE_RUN) and silent > self.command_timeout:
+            self._set_mode(DAMPING)
+        waiting = self.mode in (WAITING, LOCK_STEP)
+        if waiting and now - self.last_publish_wall >= self.republish_period:
+            # Lost messages heal: the state of t_k again, with /clock (same time, so late
+            # joiners learn it while the sim waits) but without repeating contact events.
+            self._publish_state(with_clock=True, with_events=False)
+
+    def _on_free_run_timer(self) -> None:
+        if self.mode not in (FREE_RUN, DAMPING):
+            return
+        wall0, tick0 = self._free_ref
+        period = self.world.control_period
+        due = tick0 + int((time.monotonic() - wall0) * self.rtf_target / period)
+        todo = due - self.world.tick
+        for _ in range(min(todo, _MAX_CATCH_UP_TICKS)):
+            torques = (self.world.damping_torques(self.damping_gain) if self.mode == DAMPING
+                       else self.command)
+            self._advance(torques)
+            if self.mode not in (FREE_RUN, DAMPING):
+                return
+        if todo > _MAX_CATCH_UP_TICKS:    # too slow for the target RTF: slip, do not spiral
+            self._free_ref = (time.monotonic(), self.world.tick)
+
+    def _rtf(self) -> float:
+        if len(self._rtf_samples) < 2:
+            return 0.0
+        now = time.monotonic()
+        wall0, sim0 = self._rtf_samples[0]
+        if now - self._rtf_samples[-1][0] > 1.0:      # nothing stepped in the last second
+            return 0.0
+        return (self.world.time - sim0) / max(now - wall0, 1e-9)
+
+    def _on_diagnostics(self) -> None:
+        if self.mode == DAMPING:
+            level = diagnostics.ERROR
+            message = 'controller dead: damping mode (free-running, robot sits down)'
+        elif self.mode == WAITING:
+            level, message = diagnostics.OK, 'waiting for the first joint_torque_cmd'
+        else:
+            level, message = diagnostics.OK, self.mode.replace('_', '-')
+        values = {'mode': self.mode, 'sim_time': self.world.time, 'tick': self.world.tick,
+                  'real_time_factor': self._rtf(), 'commands_rejected': self.rejected,
+                  'commands_ignored': self.ignored,
+                  'wall_s_since_command': time.monotonic() - self.last_command_wall}
+        self.diag_pub.publish(diagnostics.array(
+            ns_to_stamp(self.now_ns), diagnostics.status('sim', level, message, values)))
+
+    def destroy_node(self) -> None:
+        self.world.close()
+        super().destroy_node()
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

@@ -1,0 +1,449 @@
+"""Whole-body controller node `wbc`: the controller side of the lock-step and re-plan protocol.
+
+docs/ARCHITECTURE.md, "Time and lock-step" and "Re-plan protocol":
+- states are used only as exact-stamp triples (`joint_states`, `odom`, `contacts` of one stamp);
+  each triple is answered by one `joint_torque_cmd` stamped with it; a duplicate of a stamp
+  already answered gets the same command again; older stamps are ignored; nothing is ever
+  extrapolated;
+- `contact.StepTracker` (through `wbc.PlanFollower`), fed with the plan and the contacts of
+  every tick, decides swing/stance; when a `replan` step touches down at t_k the tick t_k is
+  answered only once `footholds` and `com_plan` stamped t_k have arrived, or after
+  `plan_timeout` wall seconds (then with the old plans, WARN). Waiting is event-driven: the
+  plan callbacks answer, a one-shot wall-clock timer handles the timeout;
+- at the first tick it waits for the first plans the same way (timeout: stand);
+- no plan, a plan older than `plan_max_age` (sim s) or past its horizon, or stale inputs (a gap
+  of more than `stale_ticks` control periods between answered ticks, e.g. after the sim
+  free-ran): it holds a stable stand with the feet where they are (`wbc.StandHold`) until a new
+  plan pair arrives.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import JointState as JointStateMsg
+from sensor_msgs.msg import PointCloud2
+from trajectory_msgs.msg import MultiDOFJointTrajectory
+
+from replan_core.robot_model import RobotModel
+from replan_core.types import ComPlan, FootholdPlan
+from replan_core.wbc import PlanFollower, StandHold, WbcParams, WholeBodyController, yaw_of
+from replan_ros import diagnostics
+from replan_ros.interfaces import (
+    base_state_from_odom,
+    com_plan_from_msg,
+    contacts_from_msg,
+    footholds_from_msg,
+    joint_state_from_msg,
+    ns_to_stamp,
+    sec_to_ns,
+    stamp_to_ns,
+    torque_cmd_to_msg,
+)
+from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SENSOR
+
+_NS = 1_000_000_000
+_KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead of the ticks)
+_KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
+_KEEP_STATES = 50        # partial state triples kept per topic while waiting for the rest
+
+
+class WbcNode(Node):
+    """Answers every state stamp of the simulator with joint torques."""
+
+    def __init__(self) -> None:
+        super().__init__('wbc')
+        self._declare('urdf_path', '', "robot URDF; '' = $REPLAN_URDF, else <repo>/urdf/hyq.urdf")
+        self._declare('control_rate', 250.0,
+                      'Hz, the sim control tick rate (1 / control_period): stale-input check')
+        self._declare('plan_timeout', 2.0,
+                      'wall s to wait for footholds + com_plan of a due re-plan (or the first '
+                      'plans); then go on with the old plans (or stand) and report WARN')
+        self._declare('plan_max_age', 6.0,
+                      'sim s: a plan pair older than this (or past its horizon) -> stand')
+        self._declare('stale_ticks', 3,
+                      'a gap of more than this many control periods between answered ticks '
+                      'means the inputs went stale (sim free-ran): stand until a new plan')
+        self._declare('min_swing_fraction', 0.5,
+                      'StepTracker: earliest haptic touchdown as a fraction of the swing '
+                      '(must equal the gait node value)')
+        self._declare('max_extension', 0.3,
+                      'StepTracker: s after the planned touchdown a haptic step is forced to '
+                      'end (must equal the gait node value)')
+        self._declare('haptic_velocity', 0.15,
+                      'm/s, descent of a haptic swing foot after its planned touchdown')
+        defaults = WbcParams()
+        self._declare('com_kp', defaults.com_kp.tolist(), '1/s^2, CoM PD stiffness x y z')
+        self._declare('com_kd', defaults.com_kd.tolist(), '1/s, CoM PD damping x y z')
+        self._declare('trunk_kp', defaults.trunk_kp.tolist(),
+                      '1/s^2, trunk orientation PD stiffness roll pitch yaw')
+        self._declare('trunk_kd', defaults.trunk_kd.tolist(),
+                      '1/s, trunk orientation PD damping roll pitch yaw')
+        self._declare('swing_kp', defaults.swing_kp.tolist(), 'N/m, swing foot stiffness x y z')
+        self._declare('swing_kd', defaults.swing_kd.tolist(), 'N s/m, swing foot damping x y z')
+        self._declare('friction', defaults.friction,
+                      'friction coefficient of the force QP (inner pyramid mu / sqrt 2)')
+        self._declare('fz_min', defaults.fz_min, 'N, least normal force of a stance foot')
+        self._declare('fz_max', defaults.fz_max, 'N, largest normal force of a stance foot')
+        self._declare('weight_force', defaults.weight_force, 'QP weight of the force rows')
+        self._declare('weight_moment', defaults.weight_moment, 'QP weight of the moment rows')
+        self._declare('regularization', defaults.regularization, 'QP weight of |f|^2')
+        self._declare('fallback_kp', defaults.fallback_kp,
+                      'N m/rad, joint PD of the safe stand after a numerical failure')
+        self._declare('fallback_kd', defaults.fallback_kd, 'N m s/rad, same, damping')
+        self._declare('diagnostics_period', 1.0, 'wall s between /diagnostics messages')
+
+        p = {name: self.get_parameter(name).value for name in self._parameter_names}
+        params = WbcParams(
+            com_kp=np.array(p['com_kp'], float), com_kd=np.array(p['com_kd'], float),
+            trunk_kp=np.array(p['trunk_kp'], float), trunk_kd=np.array(p['trunk_kd'], float),
+            swing_kp=np.array(p['swing_kp'], float), swing_kd=np.array(p['swing_kd'], float),
+            friction=float(p['friction']), fz_min=float(p['fz_min']),
+            fz_max=float(p['fz_max']), weight_force=float(p['weight_force']),
+            weight_moment=float(p['weight_moment']),
+            regularization=float(p['regularization']),
+            haptic_velocity=float(p['haptic_velocity']),
+            fallback_kp=float(p['fallback_kp']), fallback_kd=float(p['fallback_kd']))
+        for gain in ('com_kp', 'com_kd', 'trunk_kp', 'trunk_kd', 'swing_kp', 'swing_kd'):
+            if getattr(params, gain).shape != (3,):
+                raise ValueError(f'parameter {gain} needs 3 values')
+        self.plan_timeout = float(p['plan_timeout'])
+        self.plan_max_age = float(p['plan_max_age'])
+        self.stale_gap_ns = sec_to_ns(int(p['stale_ticks']) / float(p['control_rate']))
+        self.min_swing_fraction = float(p['min_swing_fraction'])
+        self.max_extension = float(p['max_extension'])
+        self.haptic_velocity = params.haptic_velocity
+
+        urdf = p['urdf_path'] or os.environ.get('REPLAN_URDF') or str(
+            Path(__file__).resolve().parents[3] / 'urdf' / 'hyq.urdf')
+        self.robot = RobotModel(urdf)
+        self.wbc = WholeBodyController(self.robot, params)
+
+        # Exact-stamp sync buffers: stamp (ns) -> core state.
+        self._joints: dict[int, object] = {}
+        self._odom: dict[int, object] = {}
+        self._contacts: dict[int, object] = {}
+        self._footholds: dict[int, FootholdPlan] = {}
+        self._com_plans: dict[int, ComPlan] = {}
+        self._commands: dict[int, JointStateMsg] = {}
+        self._last_answered: int | None = None
+        self._started = False
+        self._follower: PlanFollower | None = None
+        self._plan_stamp: int | None = None       # stamp of the active plan pair
+        self._stand: StandHold | None = None
+        self._stand_reason = 'no plan yet'
+        self._waiting: int | None = None          # tick (ns) held until its plans arrive
+        self._waiting_first = False               # the wait is the first tick's
+        self._wait_timer = None
+        self._wall = Clock(clock_type=ClockType.STEADY_TIME)
+        # Diagnostics accumulated over a period.
+        self._times: deque[float] = deque(maxlen=2000)
+        self._com_errors: deque[float] = deque(maxlen=2000)
+        self._last_result = None
+        self._plan_timeouts = 0
+        self._period_timeouts = 0
+        self._fallbacks = 0
+        self._period_fallbacks = 0
+        self._ticks = 0
+
+        self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
+        self.create_subscription(JointStateMsg, 'joint_states', self._on_joint_states, SENSOR)
+        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR)
+        self.create_subscription(PointCloud2, 'contacts', self._on_contacts, CONTACTS)
+        self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED)
+        self.create_subscription(MultiDOFJointTrajectory, 'com_plan', self._on_com_plan, LATCHED)
+        self.create_timer(float(p['diagnostics_period']), self._publish_diagnostics,
+                          clock=self._wall)
+        self.get_logger().info(
+            f'wbc ready: {urdf}, mass {self.robot.total_mass:.2f} kg, plan_timeout '
+            f'{self.plan_timeout} s')
+
+    def _declare(self, name: str, default, description: str) -> None:
+        self.declare_parameter(name, default, ParameterDescriptor(description=description))
+        self._parameter_names = [*getattr(self, '_parameter_names', []), name]
+
+    def _warn(self, text: str) -> None:
+        self.get_logger().warning(text, throttle_duration_sec=2.0)
+
+    # ------------------------------------------------------------------------------ inputs
+    def _on_joint_states(self, msg: JointStateMsg) -> None:
+        try:
+            state = joint_state_from_msg(msg)
+        except ValueError as error:
+            self._warn(f'rejected joint_states: {error}')
+            return
+        self._store(self._joints, stamp_to_ns(msg.header.stamp), state)
+
+    def _on_odom(self, msg: Odometry) -> None:
+        base = base_state_from_odom(msg)
+        if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
+                and np.linalg.norm(base.quaternion) > 1e-6):
+            self._warn('rejected odom: non-finite pose')
+            return
+        self._store(self._odom, stamp_to_ns(msg.header.stamp), base)
+
+    def _on_contacts(self, msg: PointCloud2) -> None:
+        try:
+            state = contacts_from_msg(msg)
+        except ValueError as error:
+            self._warn(f'rejected contacts: {error}')
+            return
+        self._store(self._contacts, stamp_to_ns(msg.header.stamp), state)
+
+    def _store(self, buffer: dict, stamp: int, value) -> None:
+        buffer[stamp] = value
+        if stamp in self._joints and stamp in self._odom and stamp in self._contacts:
+            self._on_state(stamp)
+        # Keep only stamps that may still be answered (or answered again), at most a few.
+        floor = self._last_answered if self._last_answered is not None else -1
+        for buf in (self._joints, self._odom, self._contacts):
+            for old in [s for s in buf if s < floor]:
+                del buf[old]
+            while len(buf) > _KEEP_STATES:
+                del buf[min(buf)]
+
+    def _on_footholds(self, msg: PointCloud2) -> None:
+        try:
+            plan = footholds_from_msg(msg)
+        except ValueError as error:
+            self._warn(f'rejected footholds: {error}')
+            return
+        self._keep(self._footholds, stamp_to_ns(msg.header.stamp), plan)
+        self._plans_arrived()
+
+    def _on_com_plan(self, msg: MultiDOFJointTrajectory) -> None:
+        try:
+            plan = com_plan_from_msg(msg)
+        except ValueError as error:
+            self._warn(f'rejected com_plan: {error}')
+            return
+        self._keep(self._com_plans, stamp_to_ns(msg.header.stamp), plan)
+        self._plans_arrived()
+
+    @staticmethod
+    def _keep(buffer: dict, stamp: int, value) -> None:
+        buffer[stamp] = value
+        while len(buffer) > _KEEP_PLANS:
+            del buffer[min(buffer)]
+
+    def _pair_stamps(self) -> list[int]:
+        """Stamps (ns) with both footholds and com_plan, ascending."""
+        return sorted(set(self._footholds) & set(self._com_plans))
+
+    def _plans_arrived(self) -> None:
+        """Event-driven end of a wait: answer the held tick once its plans are here."""
+        if self._waiting is None:
+            return
+        pairs = self._pair_stamps()
+        if self._waiting_first:
+            ready = [s for s in pairs if s <= self._waiting]
+        else:
+            ready = [s for s in pairs if s == self._waiting]
+        if not ready:
+            return
+        stamp = self._waiting
+        self._end_wait()
+        self._adopt(ready[-1], stamp)
+        self._answer(stamp)
+
+    # ------------------------------------------------------------------------------ ticks
+    def _on_state(self, stamp: int) -> None:
+        if stamp in self._commands:                  # duplicate: the same command again
+            self.cmd_pub.publish(self._commands[stamp])
+            return
+        if self._waiting is not None:
+            if stamp <= self._waiting:
+                return                               # still waiting for this tick's plans
+            # The sim moved on without us (free-run): stop waiting, the inputs are stale.
+            self._end_wait()
+        if self._last_answered is not None and stamp <= self._last_answered:
+            return                                   # an old stamp: nothing to answer
+        t = stamp / _NS
+        contacts = self._contacts[stamp]
+        if not self._started:
+            self._started = True
+            pairs = [s for s in self._pair_stamps() if s <= stamp]
+            if pairs:
+                self._adopt(pairs[-1], stamp)
+            else:
+                self._wait(stamp, first=True)
+                return
+        elif (self._last_answered is not None and stamp - self._last_answered > self.stale_gap_ns
+              and self._stand is None):
+            self._enter_stand(stamp, f'stale inputs: {(stamp - self._last_answered) / _NS:.3f} s '
+                                     'since the last answered tick')
+        # A newer plan pair than the active one (e.g. not announced by a touchdown we saw):
+        # adopt it; this is also how a stand ends.
+        newer = [s for s in self._pair_stamps()
+                 if s <= stamp and (self._plan_stamp is None or s > self._plan_stamp)]
+        if newer and (self._stand is not None or self._follower is not None):
+            self._adopt(newer[-1], stamp)
+        if self._follower is not None and self._stand is None:
+            self._follower.update(t, contacts)
+            if self._follower.replan_due:
+                if stamp in self._footholds and stamp in self._com_plans:
+                    self._adopt(stamp, stamp)
+                else:
+                    self._wait(stamp, first=False)
+                    return
+        self._answer(stamp)
+
+    def _wait(self, stamp: int, first: bool) -> None:
+        self._waiting = stamp
+        self._waiting_first = first
+        self._wait_timer = self.create_timer(self.plan_timeout, self._on_wait_timeout,
+                                             clock=self._wall)
+
+    def _end_wait(self) -> None:
+        self._waiting = None
+        if self._wait_timer is not None:
+            self.destroy_timer(self._wait_timer)
+            self._wait_timer = None
+
+    def _on_wait_timeout(self) -> None:
+        stamp = self._waiting
+        if stamp is None:
+            return
+        first = self._waiting_first
+        self._end_wait()
+        self._plan_timeouts += 1
+        self._period_timeouts += 1
+        if first or self._follower is None:
+            self.get_logger().warning(
+                f'no plans after {self.plan_timeout} s at t = {stamp / _NS:.3f}: standing')
+            self._enter_stand(stamp, 'no plan yet (plan_timeout)')
+        else:
+            self.get_logger().warning(
+                f're-plan due at t = {stamp / _NS:.3f} s: footholds/com_plan not there after '
+                f'{self.plan_timeout} s, going on with the old plans')
+        self._answer(stamp)
+
+    def _adopt(self, plan_stamp: int, stamp: int) -> None:
+        """Make the pair stamped ``plan_stamp`` active at tick ``stamp``."""
+        footholds, com_plan = self._footholds[plan_stamp], self._com_plans[plan_stamp]
+        self._follower = PlanFollower(footholds, com_plan, self.min_swing_fraction,
+                                      self.max_extension, self.haptic_velocity)
+        if stamp > plan_stamp:       # started late (first tick, or an unannounced plan)
+            self._follower.update(stamp / _NS, self._contacts[stamp])
+            self.get_logger().info(f'adopted plans stamped {plan_stamp / _NS:.3f} s at tick '
+                                   f'{stamp / _NS:.3f} s')
+        self._plan_stamp = plan_stamp
+        if self._stand is not None:
+            self.get_logger().info(f'plans stamped {plan_stamp / _NS:.3f} s: leaving the stand')
+        self._stand = None
+
+    def _enter_stand(self, stamp: int, reason: str) -> None:
+        base, joints = self._odom[stamp], self._joints[stamp]
+        com, _ = self.robot.com_state(base, joints)
+        self._stand = StandHold(stamp / _NS, com, yaw_of(base.quaternion), self._contacts[stamp],
+                                self.haptic_velocity)
+        self._stand_reason = reason
+        self._follower = None
+        self.get_logger().warning(f'standing at t = {stamp / _NS:.3f} s: {reason}')
+
+    def _answer(self, stamp: int) -> None:
+        t = stamp / _NS
+        base, joints, contacts = self._odom[stamp], self._joints[stamp], self._contacts[stamp]
+        if self._stand is None and self._follower is not None:
+            plan = self._follower.com_plan
+            if t - plan.start_time > self.plan_max_age or t > plan.end_time:
+                self._enter_stand(stamp, f'plan stamped {plan.start_time:.3f} s is too old')
+        if self._stand is None and self._follower is None:
+            self._enter_stand(stamp, self._stand_reason)
+        if self._stand is not None:
+            com_ref, yaw, stance, swing = self._stand.references(t, contacts)
+        else:
+            com_ref, yaw, stance, swing = self._follower.references(t)
+        result = self.wbc.compute(base, joints, contacts.contact, com_ref, yaw, stance, swing)
+        msg = torque_cmd_to_msg(t, result.torque)
+        msg.header.stamp = ns_to_stamp(stamp)        # exactly the stamp answered
+        self.cmd_pub.publish(msg)
+        self._commands[stamp] = msg
+        while len(self._commands) > _KEEP_COMMANDS:
+            del self._commands[min(self._commands)]
+        self._last_answered = stamp
+        self._ticks += 1
+        self._times.append(result.compute_time)
+        self._com_errors.append(float(np.linalg.norm(result.com_error)))
+        self._last_result = result
+        if result.fallback:
+            self._fallbacks += 1
+            self._period_fallbacks += 1
+            self._warn(f'wbc fallback (safe stand torques): {result.message}')
+
+    # ------------------------------------------------------------------------------ diagnostics
+    def _publish_diagnostics(self) -> None:
+        result = self._last_result
+        if result is None:
+            level, message = diagnostics.WARN, 'no state answered yet'
+            values = {'waiting_for_plans': self._waiting is not None}
+        else:
+            # Figures over the period; a period without ticks (waiting) repeats the last one.
+            times = np.array(self._times or [result.compute_time]) * 1e3
+            errors = np.array(self._com_errors or [float(np.linalg.norm(result.com_error))])
+            mode = 'stand' if self._stand is not None else 'plan'
+            values = {
+                'mode': mode,
+                'stand_reason': self._stand_reason if self._stand is not None else '',
+                'compute_time_ms': times[-1],
+                'compute_time_median_ms': float(np.median(times)),
+                'compute_time_max_ms': float(times.max()),
+                'com_error_m': errors[-1],
+                'com_error_max_m': float(errors.max()),
+                'active_contacts': ''.join(str(int(c)) for c in result.active_contacts),
+                'stance_legs': ''.join(str(int(c)) for c in result.stance),
+                'qp_status': result.qp_status,
+                'qp_iterations': result.qp_iterations,
+                'saturated_joints': result.saturated,
+                'plan_stamp': (self._plan_stamp / _NS if self._plan_stamp is not None else ''),
+                'last_tick': self._last_answered / _NS,
+                'ticks': self._ticks,
+                'plan_timeouts': self._plan_timeouts,
+                'fallbacks': self._fallbacks,
+                'waiting_for_plans': self._waiting is not None,
+            }
+            if self._period_fallbacks:
+                level, message = diagnostics.ERROR, f'{self._period_fallbacks} fallback ticks'
+            elif self._period_timeouts:
+                level, message = diagnostics.WARN, 'plan timeout: went on with the old plans'
+            elif self._stand is not None:
+                level, message = diagnostics.WARN, f'standing: {self._stand_reason}'
+            else:
+                level, message = diagnostics.OK, 'tracking the plan'
+        self._times.clear()
+        self._com_errors.clear()
+        self._period_timeouts = 0
+        self._period_fallbacks = 0
+        stamp = (ns_to_stamp(self._last_answered) if self._last_answered is not None
+                 else self.get_clock().now().to_msg())
+        self.diag_pub.publish(diagnostics.array(stamp, diagnostics.status('wbc', level, message,
+                                                                          values)))
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = WbcNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

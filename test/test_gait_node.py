@@ -1,0 +1,214 @@
+"""The gait node as a real process: touchdown-triggered re-plans and set-point hygiene.
+
+The test plays the simulator: it publishes ``contacts`` and ``odom`` ticks with chosen stamps
+(no /clock needed: the node keys everything on the state stamps) and ``cmd_vel``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import Twist, TwistStamped
+from harness import CONFIG_DIR
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import PointCloud2
+from visualization_msgs.msg import MarkerArray
+
+from replan_core.gait import GaitParams, clamp_velocity
+from replan_core.types import LEGS, BaseState, ContactState
+from replan_ros.interfaces import (
+    contacts_to_msg,
+    footholds_from_msg,
+    odom_from_base_state,
+    sec_to_stamp,
+    stamp_to_ns,
+)
+from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR
+
+BASE = np.array([0.0, 0.0, 0.599])
+FEET = np.array([[0.3708, 0.3241, 0.0215], [0.3708, -0.3241, 0.0215],
+                 [-0.3708, 0.3241, 0.0215], [-0.3708, -0.3241, 0.0215]])
+LH, LF = LEGS.index('lh'), LEGS.index('lf')
+
+
+class FakeSim:
+    """Test-side publishers of the simulator's state topics and of the user's cmd_vel."""
+
+    def __init__(self, probe):
+        self.probe = probe
+        node = probe.node
+        self.contacts_pub = node.create_publisher(PointCloud2, 'contacts', CONTACTS)
+        self.odom_pub = node.create_publisher(Odometry, 'odom', SENSOR)
+        self.cmd_pub = node.create_publisher(Twist, 'cmd_vel', COMMAND)
+        self.stamped_pub = node.create_publisher(TwistStamped, 'cmd_vel_stamped', SCHEDULE)
+        self.footholds = probe.subscribe(PointCloud2, 'footholds', LATCHED)
+        self.setpoints = probe.subscribe(TwistStamped, 'velocity_setpoint', SCHEDULE)
+        self.markers = probe.subscribe(MarkerArray, 'gait_markers', LATCHED)
+        self.feet = FEET.copy()
+
+    def wait_connected(self, launcher):
+        node = self.probe.node
+        ok = self.probe.spin_until(
+            lambda: all(pub.get_subscription_count() > 0 for pub in (
+                self.contacts_pub, self.odom_pub, self.cmd_pub, self.stamped_pub))
+            and node.count_publishers('footholds') > 0, timeout=30)
+        assert ok, launcher.logs()
+        self.probe.spin_for(0.3)
+
+    def tick(self, t, contact=(True, True, True, True), base=BASE, odom=True):
+        """One simulator tick: odom (best effort) then contacts, both stamped ``t``."""
+        if odom:
+            self.odom_pub.publish(odom_from_base_state(BaseState(
+                t, np.asarray(base, dtype=float), np.array([0.0, 0.0, 0.0, 1.0]),
+                np.zeros(3), np.zeros(3))))
+        flags = np.array(contact, dtype=bool)
+        self.contacts_pub.publish(contacts_to_msg(ContactState(
+            stamp=t, foot_position=self.feet.copy(), force=np.outer(flags, [0.0, 0.0, 200.0]),
+            contact=flags, touchdown=np.zeros(4, dtype=bool), liftoff=np.zeros(4, dtype=bool))))
+        self.probe.spin_for(0.05)
+
+    def cmd_vel(self, vx, vy, wz):
+        msg = Twist()
+        msg.linear.x, msg.linear.y, msg.angular.z = float(vx), float(vy), float(wz)
+        self.cmd_pub.publish(msg)
+        self.probe.spin_for(0.1)
+
+    def plans_at(self, t):
+        ns = round(t * 1e9)
+        return [footholds_from_msg(m) for m in self.footholds
+                if stamp_to_ns(m.header.stamp) == ns]
+
+    def setpoint_at(self, t):
+        ns = round(t * 1e9)
+        found = [m for m in self.setpoints if stamp_to_ns(m.header.stamp) == ns]
+        return (None if not found else
+                np.array([found[-1].twist.linear.x, found[-1].twist.linear.y,
+                          found[-1].twist.angular.z]))
+
+    def replan_at(self, t, launcher, base=BASE, contact=(True, True, True, True)):
+        """A touchdown tick at ``t``; waits for the footholds stamped ``t`` (republishing the
+        state as the simulator does while it waits)."""
+        for _ in range(5):
+            self.tick(t, contact, base)
+            if self.probe.spin_until(lambda: self.plans_at(t), timeout=2.0):
+                break
+        plans = self.plans_at(t)
+        assert plans, launcher.logs()
+        assert self.probe.spin_until(lambda: self.setpoint_at(t) is not None, timeout=5.0)
+        return plans[-1]
+
+
+@pytest.fixture
+def sim(launcher, probe):
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml')
+    fake = FakeSim(probe)
+    fake.wait_connected(launcher)
+    return fake
+
+
+def test_initial_plan_then_touchdown_triggers_footholds_at_that_tick(sim, launcher):
+    plan = sim.replan_at(0.0, launcher)
+    assert plan.start_time == 0.0 and len(plan.steps) == 8
+    assert [LEGS[s.leg] for s in plan.steps[:4]] == ['lh', 'lf', 'rh', 'rf']
+    assert plan.steps[0].liftoff_time == pytest.approx(1.0)       # start_delay: stand first
+    np.testing.assert_allclose(plan.initial_feet, FEET)
+    for step in plan.steps:                                       # no set-point: stand still
+        np.testing.assert_allclose(step.target, FEET[step.leg], atol=5e-3)
+        assert step.haptic and step.replan
+    np.testing.assert_allclose(sim.setpoint_at(0.0), 0.0)
+    assert sim.probe.spin_until(lambda: sim.markers, timeout=5.0)
+    namespaces = {m.ns for m in sim.markers[-1].markers}
+    assert {'footholds', 'support_polygons'} <= namespaces
+
+    # A stamped set-point effective from 1.1 s is used by the re-plan at the touchdown.
+    stamped = TwistStamped()
+    stamped.header.stamp = sec_to_stamp(1.1)
+    stamped.twist.linear.x = 0.1
+    sim.stamped_pub.publish(stamped)
+    later = TwistStamped()
+    later.header.stamp = sec_to_stamp(50.0)                        # not effective yet
+    later.twist.linear.x = -0.1
+    sim.stamped_pub.publish(later)
+
+    # lh lifts off at 1.0 (its flag drops), an early contact flag at 1.1 is ignored (before
+    # 1.0 + 0.5 * 0.5 s), the sensed touchdown at 1.252 triggers the re-plan stamped 1.252.
+    sim.tick(0.5)
+    sim.tick(1.0)
+    swing = [True, True, False, True]
+    sim.tick(1.1, [True, True, True, True])
+    sim.tick(1.2, swing)
+    sim.probe.spin_for(0.5)
+    assert len(sim.footholds) == 1, 'no re-plan before the touchdown'
+    pushed = BASE + np.array([0.0, 0.05, 0.0])                            # the trunk has moved
+    sim.feet[LH] += [0.05, 0.0, 0.0]
+    plan = sim.replan_at(1.252, launcher, base=pushed)
+    assert plan.start_time == pytest.approx(1.252, abs=1e-9)
+    np.testing.assert_allclose(plan.initial_feet, sim.feet)
+    assert LEGS[plan.steps[0].leg] == 'lf'                        # the schedule continues
+    assert plan.steps[0].liftoff_time == pytest.approx(1.252 + 0.5)
+    np.testing.assert_allclose(sim.setpoint_at(1.252), [0.1, 0.0, 0.0])
+    xs = [s.target[0] - FEET[s.leg, 0] for s in plan.steps]
+    assert all(x > 0 for x in xs) and xs[-1] > xs[0]              # walking forward
+    # Foothold correction: the first footholds follow the hips, pushed 5 cm to the left.
+    first = {}
+    for s in plan.steps:
+        first.setdefault(s.leg, s)
+    for leg, s in first.items():
+        assert s.target[1] - FEET[leg, 1] == pytest.approx(0.05, abs=5e-3)
+
+    # A republished state of the same tick does not re-plan again.
+    sim.tick(1.252, base=pushed)
+    sim.probe.spin_for(0.5)
+    assert len(sim.plans_at(1.252)) == 1
+
+
+def test_bad_cmd_vel_is_rejected_or_clamped(sim, launcher):
+    sim.replan_at(0.0, launcher)
+    sim.tick(1.0)
+    good = (0.1, 0.05, 0.1)
+    sim.cmd_vel(*good)
+    for bad in ((math.nan, 0.0, 0.0), (0.0, math.inf, 0.0), (0.0, 0.0, -math.inf),
+                (1e9, 0.0, 0.0), (0.0, -1e9, 0.0)):
+        sim.cmd_vel(*bad)
+    sim.replan_at(1.3, launcher)          # lh touches down (contact since 1.0 + 0.25 s)
+    np.testing.assert_allclose(sim.setpoint_at(1.3), good)
+
+    # Beyond the limits but not absurd: clamped.
+    sim.tick(1.8)                         # lf lifts off
+    sim.cmd_vel(0.5, -0.3, -0.4)
+    plan = sim.replan_at(2.1, launcher)
+    used = sim.setpoint_at(2.1)
+    # Each component clipped to its limit (0.15, 0.1, 0.25), then the combination scaled to
+    # strides the legs can make (gait.clamp_velocity, the node's defaults).
+    np.testing.assert_allclose(used, clamp_velocity((0.5, -0.3, -0.4), GaitParams()), atol=1e-9)
+    assert 0 < used[0] <= 0.15 and -0.1 <= used[1] < 0 and -0.25 <= used[2] < 0
+    assert all(np.all(np.isfinite(s.target)) for s in plan.steps)
+
+    # No cmd_vel for more than cmd_vel_timeout (0.5 s of sim time): stand still.
+    sim.tick(2.6)
+    sim.replan_at(2.9, launcher)
+    np.testing.assert_allclose(sim.setpoint_at(2.9), 0.0)
+    assert all(proc.alive for proc in launcher.processes), launcher.logs()
+    log = launcher.processes[0].log()
+    assert 'rejected' in log and 'clamped' in log
+
+
+def test_non_haptic_replans_at_the_planned_touchdown(launcher, probe):
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
+                   params={'haptic': False, 'replan_window': 2})
+    sim = FakeSim(probe)
+    sim.wait_connected(launcher)
+    plan = sim.replan_at(0.0, launcher)
+    assert not any(s.haptic for s in plan.steps)
+    assert [s.replan for s in plan.steps] == [False, True] * 4      # K = 2
+    swing = [True, True, False, True]
+    sim.tick(1.0)
+    sim.tick(1.3, [True, True, True, True])   # contact flags do not end a non-haptic swing
+    sim.tick(1.5, swing)                      # lh's planned touchdown: no re-plan (K = 2)
+    sim.tick(2.0)                             # lf lifts off
+    sim.probe.spin_for(0.3)
+    assert len(sim.footholds) == 1
+    plan = sim.replan_at(2.5, launcher, contact=[False, True, True, True])
+    assert LEGS[plan.steps[0].leg] == 'rh'

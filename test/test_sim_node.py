@@ -1,0 +1,229 @@
+"""The sim node as a process: state topics and /clock, lock-step, bad commands, controller death,
+pushes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from conftest import CONFIG_DIR
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, PointCloud2
+
+from replan_core.types import JOINT_NAMES
+from replan_ros import qos
+from replan_ros.diagnostics import values_of
+from replan_ros.interfaces import (
+    contacts_from_msg,
+    ns_to_stamp,
+    stamp_to_ns,
+    torque_cmd_to_msg,
+)
+
+TICK_NS = 4_000_000
+SIM_YAML = CONFIG_DIR / 'sim.yaml'
+
+
+class Driver:
+    """Test-side controller: subscribes the sim's outputs, sends torque commands."""
+
+    def __init__(self, probe) -> None:
+        self.probe = probe
+        self.joints = probe.subscribe(JointState, 'joint_states', qos.SENSOR)
+        self.odom = probe.subscribe(Odometry, 'odom', qos.SENSOR)
+        self.contacts = probe.subscribe(PointCloud2, 'contacts', qos.CONTACTS)
+        self.clock = probe.subscribe(Clock, '/clock', qos.CLOCK)
+        self.diag = probe.subscribe(DiagnosticArray, '/diagnostics', qos.COMMAND)
+        self.applied = probe.subscribe(WrenchStamped, 'applied_wrench', qos.SCHEDULE)
+        self.cmd_pub = probe.node.create_publisher(JointState, 'joint_torque_cmd', qos.COMMAND)
+
+    def wait_ready(self, timeout: float = 30.0) -> bool:
+        return self.probe.spin_until(
+            lambda: self.cmd_pub.get_subscription_count() > 0 and self.joints and self.odom
+            and self.contacts, timeout)
+
+    def latest_ns(self) -> int:
+        return max(stamp_to_ns(m.header.stamp) for m in self.joints)
+
+    def stamps(self, msgs) -> set[int]:
+        return {stamp_to_ns(m.header.stamp) for m in msgs}
+
+    def send(self, stamp_ns: int, torques) -> None:
+        msg = torque_cmd_to_msg(0.0, np.asarray(torques, dtype=float))
+        msg.header.stamp = ns_to_stamp(stamp_ns)
+        self.cmd_pub.publish(msg)
+
+    def send_raw(self, msg: JointState) -> None:
+        self.cmd_pub.publish(msg)
+
+    def wait_state(self, stamp_ns: int, timeout: float = 5.0) -> bool:
+        return self.probe.spin_until(
+            lambda: stamp_ns in self.stamps(self.joints) and stamp_ns in self.stamps(self.odom)
+            and stamp_ns in self.stamps(self.contacts), timeout)
+
+    def step(self, torques) -> int:
+        """Answer the latest state; return the new state stamp."""
+        now = self.latest_ns()
+        self.send(now, torques)
+        assert self.wait_state(now + TICK_NS), f'no state at {(now + TICK_NS) * 1e-9} s'
+        return now + TICK_NS
+
+    def joint_msg(self, stamp_ns: int) -> JointState:
+        return next(m for m in reversed(self.joints) if stamp_to_ns(m.header.stamp) == stamp_ns)
+
+    def sim_status(self) -> DiagnosticStatus | None:
+        for arr in reversed(self.diag):
+            for st in arr.status:
+                if st.name == 'sim':
+                    return st
+        return None
+
+
+def start_sim(launcher, **params):
+    return launcher.start('sim_node', params_file=SIM_YAML, params=params)
+
+
+def test_publishes_state_and_waits_for_first_command(launcher, probe):
+    sim = start_sim(launcher)
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    probe.spin_for(1.0)                              # ~10 republish periods, no command
+    assert driver.clock, 'no /clock'
+    for msgs in (driver.joints, driver.odom, driver.contacts):
+        assert driver.stamps(msgs) == {0}            # the sim did not advance
+    assert {stamp_to_ns(c.clock) for c in driver.clock} == {0}
+    assert len(driver.joints) >= 5                   # republished while waiting
+    js = driver.joints[-1]
+    assert list(js.name) == list(JOINT_NAMES)
+    odom = driver.odom[-1]
+    assert odom.header.frame_id == 'odom' and odom.child_frame_id == 'base_link'
+    assert 0.55 < odom.pose.pose.position.z < 0.62   # standing on flat ground
+    contacts = contacts_from_msg(driver.contacts[-1])
+    assert contacts.contact.all()
+    assert probe.spin_until(lambda: driver.sim_status() is not None, 5.0)
+    status = driver.sim_status()
+    assert status.level == DiagnosticStatus.OK
+    assert values_of(status)['mode'] == 'waiting_first_command'
+    assert sim.alive
+
+
+def test_lock_step_one_tick_per_command(launcher, probe):
+    start_sim(launcher)
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    torques = np.linspace(-5.0, 5.0, 12)
+    stamps = [driver.step(torques) for _ in range(10)]
+    assert stamps == [TICK_NS * (k + 1) for k in range(10)]
+    # /clock is keep-last depth 1: a slow reader may miss ticks, never sees a time not stepped.
+    assert {stamp_to_ns(c.clock) for c in driver.clock} <= {0, *stamps}
+    assert probe.spin_until(lambda: stamp_to_ns(driver.clock[-1].clock) == stamps[-1], 2.0)
+    np.testing.assert_allclose(driver.joint_msg(stamps[-1]).effort, torques)
+    # A command for a stale stamp is ignored: the sim stays at its tick.
+    driver.send(stamps[-2], torques)
+    probe.spin_for(0.5)
+    assert driver.latest_ns() == stamps[-1]
+    assert max(driver.stamps(driver.contacts)) == stamps[-1]
+    # Several commands for the current stamp advance it once.
+    driver.send(stamps[-1], torques)
+    driver.send(stamps[-1], torques)
+    assert driver.wait_state(stamps[-1] + TICK_NS)
+    probe.spin_for(0.5)
+    assert driver.latest_ns() == stamps[-1] + TICK_NS
+
+
+def test_bad_commands_rejected_previous_kept(launcher, probe):
+    sim = start_sim(launcher)
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    good = np.full(12, 3.0)
+    now = driver.step(good)
+
+    short = torque_cmd_to_msg(0.0, np.zeros(11))
+    short.name = list(JOINT_NAMES[:11])
+    unknown = torque_cmd_to_msg(0.0, np.zeros(12))
+    unknown.name = [*JOINT_NAMES[:11], 'lf_tail_joint']
+    nan = torque_cmd_to_msg(0.0, np.zeros(12))
+    nan.effort[4] = math.nan
+    for msg in (short, unknown, nan):
+        msg.header.stamp = ns_to_stamp(now)
+        driver.send_raw(msg)
+    probe.spin_for(1.0)
+    assert driver.latest_ns() == now                  # not advanced by any bad command
+    np.testing.assert_allclose(driver.joint_msg(now).effort, good)   # previous command kept
+    log = sim.log()
+    assert 'rejected joint_torque_cmd' in log
+    assert 'with 11 joints, expected 12' in log
+    assert "unknown joints ['lf_tail_joint']" in log
+    assert "non-finite effort for ['rf_hfe_joint']" in log
+    assert driver.step(good) == now + TICK_NS         # a good command still works
+    assert probe.spin_until(lambda: driver.sim_status() is not None
+                            and int(values_of(driver.sim_status())['commands_rejected']) == 3,
+                            5.0)
+
+
+def test_controller_silence_damping_then_resume(launcher, probe):
+    sim = start_sim(launcher, command_timeout=0.5, diagnostics_period=0.25)
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    now = driver.step(np.zeros(12))
+
+    def damping():
+        st = driver.sim_status()
+        return st is not None and st.level == DiagnosticStatus.ERROR
+
+    assert probe.spin_until(damping, 5.0), launcher.logs()
+    status = driver.sim_status()
+    assert values_of(status)['mode'] == 'damping'
+    assert 'controller dead' in status.message
+    assert 'controller dead' in sim.log()
+    probe.spin_for(1.0)
+    assert driver.latest_ns() > now + 50 * TICK_NS     # free-running in real time
+    assert float(values_of(driver.sim_status())['real_time_factor']) > 0.3
+    # The controller answers again: lock-step resumes at the stamp it answers.
+    driver.diag.clear()
+    current = driver.latest_ns()
+    driver.send(current, np.zeros(12))               # may be stale by now: the sim then waits
+    probe.spin_for(0.3)
+    for _ in range(5):
+        driver.step(np.zeros(12))
+    assert probe.spin_until(lambda: driver.sim_status() is not None
+                            and driver.sim_status().level == DiagnosticStatus.OK, 5.0)
+    assert values_of(driver.sim_status())['mode'] == 'lock_step'
+
+
+def test_push_tool_wrench_applied_at_its_stamp(launcher, probe):
+    start_sim(launcher)
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    push = launcher.start('push', args=['30', '-20', '10', '--duration', '0.02'])
+    push.process.wait(20)
+    assert push.process.returncode == 0, push.log()
+    assert 'push: F = (30, -20, 10) N' in push.log()
+    for _ in range(8):                               # t = 0 .. 0.032 s
+        driver.step(np.zeros(12))
+    assert probe.spin_until(lambda: len(driver.applied) >= 2, 5.0), launcher.logs()
+    start, end = driver.applied[:2]
+    assert stamp_to_ns(start.header.stamp) == 0
+    assert (start.wrench.force.x, start.wrench.force.y, start.wrench.force.z) == (30, -20, 10)
+    assert stamp_to_ns(end.header.stamp) == 5 * TICK_NS   # 0.02 s later, exactly
+    assert (end.wrench.force.x, end.wrench.force.y, end.wrench.force.z) == (0, 0, 0)
+
+
+def test_free_run_mode_real_time(launcher, probe):
+    start_sim(launcher, lock_step=False, diagnostics_period=0.5)
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    probe.spin_for(0.3)
+    assert driver.latest_ns() == 0                   # no command yet: does not advance
+    driver.send(0, np.zeros(12))                     # any stamp drives the free run
+    probe.spin_for(1.5)
+    for _ in range(3):
+        driver.send(driver.latest_ns(), np.zeros(12))
+        probe.spin_for(0.2)
+    assert driver.latest_ns() > 250 * TICK_NS        # ~2 s of real time, minus start-up
+    status = driver.sim_status()
+    assert values_of(status)['mode'] == 'free_run'
+    assert 0.5 < float(values_of(status)['real_time_factor']) < 1.2
