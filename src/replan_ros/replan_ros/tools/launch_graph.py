@@ -28,7 +28,13 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-NODES = ('sim', 'wbc', 'mpc', 'gait')
+NODES = ('sim', 'gait', 'mpc', 'wbc')
+# Published by sim, gait and mpc as soon as they are up; with a recorder in the graph the wbc,
+# whose first command lets the sim advance, starts only once the recorder listens to all of them.
+RECORDED_BEFORE_START = ('/clock', '/joint_states', '/odom', '/contacts', '/contact_events',
+                         '/applied_wrench', '/footholds', '/velocity_setpoint', '/com_plan',
+                         '/zmp_plan')
+RECORDER_WAIT = 20.0    # s, wall
 STOP_TIMEOUT = 10.0     # s, SIGINT -> SIGKILL
 RESPAWN_DELAY = 1.0     # s, wall
 
@@ -111,13 +117,30 @@ class Graph:
             self.nodes.append(ManagedNode(name, cmd, self.log_dir / f'{name}.log', respawn))
         self.failed: list[str] = []
 
-    def start(self) -> None:
+    def start(self, watch: ClockWatch | None = None) -> None:
+        """Start every node; with a recorder and a ``watch`` node, the wbc (which lets the sim
+        advance) only after the recorder subscribed to the graph's topics, so the bag holds
+        the run from t = 0."""
+        recording = any(n.name == 'recorder' for n in self.nodes)
         for node in self.nodes:
+            if node.name == 'wbc' and recording and watch is not None:
+                self._wait_for_recorder(watch)
             node.start(self.env)
             self.log(f'[launch {_stamp()}] started {node.name} (pid {node.process.pid}), '
                      f'log {node.log_path}')
-            if node.name == 'recorder':
-                time.sleep(1.0)   # let it subscribe before the first messages flow
+
+    def _wait_for_recorder(self, watch: ClockWatch) -> None:
+        deadline = time.monotonic() + RECORDER_WAIT
+        missing = list(RECORDED_BEFORE_START)
+        while time.monotonic() < deadline:
+            missing = [t for t in RECORDED_BEFORE_START
+                       if not any(info.node_name == 'recorder' for info in
+                                  watch.node.get_subscriptions_info_by_topic(t))]
+            if not missing:
+                return
+            watch.spin(0.1)
+        self.log(f'[launch {_stamp()}] recorder not subscribed to {missing} after '
+                 f'{RECORDER_WAIT} s; starting anyway (the bag may miss the first messages)')
 
     def poll(self) -> bool:
         """Check the nodes once; respawn the dead ones. False when the graph must stop."""
@@ -200,7 +223,7 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
     try:
         if on_start is not None:
             on_start(watch.node)
-        graph.start()
+        graph.start(watch)
         while not stop_requested:
             watch.spin(0.1)
             if on_tick is not None:

@@ -1,6 +1,7 @@
 """Replay an mcap bag: publish its messages, still serialized, with their original timing.
 
-    replay BAG [--topics T ...] [--rate R] [--loop] [--delay S] [--no-clock]
+    replay BAG [--topics T ...] [--rate R] [--loop] [--delay S] [--wait-subscribers S]
+               [--no-clock]
     replay BAG --info          # print topics, types, counts, QoS and metadata, then exit
 
 Messages go out in log-time order; message k is published at wall time
@@ -18,6 +19,7 @@ import time
 from dataclasses import dataclass
 
 import rclpy
+from mcap.exceptions import McapError
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -80,6 +82,21 @@ class ReplayNode(Node):
         self.summary = summary
 
 
+def wait_for_subscribers(node: ReplayNode, timeout: float) -> bool:
+    """Wait until every publisher is matched with a subscription (at most ``timeout`` s)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        waiting = [t for t, p in node.publishers_by_topic.items()
+                   if p.get_subscription_count() == 0]
+        if not waiting:
+            return True
+        if time.monotonic() >= deadline:
+            if timeout > 0:
+                node.get_logger().warning(f'no subscriber yet on {waiting}: replaying anyway')
+            return False
+        time.sleep(0.05)
+
+
 def _sleep_until(deadline: float) -> None:
     while True:
         remaining = deadline - time.monotonic()
@@ -100,7 +117,7 @@ def run_replay(node: ReplayNode, bag: str, rate: float, loop: bool,
         first_log: int | None = None
         start = time.monotonic()
         next_log = start + log_every
-        for channel, _schema, message in iter_raw(bag, topics):
+        for _schema, channel, message in iter_raw(bag, topics):
             if not rclpy.ok(context=node.context):
                 break
             if first_log is None:
@@ -155,13 +172,22 @@ def main(args=None):
     parser.add_argument('--loop', action='store_true', help='start over at the end')
     parser.add_argument('--delay', type=float, default=1.0,
                         help='wall s to wait after creating the publishers (discovery)')
+    parser.add_argument('--wait-subscribers', type=float, default=0.0, metavar='S',
+                        help='first wait up to S wall s until every replayed topic has a '
+                             'subscriber (then --delay more)')
     parser.add_argument('--no-clock', action='store_true',
                         help='do not replay /clock even if the bag has it')
     parser.add_argument('--info', action='store_true', help='print the bag summary and exit')
     opts = parser.parse_args(argv)
+    try:
+        info = format_info(opts.bag)   # also checks that the bag is readable before init
+    except (McapError, OSError) as err:
+        print(f'replay: cannot read {opts.bag}: {err}\n(if its recorder was killed: '
+              f'python -m replan_ros.tools.bag_recover {opts.bag})', file=sys.stderr)
+        return 2
     if opts.info:
-        print(format_info(opts.bag))
-        return
+        print(info)
+        return 0
     if opts.rate <= 0.0:
         parser.error('--rate must be > 0')
 
@@ -172,6 +198,7 @@ def main(args=None):
         node.get_logger().info(
             f'replaying {len(node.publishers_by_topic)} topics of {opts.bag} '
             f'({(node.summary.end_ns - node.summary.start_ns) * 1e-9:.2f} s) at x{opts.rate}')
+        wait_for_subscribers(node, opts.wait_subscribers)
         time.sleep(max(opts.delay, 0.0))
         stats = run_replay(node, opts.bag, opts.rate, opts.loop)
         counts = ', '.join(f'{t}: {n}' for t, n in stats.published.items())
@@ -186,7 +213,8 @@ def main(args=None):
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    return 0
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Re-run a recorded bag (same inputs, same configuration) and compare the base trajectory.
+# Usage: scripts/rerun.sh BAG [--out DIR] [--tolerance M] [--gui]
+# Prints the largest base position deviation (m); exit 0 if within tolerance (default 1 mm).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck disable=SC1091
+source "$ROOT/scripts/env.sh"
+exec python -m replan_ros.tools.rerun "$@"

@@ -1,0 +1,162 @@
+"""Benchmark of the LIP-ZMP re-planner on a realistic crawl (ROS-free).
+
+200 consecutive re-plans (default) at the paper's size: 8 s horizon, 40 ms samples, 8 planned
+footholds. Each re-plan starts at a haptic touchdown (planned time +- jitter, so the horizon
+shift is not a whole number of samples), from the previous plan sampled there plus a tracking
+error, with footholds recomputed about the actual CoM (foothold correction) for a velocity
+set-point that changes over the run. The crawl is built here on purpose (no dependency on
+``replan_core.gait``). The last printed line is one JSON object.
+
+    python -m replan_core.bench.mpc_bench [--formulation sparse|dense] [--replans 200] ...
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from replan_core.mpc import LipMpc, MpcSettings
+from replan_core.types import FootholdPlan, Step
+
+CRAWL_ORDER = (2, 0, 3, 1)                 # lh, lf, rh, rf
+HIP = np.array([[0.37, 0.21], [0.37, -0.21], [-0.37, 0.21], [-0.37, -0.21]])   # m, base frame
+
+
+def crawl_plan(t0: float, com: np.ndarray, yaw: float, feet: np.ndarray, first_leg: int,
+               v_ref: np.ndarray, rng: np.random.Generator, n_steps: int = 8,
+               swing: float = 0.6, four_feet: float = 0.4, noise: float = 0.01,
+               ) -> FootholdPlan:
+    """A crawl FootholdPlan from ``t0``: four-feet phase, then ``n_steps`` swings in crawl order.
+
+    Footholds are placed about the CoM reference ``com + v_ref (t - t0)`` at touchdown, a half
+    cycle ahead (foothold correction about the actual CoM), plus seeded noise (m).
+    """
+    k0 = CRAWL_ORDER.index(first_leg)
+    cycle = len(CRAWL_ORDER) * (swing + four_feet)
+    c, s = np.cos(yaw), np.sin(yaw)
+    rot = np.array([[c, -s], [s, c]])
+    steps = []
+    t = t0 + four_feet
+    for j in range(n_steps):
+        leg = CRAWL_ORDER[(k0 + j) % 4]
+        td = t + swing
+        ref = com[:2] + v_ref * (td - t0) + v_ref * cycle / 2.0
+        xy = ref + rot @ HIP[leg] + rng.normal(0.0, noise, 2)
+        steps.append(Step(leg=leg, liftoff_time=t, touchdown_time=td,
+                          target=np.array([xy[0], xy[1], 0.0]), step_height=0.1,
+                          haptic=True, replan=(j == 0), yaw=yaw))
+        t = td + four_feet
+    return FootholdPlan(start_time=t0, initial_feet=feet.copy(), initial_yaw=yaw, steps=steps)
+
+
+def velocity_profile(i: int) -> np.ndarray:
+    """Set-point (m/s) of re-plan i: start, speed up, side-step, slow down, ..."""
+    phase = (i // 25) % 4
+    return np.array([[0.05, 0.0], [0.12, 0.0], [0.08, 0.04], [0.10, -0.03]][phase])
+
+
+def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float = 0.03,
+        pos_noise: float = 0.003, vel_noise: float = 0.01) -> dict:
+    """Run the crawl and return the figures (times in ms)."""
+    rng = np.random.default_rng(seed)
+    t_build = time.perf_counter()
+    mpc = LipMpc(settings)
+    build_ms = (time.perf_counter() - t_build) * 1e3
+    feet = np.column_stack([HIP, np.zeros(4)])
+    com = np.zeros(3)
+    vel = np.zeros(3)
+    acc = np.zeros(3)
+    t = 0.0
+    leg = CRAWL_ORDER[0]
+    times, iters, viols, margins, statuses, n_tri, n_quad = [], [], [], [], {}, 0, 0
+    end_speed = []
+    for i in range(replans):
+        v_ref = velocity_profile(i)
+        plan = crawl_plan(t, com, 0.0, feet, leg, v_ref, rng)
+        t0 = time.perf_counter()
+        res = mpc.solve(t, com, vel, acc, plan, v_ref=v_ref)
+        times.append((time.perf_counter() - t0) * 1e3)
+        iters.append(res.iterations)
+        statuses[res.status] = statuses.get(res.status, 0) + 1
+        viols.append(res.max_zmp_violation_m)
+        margins.append(res.min_zmp_margin_m)
+        if i == 0:
+            sched_feet = [len(p.offsets) for p in mpc.last_schedule.polygons]
+            n_tri = sum(1 for m in sched_feet if m == 3)
+            n_quad = sum(1 for m in sched_feet if m == 4)
+        end_speed.append(float(np.linalg.norm(res.plan.velocity[-1, :2])))
+        # The robot executes the plan until the first step's (haptic) touchdown.
+        first = plan.steps[0]
+        t_next = first.touchdown_time + rng.uniform(-jitter, jitter)
+        p, v, a = res.plan.sample(t_next)
+        com = p + np.r_[rng.normal(0.0, pos_noise, 2), 0.0]
+        vel = v + np.r_[rng.normal(0.0, vel_noise, 2), 0.0]
+        acc = a
+        feet = feet.copy()
+        feet[first.leg] = first.target
+        leg = CRAWL_ORDER[(CRAWL_ORDER.index(first.leg) + 1) % 4]
+        t = t_next
+    arr = np.array(times)
+    return {
+        'formulation': settings.formulation,
+        'n_per_axis': mpc.n,
+        'n_variables': mpc.nv,
+        'n_constraints': mpc.n_in + mpc.n_eq,
+        'n_inequalities': mpc.n_in,
+        'n_equalities': mpc.n_eq,
+        'replans': replans,
+        'triangle_samples_first_plan': n_tri,
+        'quad_samples_first_plan': n_quad,
+        'build_ms': round(build_ms, 3),
+        'cold_ms': round(float(arr[0]), 3),
+        'median_ms': round(float(np.median(arr[1:])), 3),
+        'mean_ms': round(float(np.mean(arr[1:])), 3),
+        'p99_ms': round(float(np.percentile(arr[1:], 99)), 3),
+        'max_ms': round(float(np.max(arr[1:])), 3),
+        'median_iter': float(np.median(iters[1:])),
+        'max_iter': int(np.max(iters)),
+        'max_zmp_violation_m': float(np.nanmax(viols)),
+        'min_zmp_margin_m': round(float(np.nanmin(margins)), 5),
+        'max_end_speed_mps': round(float(np.max(end_speed)), 4),
+        'statuses': statuses,
+        'eps_abs': settings.eps_abs,
+        'warm_start': settings.warm_start,
+        'terminal_capture_point': settings.terminal_capture_point,
+        'drop_inactive': settings.drop_inactive,
+        'add_peaks_only': settings.add_peaks_only,
+    }
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--formulation', default=MpcSettings.formulation,
+                    choices=('working_set', 'sparse', 'dense'))
+    ap.add_argument('--replans', type=int, default=200)
+    ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--eps-abs', type=float, default=MpcSettings.eps_abs)
+    ap.add_argument('--max-iter', type=int, default=MpcSettings.max_iter)
+    ap.add_argument('--jerk-weight', type=float, default=MpcSettings.jerk_weight)
+    ap.add_argument('--velocity-weight', type=float, default=0.0)
+    ap.add_argument('--zmp-margin', type=float, default=0.02)
+    ap.add_argument('--no-warm', action='store_true', help='cold start every re-plan')
+    ap.add_argument('--no-terminal', action='store_true', help='no terminal capture point')
+    ap.add_argument('--keep-inactive', action='store_true',
+                    help='working set: keep rows whose multiplier is 0')
+    ap.add_argument('--add-all-violated', action='store_true',
+                    help='working set: add the worst row of every violated sample')
+    args = ap.parse_args(argv)
+    settings = MpcSettings(formulation=args.formulation, eps_abs=args.eps_abs,
+                           max_iter=args.max_iter, jerk_weight=args.jerk_weight,
+                           velocity_weight=args.velocity_weight, zmp_margin=args.zmp_margin,
+                           warm_start=not args.no_warm,
+                           terminal_capture_point=not args.no_terminal,
+                           drop_inactive=not args.keep_inactive,
+                           add_peaks_only=not args.add_all_violated)
+    print(json.dumps(run(settings, args.replans, args.seed)))
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,264 @@
+"""Support polygons per sample as half-spaces, the rows of eq. (7).
+
+A polygon is the convex hull of the horizontal positions of the feet in stance. Each edge gives
+one half-space ``a_x * z_x + a_y * z_y + b >= 0`` (``a`` the unit inward normal, so the left side
+is the signed distance in metres from the edge, minus the safety margin). X and Y are coupled
+by these rows (paper, footnote 1).
+
+In a crawl a sample has 3 (one leg swinging) or 4 (all feet down) stance feet, so every sample
+gets ``MAX_ROWS = 4`` rows; unused rows are flagged inactive (the QP keeps its sparsity pattern
+and only relaxes them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import numpy as np
+
+from replan_core.types import LEGS, FootholdPlan
+
+MAX_ROWS = 4
+MIN_AREA = 1e-4           # m^2: below this a hull is treated as degenerate (collinear feet)
+
+
+@dataclass
+class SupportPolygon:
+    """One convex polygon as half-spaces ``normals @ z + offsets >= 0`` (margin included)."""
+
+    normals: np.ndarray                    # (m, 2) unit inward normals
+    offsets: np.ndarray                    # (m,) m
+    vertices: np.ndarray                   # (v, 2) hull vertices, counter-clockwise
+    area: float                            # m^2, without margin
+    chebyshev_radius: float                # m, radius of the largest inscribed disc, with margin
+    degenerate: bool
+    reason: str = ''
+
+    def margin_of(self, z: np.ndarray) -> float:
+        """Smallest signed distance (m, margin included) of ``z`` (2,) to the edges."""
+        if len(self.offsets) == 0:
+            return -np.inf
+        return float(np.min(self.normals @ z + self.offsets))
+
+
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise hull of 2-D points (Andrew's monotone chain), collinear points dropped.
+
+    Plain Python on purpose: the hulls here have at most 4 points, where numpy's per-call
+    overhead would dominate (this runs for every stance of every re-plan).
+    """
+    pts = sorted({(float(p[0]), float(p[1])) for p in np.asarray(points, dtype=float)})
+    if len(pts) <= 2:
+        return np.array(pts, dtype=float).reshape(-1, 2)
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 1e-12:
+            lower.pop()
+        lower.append(p)
+    upper: list = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 1e-12:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1], dtype=float)
+
+
+def _chebyshev_radius(normals: np.ndarray, offsets: np.ndarray) -> float:
+    """Largest r with a disc of radius r inside ``normals @ z + offsets >= 0``.
+
+    A 2-D LP in (z, r): its optimum sits where three edges are equidistant, so enumerating the
+    triples of edges is exact (1 triple for a triangle, 4 for a quadrilateral). Cramer's rule
+    in plain Python: these systems are 3x3.
+    """
+    nl = normals.tolist()
+    ol = offsets.tolist()
+    m = len(ol)
+    best = -math.inf
+    for i, j, k in combinations(range(m), 3):
+        # [a_x a_y -1] [z_x z_y r]' = -b for the three rows
+        a = (nl[i], nl[j], nl[k])
+        rhs = (-ol[i], -ol[j], -ol[k])
+        det = (a[0][0] * (a[1][1] * -1 - -1 * a[2][1]) - a[0][1] * (a[1][0] * -1 - -1 * a[2][0])
+               + -1 * (a[1][0] * a[2][1] - a[1][1] * a[2][0]))
+        if abs(det) < 1e-12:
+            continue
+        zx = (rhs[0] * (a[1][1] * -1 - -1 * a[2][1]) - a[0][1] * (rhs[1] * -1 - -1 * rhs[2])
+              + -1 * (rhs[1] * a[2][1] - a[1][1] * rhs[2])) / det
+        zy = (a[0][0] * (rhs[1] * -1 - -1 * rhs[2]) - rhs[0] * (a[1][0] * -1 - -1 * a[2][0])
+              + -1 * (a[1][0] * rhs[2] - rhs[1] * a[2][0])) / det
+        r = min(nl[q][0] * zx + nl[q][1] * zy + ol[q] for q in range(m))
+        best = max(best, r)
+    return best
+
+
+def _segment_rows(p0: np.ndarray, p1: np.ndarray, margin: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """4 rows of a zero-width rectangle around the segment p0-p1 (a point: a zero box).
+
+    Infeasible with a positive margin, but they give the slack-relaxed fallback something to
+    pull the ZMP towards.
+    """
+    e = p1 - p0
+    length = float(np.linalg.norm(e))
+    e = e / length if length > 1e-9 else np.array([1.0, 0.0])
+    nrm = np.array([-e[1], e[0]])
+    normals = np.array([nrm, -nrm, e, -e])
+    offsets = np.array([-nrm @ p0, nrm @ p0, -e @ p0, e @ p1]) - margin
+    return normals, offsets
+
+
+def polygon(points: np.ndarray, margin: float = 0.0) -> SupportPolygon:
+    """Half-spaces of the convex hull of ``points`` (k, 2 or 3), shrunk inwards by ``margin``.
+
+    Degenerate (flagged, never raised): fewer than 3 distinct feet, collinear feet (area below
+    ``MIN_AREA``), or nothing left inside once the margin is applied.
+    """
+    hull = convex_hull(points)
+    if len(hull) == 0:
+        return SupportPolygon(np.zeros((0, 2)), np.zeros(0), hull, 0.0, -np.inf, True,
+                              'no stance foot')
+    if len(hull) < 3:
+        normals, offsets = _segment_rows(hull[0], hull[-1], margin)
+        n_pts = len({(float(p[0]), float(p[1])) for p in np.asarray(points)})
+        why = ('collinear stance feet' if n_pts >= 3
+               else f'{n_pts} distinct stance feet (need 3)')
+        return SupportPolygon(normals, offsets, hull, 0.0, -np.inf, True, why)
+    hl = hull.tolist()
+    nv = len(hl)
+    area = 0.5 * sum(hl[i][0] * hl[(i + 1) % nv][1] - hl[(i + 1) % nv][0] * hl[i][1]
+                     for i in range(nv))
+    if area < MIN_AREA:
+        i, j = np.unravel_index(np.argmax(np.linalg.norm(hull[:, None] - hull[None], axis=2)),
+                                (len(hull), len(hull)))
+        normals, offsets = _segment_rows(hull[i], hull[j], margin)
+        return SupportPolygon(normals, offsets, hull, area, -np.inf, True,
+                              f'collinear stance feet (area {area:.2e} m^2)')
+    nrm, off = [], []
+    for i in range(nv):                  # inward unit normal of a CCW edge: left of it
+        ex = hl[(i + 1) % nv][0] - hl[i][0]
+        ey = hl[(i + 1) % nv][1] - hl[i][1]
+        ln = math.hypot(ex, ey)
+        nx, ny = -ey / ln, ex / ln
+        nrm.append((nx, ny))
+        off.append(-(nx * hl[i][0] + ny * hl[i][1]) - margin)
+    normals = np.array(nrm)
+    offsets = np.array(off)
+    if nv == 3:        # incircle: r = 2 area / perimeter, minus the margin (every edge shifts)
+        perimeter = sum(math.dist(hl[i], hl[(i + 1) % 3]) for i in range(3))
+        radius = 2.0 * area / perimeter - margin
+    else:
+        radius = _chebyshev_radius(normals, offsets)
+    if radius <= 0.0:
+        return SupportPolygon(normals, offsets, hull, area, radius, True,
+                              f'empty after the {margin:.3f} m margin')
+    return SupportPolygon(normals, offsets, hull, area, radius, False)
+
+
+def stance_at(plan: FootholdPlan, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """Feet positions (4, 3) and stance flags (4,) at sim time ``t`` under ``plan``.
+
+    A leg is in swing on the closed interval [liftoff, touchdown]: at the boundary samples the
+    smaller polygon is used, which is the conservative choice.
+    """
+    feet = np.array(plan.initial_feet, dtype=float).copy()
+    stance = np.ones(len(LEGS), dtype=bool)
+    for s in plan.steps:
+        if t < s.liftoff_time:
+            continue
+        if t <= s.touchdown_time:
+            stance[s.leg] = False
+        else:
+            feet[s.leg] = s.target
+            stance[s.leg] = True
+    # A leg swinging at t may have landed earlier steps: the loop keeps the latest state.
+    return feet, stance
+
+
+@dataclass
+class SupportSchedule:
+    """The eq. (7) rows for samples k = 1..N: ``A[k-1, r] @ z_k + b[k-1, r] >= 0``."""
+
+    times: np.ndarray                      # (N,) s, sim time of each sample
+    A: np.ndarray                          # (N, MAX_ROWS, 2)
+    b: np.ndarray                          # (N, MAX_ROWS)
+    active: np.ndarray                     # (N, MAX_ROWS) bool: False = padding row
+    n_feet: np.ndarray                     # (N,) stance feet per sample
+    degenerate: np.ndarray                 # (N,) bool
+    reasons: list[str] = field(default_factory=list)   # per degenerate sample: why
+    polygons: list[SupportPolygon] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return len(self.times)
+
+    def first_degenerate(self) -> int:
+        """Index (0-based, sample k = index + 1) of the first degenerate sample, or -1."""
+        idx = np.flatnonzero(self.degenerate)
+        return int(idx[0]) if len(idx) else -1
+
+    def margins(self, zmp: np.ndarray) -> np.ndarray:
+        """Per sample, the smallest signed distance (m) of ``zmp`` (N, 2) inside its polygon."""
+        d = np.einsum('nrj,nj->nr', self.A, zmp) + self.b
+        d = np.where(self.active, d, np.inf)
+        out = d.min(axis=1)
+        out[self.degenerate] = -np.inf
+        return out
+
+
+def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
+                     margin: float = 0.0, cache: dict | None = None) -> SupportSchedule:
+    """Support polygons at the samples ``start_time + k dt``, k = 1..N, from a foothold plan.
+
+    After the last planned step the final stance is kept to the end of the horizon. The stance
+    of every sample is computed with array operations (one pass per step); polygons are built
+    once per distinct stance and kept in ``cache`` (a dict owned by the caller) across calls,
+    since consecutive re-plans share all but one foothold. A swinging leg is out of the stance
+    on the closed interval [liftoff, touchdown] (see ``stance_at``).
+    """
+    times = start_time + dt * np.arange(1, n + 1)
+    nleg = len(LEGS)
+    feet0 = np.asarray(plan.initial_feet, dtype=float)
+    # src[k, leg]: -1 = initial foot, j = target of step j; swing[k, leg]: in the air.
+    src = np.full((n, nleg), -1, dtype=np.int64)
+    swing = np.zeros((n, nleg), dtype=bool)
+    for j, st in enumerate(plan.steps):
+        swing[:, st.leg] |= (times >= st.liftoff_time) & (times <= st.touchdown_time)
+        src[times > st.touchdown_time, st.leg] = j
+    targets = np.array([st.target for st in plan.steps], dtype=float).reshape(-1, 3)
+    code = np.where(swing, -2, src)                      # what defines each leg's contribution
+    uniq, inverse = np.unique(code, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    A = np.zeros((n, MAX_ROWS, 2))
+    b = np.zeros((n, MAX_ROWS))
+    active = np.zeros((n, MAX_ROWS), dtype=bool)
+    n_feet = np.zeros(n, dtype=int)
+    degenerate = np.zeros(n, dtype=bool)
+    polys: list[SupportPolygon] = []
+    if cache is None:
+        cache = {}
+    for u, row in enumerate(uniq):
+        pts = np.array([(feet0[leg] if c == -1 else targets[c])[:2]
+                        for leg, c in enumerate(row) if c != -2]).reshape(-1, 2)
+        key = pts.tobytes() + np.float64(margin).tobytes()
+        poly = cache.get(key)
+        if poly is None:
+            poly = polygon(pts, margin)
+            cache[key] = poly
+        polys.append(poly)
+        sel = inverse == u
+        m = min(len(poly.offsets), MAX_ROWS)
+        A[sel, :m] = poly.normals[:m]
+        b[sel, :m] = poly.offsets[:m]
+        active[sel, :m] = True
+        n_feet[sel] = len(pts)
+        degenerate[sel] = poly.degenerate
+    reasons = [f'sample {k + 1} (t={times[k]:.3f} s): {polys[inverse[k]].reason}'
+               for k in np.flatnonzero(degenerate)]
+    return SupportSchedule(times, A, b, active, n_feet, degenerate, reasons,
+                           [polys[i] for i in inverse])

@@ -1,0 +1,178 @@
+"""The jerk QP eq. (6)-(7): optimality, feasibility, warm start, failures, interpolation."""
+
+import math
+
+import numpy as np
+import pytest
+
+from replan_core.bench.mpc_bench import CRAWL_ORDER, HIP, crawl_plan, velocity_profile
+from replan_core.lip import rollout
+from replan_core.mpc import (
+    FALLBACK_HOLD,
+    FALLBACK_RELAXED,
+    FALLBACK_SHIFTED,
+    STATUS_DEGENERATE,
+    STATUS_INFEASIBLE,
+    STATUS_REJECTED,
+    STATUS_SOLVED,
+    LipMpc,
+    MpcSettings,
+)
+from replan_core.support import support_schedule
+from replan_core.types import FootholdPlan, Step
+
+FEET = np.column_stack([HIP, np.zeros(4)])
+
+
+def crawl(mpc: LipMpc, seed: int, replans: int, jitter: float = 0.03):
+    """Consecutive re-plans of a seeded crawl; yields (plan, result) after each solve."""
+    rng = np.random.default_rng(seed)
+    feet, com, vel, acc, t, leg = FEET.copy(), np.zeros(3), np.zeros(3), np.zeros(3), 0.0, 2
+    for i in range(replans):
+        v_ref = velocity_profile(i * 7 + seed)
+        plan = crawl_plan(t, com, 0.0, feet, leg, v_ref, rng)
+        res = mpc.solve(t, com, vel, acc, plan, v_ref=v_ref)
+        yield plan, res
+        first = plan.steps[0]
+        t_next = first.touchdown_time + rng.uniform(-jitter, jitter)
+        p, v, a = res.plan.sample(t_next)
+        com = p + np.r_[rng.normal(0.0, 0.003, 2), 0.0]
+        vel = v + np.r_[rng.normal(0.0, 0.01, 2), 0.0]
+        acc = a
+        feet = feet.copy()
+        feet[first.leg] = first.target
+        leg = CRAWL_ORDER[(CRAWL_ORDER.index(first.leg) + 1) % 4]
+        t = t_next
+
+
+def zmp_violation(res, plan, settings) -> float:
+    """Largest violation (m) of the polygons by the plan's ZMP, recomputed from scratch."""
+    sched = support_schedule(plan, res.plan.start_time, settings.dt, settings.n,
+                             settings.zmp_margin)
+    z = res.plan.position[1:, :2] - settings.com_height / settings.gravity * \
+        res.plan.acceleration[1:, :2]
+    return float(max(0.0, -np.min(sched.margins(z))))
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_zmp_inside_every_polygon_on_random_crawls(seed):
+    s = MpcSettings(zmp_margin=0.02)
+    mpc = LipMpc(s)
+    for plan, res in crawl(mpc, seed, 12):
+        assert res.status == STATUS_SOLVED, res.reason
+        assert not res.is_fallback
+        assert zmp_violation(res, plan, s) <= 1e-5
+        assert res.min_zmp_margin_m >= s.zmp_margin - 1e-5
+        # The LIP is unstable: the capture-point terminal rows keep the end bounded.
+        assert np.linalg.norm(res.plan.velocity[-1, :2]) < 0.5
+        assert np.all(np.abs(res.plan.acceleration[-1, :2]) < 1.0)
+
+
+def test_cost_not_above_a_known_feasible_plan():
+    """The working-set optimum against the full dense QP (proxsuite on all 804 rows)."""
+    s = MpcSettings(zmp_margin=0.02)
+    ws = LipMpc(s)
+    dense = LipMpc(MpcSettings(zmp_margin=0.02, formulation='dense', eps_abs=1e-8))
+    for plan, res in crawl(ws, 5, 3):
+        ref = dense.solve(res.plan.start_time, res.plan.position[0], res.plan.velocity[0],
+                          res.plan.acceleration[0], plan)
+        assert ref.status == STATUS_SOLVED
+        assert zmp_violation(ref, plan, s) <= 1e-5            # a known feasible plan
+        assert res.cost <= ref.cost * (1 + 1e-4) + 1e-9
+        assert res.cost == pytest.approx(ref.cost, rel=1e-3)
+
+
+def test_large_polygon_gives_zero_jerk():
+    big = np.array([[5.0, 5.0, 0.0], [5.0, -5.0, 0.0], [-5.0, 5.0, 0.0], [-5.0, -5.0, 0.0]])
+    steps = [Step(2, 0.3, 0.8, big[2], 0.1, True, True, 0.0)]
+    plan = FootholdPlan(0.0, big, 0.0, steps)
+    res = LipMpc().solve(0.0, np.array([0.3, -0.2, 0.55]), np.zeros(3), np.zeros(3), plan)
+    assert res.status == STATUS_SOLVED
+    np.testing.assert_allclose(res.jerk, 0.0, atol=1e-9)
+    np.testing.assert_allclose(res.plan.position[:, :2], [[0.3, -0.2]] * 201, atol=1e-9)
+
+
+def test_velocity_weight_tracks_the_reference():
+    v_ref = np.array([0.15, 0.05])
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, v_ref, np.random.default_rng(4))
+    errors = []
+    for w in (0.0, 0.1, 10.0):
+        res = LipMpc(MpcSettings(velocity_weight=w)).solve(
+            0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan, v_ref=v_ref)
+        assert res.status == STATUS_SOLVED
+        errors.append(np.linalg.norm(res.plan.velocity[1:, :2].mean(axis=0) - v_ref))
+    assert errors[2] < errors[1] < errors[0]
+
+
+def test_warm_and_cold_agree():
+    warm = LipMpc(MpcSettings(zmp_margin=0.02))
+    cold = LipMpc(MpcSettings(zmp_margin=0.02, warm_start=False))
+    for plan, res in crawl(warm, 7, 6):
+        ref = cold.solve(res.plan.start_time, res.plan.position[0], res.plan.velocity[0],
+                         res.plan.acceleration[0], plan)
+        assert ref.status == res.status == STATUS_SOLVED
+        np.testing.assert_allclose(res.zmp, ref.zmp, atol=1e-4)
+        np.testing.assert_allclose(res.plan.position, ref.plan.position, atol=1e-3)
+        assert res.cost == pytest.approx(ref.cost, rel=1e-3)
+
+
+def test_com_outside_returns_infeasible_status_and_relaxed_fallback():
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0))
+    mpc = LipMpc()
+    res = mpc.solve(0.0, np.array([1.5, 0.0, 0.55]), np.array([1.0, 0.0, 0.0]), np.zeros(3),
+                    plan)
+    assert res.status == STATUS_INFEASIBLE
+    assert res.fallback == FALLBACK_RELAXED and res.is_fallback and not res.ok
+    assert 'sample' in res.reason or 'terminal' in res.reason
+    assert res.plan is not None and np.all(np.isfinite(res.plan.position))
+
+
+def test_degenerate_polygon_reports_the_sample():
+    steps = [Step(leg, 0.2, 0.6, FEET[leg], 0.1, True, False, 0.0) for leg in (0, 3)]
+    plan = FootholdPlan(0.0, FEET, 0.0, steps)
+    res = LipMpc().solve(0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
+    assert res.status == STATUS_DEGENERATE and res.is_fallback
+    assert 'sample 5' in res.reason
+
+
+def test_nan_state_rejected_with_message_and_previous_plan_shifted():
+    mpc = LipMpc()
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0))
+    res = mpc.solve(0.0, np.array([math.nan, 0.0, 0.55]), np.zeros(3), np.zeros(3), plan)
+    assert res.status == STATUS_REJECTED and 'com_pos' in res.reason and 'NaN' in res.reason
+    assert res.fallback == FALLBACK_HOLD and res.plan is None
+    good = mpc.solve(0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
+    assert good.ok
+    bad = mpc.solve(0.5, np.zeros(3), np.array([0.0, np.inf, 0.0]), np.zeros(3), plan)
+    assert bad.status == STATUS_REJECTED and 'com_vel' in bad.reason
+    assert bad.fallback == FALLBACK_SHIFTED
+    np.testing.assert_allclose(bad.plan.position[0], good.plan.sample(0.5)[0], atol=1e-12)
+    plan.steps[3].target = np.array([0.0, math.nan, 0.0])
+    nan_step = mpc.solve(0.5, np.zeros(3), np.zeros(3), np.zeros(3), plan)
+    assert nan_step.status == STATUS_REJECTED and 'steps [3]' in nan_step.reason
+
+
+def test_plan_interpolation_is_exact():
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.array([0.1, 0.0]),
+                      np.random.default_rng(2))
+    res = LipMpc().solve(0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
+    k, frac = 37, 0.3
+    t = (k + frac) * 0.04
+    x0 = np.column_stack([res.plan.position[k, :2], res.plan.velocity[k, :2],
+                          res.plan.acceleration[k, :2]])            # (2 axes, 3)
+    for ax in range(2):
+        ref = rollout(x0[ax], [res.jerk[k, ax]], frac * 0.04)[1]   # eq. (2) over frac * dt
+        p, v, a = res.plan.sample(t)
+        np.testing.assert_allclose([p[ax], v[ax], a[ax]], ref, atol=1e-12)
+
+
+@pytest.mark.parametrize('formulation', ['dense', 'sparse'])
+@pytest.mark.slow
+def test_full_formulations_agree(formulation):
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.array([0.1, 0.0]),
+                      np.random.default_rng(2))
+    ref = LipMpc().solve(0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
+    other = LipMpc(MpcSettings(formulation=formulation, eps_abs=1e-7, max_iter=2000)).solve(
+        0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
+    assert other.status == STATUS_SOLVED
+    np.testing.assert_allclose(other.zmp, ref.zmp, atol=1e-3)

@@ -1,0 +1,586 @@
+"""mcap bags in the ROS 2 conventions (what rosbag2_storage_mcap writes and reads), no rosbag2.
+
+- Schemas: encoding ``ros2msg``, name ``pkg/msg/Type``, data = the full ``.msg`` text of the type
+  followed by every nested type once (depth first, dependencies in sorted order), each after a
+  line of 80 ``=`` and a ``MSG: pkg/Type`` line, exactly as rosbag2's message definition cache
+  builds it. The text comes from the installed ``share/<pkg>/msg/<Type>.msg`` files.
+- Channels: message encoding ``cdr``; metadata ``offered_qos_profiles`` (YAML list of the
+  publishers' QoS, bag metadata version 9 spelling) and ``topic_type_hash`` (RIHS01).
+- A ``rosbag2`` metadata record holding ``serialized_metadata`` (version 9), so that
+  ``ros2 bag info/play`` parse the QoS strings with the right version.
+- Chunked, compressed (zstd or lz4), with message indexes and a summary.
+
+Every finished chunk is written to the OS at once (no Python-side buffering), so a recorder
+killed with SIGKILL leaves a file whose finished chunks ``recover()`` turns into a valid bag.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import sys
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, Footer, Message, Metadata, Schema
+from mcap.stream_reader import breakup_chunk
+from mcap.writer import CompressionType, Writer
+
+PROFILE = 'ros2'
+SCHEMA_ENCODING = 'ros2msg'
+MESSAGE_ENCODING = 'cdr'
+SEPARATOR = '=' * 80
+ROS_DISTRO = 'jazzy'
+BAG_METADATA_VERSION = 9   # rosbag2 metadata version of Jazzy: QoS policies spelled as strings
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+
+_PRIMITIVES = frozenset({
+    'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
+    'uint32', 'int64', 'uint64', 'string', 'wstring'})
+# A field line of a .msg file: its type (maybe pkg/Type, maybe with an array suffix), then space.
+# Same rule as rosbag2_storage_mcap's MSG_FIELD_TYPE_REGEX; comment lines never match.
+_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
+_TYPE_NAME = re.compile(r'^([a-zA-Z][a-zA-Z0-9_]*)/(?:msg/)?([a-zA-Z][a-zA-Z0-9_]*)$')
+
+
+# ----------------------------------------------------------------------------- schemas
+
+def interface_share_dir(package: str) -> Path:
+    """``share/<package>`` of an installed interface package.
+
+    Looked up in the ament index (AMENT_PREFIX_PATH) first; the ROS wheels install their index
+    under the venv prefix (``sys.prefix``), which env.sh does not put on AMENT_PREFIX_PATH, so
+    that prefix is searched too.
+    """
+    try:
+        return Path(get_package_share_directory(package))
+    except PackageNotFoundError:
+        marker = Path(sys.prefix, 'share', 'ament_index', 'resource_index', 'packages', package)
+        if marker.exists():
+            return Path(sys.prefix, 'share', package)
+        raise
+
+
+def split_type_name(type_name: str) -> tuple[str, str]:
+    """``pkg/msg/Type`` or ``pkg/Type`` -> (pkg, Type)."""
+    match = _TYPE_NAME.match(type_name)
+    if match is None:
+        raise ValueError(f'not a message type name: {type_name!r}')
+    return match.group(1), match.group(2)
+
+
+def _msg_text(package: str, name: str) -> str:
+    path = interface_share_dir(package) / 'msg' / f'{name}.msg'
+    if not path.is_file():
+        raise FileNotFoundError(f'no interface definition {path}')
+    return path.read_text()
+
+
+def _dependencies(text: str, package: str) -> list[str]:
+    deps = set()
+    for match in _FIELD_TYPE.finditer(text):
+        field_type = match.group(1)
+        if field_type in _PRIMITIVES:
+            continue
+        deps.add(field_type if '/' in field_type else f'{package}/{field_type}')
+    return sorted(deps)
+
+
+def message_definition(type_name: str) -> str:
+    """Full ``ros2msg`` definition of ``type_name``: its .msg text plus all nested types."""
+    seen: set[str] = set()
+
+    def append(name: str, depth: int) -> str:
+        if depth <= 0:
+            raise RecursionError(f'message definition of {type_name} nests too deep')
+        package, short = split_type_name(name)
+        text = _msg_text(package, short)
+        out = text
+        for dep in _dependencies(text, package):
+            if dep not in seen:
+                seen.add(dep)
+                out += f'\n{SEPARATOR}\nMSG: {dep}\n' + append(dep, depth - 1)
+        return out
+
+    return append(type_name, 50)
+
+
+def normalize_type_name(type_name: str) -> str:
+    package, short = split_type_name(type_name)
+    return f'{package}/msg/{short}'
+
+
+def has_header(type_name: str) -> bool:
+    """True if the first field of the type is a ``std_msgs/Header`` (its stamp then leads the
+    CDR payload)."""
+    package, short = split_type_name(type_name)
+    for line in _msg_text(package, short).splitlines():
+        line = line.split('#', 1)[0].strip()
+        if not line or '=' in line:   # blank, comment or constant ("uint8 NAME=1")
+            continue
+        field_type = line.split()[0]
+        return field_type == 'std_msgs/Header' or (package == 'std_msgs'
+                                                   and field_type == 'Header')
+    return False
+
+
+def header_stamp_ns(cdr: bytes) -> int | None:
+    """``header.stamp`` of a CDR payload whose first field is a Header, in ns (None if short)."""
+    if len(cdr) < 12:
+        return None
+    little = cdr[1] in (1, 3)   # encapsulation kind: CDR_LE / PL_CDR_LE
+    order = 'little' if little else 'big'
+    sec = int.from_bytes(cdr[4:8], order, signed=True)
+    nanosec = int.from_bytes(cdr[8:12], order, signed=False)
+    return sec * 1_000_000_000 + nanosec
+
+
+# ----------------------------------------------------------------------------- QoS
+
+def _duration_yaml(duration) -> dict:
+    nanoseconds = duration.nanoseconds
+    return {'sec': nanoseconds // 1_000_000_000, 'nsec': nanoseconds % 1_000_000_000}
+
+
+def qos_to_dict(qos) -> dict:
+    """An rclpy ``QoSProfile`` as rosbag2 writes it (metadata version 9: policies as strings)."""
+    return {
+        'history': qos.history.name.lower(),
+        'depth': int(qos.depth),
+        'reliability': qos.reliability.name.lower(),
+        'durability': qos.durability.name.lower(),
+        'deadline': _duration_yaml(qos.deadline),
+        'lifespan': _duration_yaml(qos.lifespan),
+        'liveliness': qos.liveliness.name.lower(),
+        'liveliness_lease_duration': _duration_yaml(qos.liveliness_lease_duration),
+        'avoid_ros_namespace_conventions': bool(qos.avoid_ros_namespace_conventions),
+    }
+
+
+def qos_profiles_yaml(profiles: Iterable) -> str:
+    """``offered_qos_profiles`` channel metadata: a YAML list of the publishers' profiles."""
+    return yaml.safe_dump([qos_to_dict(p) for p in profiles], sort_keys=False,
+                          default_flow_style=False)
+
+
+_POLICY_INTS = {   # metadata version <= 8 wrote the rmw enum values
+    'history': {0: 'system_default', 1: 'keep_last', 2: 'keep_all'},
+    'reliability': {0: 'system_default', 1: 'reliable', 2: 'best_effort'},
+    'durability': {0: 'system_default', 1: 'transient_local', 2: 'volatile'},
+    'liveliness': {0: 'system_default', 1: 'automatic', 3: 'manual_by_topic'},
+}
+
+
+def qos_from_yaml(text: str):
+    """First profile of an ``offered_qos_profiles`` string as an rclpy ``QoSProfile``
+    (None if there is none). Accepts both the string (v9) and the integer (v8) spellings."""
+    from rclpy.duration import Duration
+    from rclpy.qos import (
+        DurabilityPolicy,
+        HistoryPolicy,
+        LivelinessPolicy,
+        QoSProfile,
+        ReliabilityPolicy,
+    )
+    try:
+        profiles = yaml.safe_load(text) if text else None
+    except yaml.YAMLError:
+        return None
+    if not profiles or not isinstance(profiles, list) or not isinstance(profiles[0], dict):
+        return None
+    raw = profiles[0]
+
+    def policy(key: str, enum):
+        value = raw.get(key, 'system_default')
+        if isinstance(value, int):
+            value = _POLICY_INTS[key].get(value, 'system_default')
+        try:
+            return enum[str(value).upper()]
+        except KeyError:
+            return enum.SYSTEM_DEFAULT
+
+    def duration(key: str):
+        value = raw.get(key) or {}
+        ns = int(value.get('sec', 0)) * 1_000_000_000 + int(value.get('nsec', 0))
+        # Infinite (and the Foxy-era infinities) map to "unspecified", which rmw accepts.
+        return Duration(nanoseconds=0 if ns >= 0x7FFFFFFF * 1_000_000_000 else ns)
+
+    history = policy('history', HistoryPolicy)
+    depth = int(raw.get('depth', 10)) or 10
+    return QoSProfile(
+        history=history if history != HistoryPolicy.SYSTEM_DEFAULT else HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=policy('reliability', ReliabilityPolicy),
+        durability=policy('durability', DurabilityPolicy),
+        liveliness=policy('liveliness', LivelinessPolicy),
+        deadline=duration('deadline'),
+        lifespan=duration('lifespan'),
+        liveliness_lease_duration=duration('liveliness_lease_duration'))
+
+
+def rosbag2_metadata(file_name: str) -> dict[str, str]:
+    """The ``rosbag2`` metadata record: tells rosbag2 which metadata version the channel
+    metadata follows. Counts and times are left zero: rosbag2 takes them from the summary."""
+    info = {
+        'version': BAG_METADATA_VERSION,
+        'storage_identifier': 'mcap',
+        'duration': {'nanoseconds': 0},
+        'starting_time': {'nanoseconds_since_epoch': 0},
+        'message_count': 0,
+        'topics_with_message_count': [],
+        'compression_format': '',
+        'compression_mode': '',
+        'relative_file_paths': [file_name],
+        'files': [],
+        'custom_data': {},
+        'ros_distro': ROS_DISTRO,
+    }
+    return {'serialized_metadata': yaml.safe_dump(info, sort_keys=False)}
+
+
+# ----------------------------------------------------------------------------- writing
+
+class _UnbufferedFile(io.RawIOBase):
+    """Write-only file without a Python buffer: what the mcap writer writes reaches the OS at
+    once (the writer itself keeps the open chunk in memory and writes whole records)."""
+
+    def __init__(self, path: str | Path) -> None:
+        super().__init__()
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self._pos = 0
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, data) -> int:
+        view = memoryview(data)
+        while view:
+            written = os.write(self._fd, view)
+            view = view[written:]
+            self._pos += written
+        return len(data)
+
+    def tell(self) -> int:
+        return self._pos
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        if not self.closed:
+            os.close(self._fd)
+        super().close()
+
+
+class _StreamAdapter:
+    """Gives the mcap writer a plain stream object (it wraps RawIOBase in a BufferedWriter)."""
+
+    def __init__(self, raw: _UnbufferedFile) -> None:
+        self._raw = raw
+
+    def write(self, data) -> int:
+        return self._raw.write(data)
+
+    def tell(self) -> int:
+        return self._raw.tell()
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self._raw.close()
+
+
+_COMPRESSION = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
+                'none': CompressionType.NONE, '': CompressionType.NONE}
+
+
+class BagWriter:
+    """An mcap file in the ROS 2 conventions.
+
+    Not thread safe: one thread writes. ``chunk_size`` (bytes of uncompressed records) and
+    ``chunk_interval`` (s, wall clock, checked on each write and by ``poll``) bound what a
+    SIGKILL can lose.
+    """
+
+    def __init__(self, path: str | Path, *, chunk_size: int = 1 << 20,
+                 chunk_interval: float = 1.0, compression: str = 'zstd',
+                 library: str = 'replan_ros bag_io') -> None:
+        if compression not in _COMPRESSION:
+            raise ValueError(f'compression must be one of zstd, lz4, none: {compression!r}')
+        self.path = Path(path)
+        self._file = _UnbufferedFile(self.path)
+        # The mcap writer closes a chunk itself only past 2x our size: we close it (flush) first.
+        self._writer = Writer(_StreamAdapter(self._file), chunk_size=2 * max(chunk_size, 1024),
+                              compression=_COMPRESSION[compression])
+        self._writer.start(profile=PROFILE, library=library)
+        self._chunk_size = max(int(chunk_size), 1024)
+        self._chunk_interval = float(chunk_interval)
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._sequence: dict[int, int] = {}
+        self._pending_bytes = 0
+        self._pending_since: float | None = None
+        self.message_count = 0
+        self.chunk_count = 0
+        self.closed = False
+        self._writer.add_metadata('rosbag2', rosbag2_metadata(self.path.name))
+
+    @property
+    def bytes_written(self) -> int:
+        return self._file.tell()
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
+
+    def add_schema(self, type_name: str, definition: str | None = None) -> int:
+        type_name = normalize_type_name(type_name)
+        if type_name not in self._schemas:
+            text = message_definition(type_name) if definition is None else definition
+            self._schemas[type_name] = self._writer.register_schema(
+                name=type_name, encoding=SCHEMA_ENCODING, data=text.encode())
+        return self._schemas[type_name]
+
+    def add_channel(self, topic: str, type_name: str, offered_qos_profiles: str = '',
+                    type_hash: str = '', definition: str | None = None) -> int:
+        """Channel id of ``topic`` (created on first use)."""
+        if topic in self._channels:
+            return self._channels[topic]
+        schema_id = self.add_schema(type_name, definition)
+        metadata = {'offered_qos_profiles': offered_qos_profiles, 'topic_type_hash': type_hash}
+        channel_id = self._writer.register_channel(
+            topic=topic, message_encoding=MESSAGE_ENCODING, schema_id=schema_id,
+            metadata=metadata)
+        self._channels[topic] = channel_id
+        self._sequence[channel_id] = 0
+        return channel_id
+
+    def write(self, channel_id: int, data: bytes, log_time: int, publish_time: int,
+              sequence: int | None = None) -> None:
+        if sequence is None:
+            self._sequence[channel_id] += 1
+            sequence = self._sequence[channel_id]
+        self._writer.add_message(channel_id=channel_id, log_time=max(int(log_time), 0),
+                                 data=data, publish_time=max(int(publish_time), 0),
+                                 sequence=sequence & 0xFFFFFFFF)
+        self.message_count += 1
+        self._pending_bytes += len(data) + 31   # + the message record's own fields
+        if self._pending_since is None:
+            self._pending_since = time.monotonic()
+        if self._pending_bytes >= self._chunk_size:
+            self.flush()
+        else:
+            self.poll()
+
+    def poll(self) -> None:
+        """Close the open chunk if it is older than ``chunk_interval``."""
+        if (self._pending_since is not None
+                and time.monotonic() - self._pending_since >= self._chunk_interval):
+            self.flush()
+
+    def flush(self) -> None:
+        """Close the open chunk and write it out."""
+        if self._pending_since is None:
+            return
+        self._writer.flush()
+        self.chunk_count += 1
+        self._pending_bytes = 0
+        self._pending_since = None
+
+    def close(self) -> None:
+        """Write the last chunk, the indexes and the summary; close the file."""
+        if self.closed:
+            return
+        self.closed = True
+        self._writer.finish()
+        self._file.close()
+
+
+# ----------------------------------------------------------------------------- reading
+
+@dataclass
+class TopicInfo:
+    topic: str
+    type_name: str
+    offered_qos_profiles: str
+    message_count: int = 0
+    type_hash: str = ''
+
+
+@dataclass
+class BagSummary:
+    topics: dict[str, TopicInfo] = field(default_factory=dict)
+    message_count: int = 0
+    start_ns: int = 0
+    end_ns: int = 0
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    profile: str = ''
+    library: str = ''
+
+
+def summarize(path: str | Path) -> BagSummary:
+    """Topics, counts, time range and metadata of a finished bag (uses its summary)."""
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream)
+        header = reader.get_header()
+        summary = reader.get_summary()
+        if summary is None:
+            raise McapError(f'{path} has no summary: recover it first (bag_recover)')
+        out = BagSummary(profile=header.profile, library=header.library)
+        stats = summary.statistics
+        counts = stats.channel_message_counts if stats else {}
+        for cid, channel in summary.channels.items():
+            schema = summary.schemas.get(channel.schema_id)
+            out.topics[channel.topic] = TopicInfo(
+                topic=channel.topic, type_name=schema.name if schema else '',
+                offered_qos_profiles=channel.metadata.get('offered_qos_profiles', ''),
+                message_count=counts.get(cid, 0),
+                type_hash=channel.metadata.get('topic_type_hash', ''))
+        if stats:
+            out.message_count = stats.message_count
+            out.start_ns, out.end_ns = stats.message_start_time, stats.message_end_time
+        for record in reader.iter_metadata():
+            out.metadata[record.name] = dict(record.metadata)
+    return out
+
+
+def iter_raw(path: str | Path, topics: Iterable[str] | None = None
+             ) -> Iterator[tuple[Schema | None, Channel, Message]]:
+    """(schema, channel, message) in log-time order, payloads left serialized."""
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream)
+        yield from reader.iter_messages(topics=list(topics) if topics else None,
+                                        log_time_order=True)
+
+
+def iter_decoded(path: str | Path, topics: Iterable[str] | None = None):
+    """(topic, log_time, publish_time, decoded message) with mcap_ros2's own CDR decoder, which
+    parses the schema text (so this checks the schemas too)."""
+    from mcap_ros2.decoder import DecoderFactory
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _schema, channel, message, decoded in reader.iter_decoded_messages(
+                topics=list(topics) if topics else None, log_time_order=True):
+            yield channel.topic, message.log_time, message.publish_time, decoded
+
+
+# ----------------------------------------------------------------------------- recovery
+
+@dataclass
+class RecoveryReport:
+    messages: int = 0
+    chunks: int = 0
+    channels: int = 0
+    metadata: int = 0
+    truncated_bytes: int = 0
+    had_footer: bool = False
+    reason: str = ''
+
+
+_RECORD_TYPES = {
+    Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.MESSAGE: Message,
+    Opcode.CHUNK: Chunk, Opcode.METADATA: Metadata, Opcode.FOOTER: Footer}
+
+
+def _iter_records_tolerant(stream, report: RecoveryReport):
+    """Records of a possibly truncated mcap file, stopping at the first incomplete or corrupt
+    one. Chunks are yielded whole; other record kinds than those recovered are skipped."""
+    if stream.read(8) != MCAP_MAGIC:
+        raise McapError('not an mcap file (bad magic)')
+    offset = 8
+    size = os.fstat(stream.fileno()).st_size
+    while True:
+        head = stream.read(9)
+        if len(head) < 9:
+            report.reason = 'end of data' if not head else 'truncated record header'
+            report.truncated_bytes = size - offset
+            return
+        opcode, length = head[0], int.from_bytes(head[1:], 'little')
+        if length > size - offset - 9:
+            report.reason = f'truncated record (opcode 0x{opcode:02x})'
+            report.truncated_bytes = size - offset
+            return
+        body = stream.read(length)
+        record_type = _RECORD_TYPES.get(opcode)
+        if record_type is not None:
+            data = ReadDataStream(io.BytesIO(body))
+            try:
+                if record_type is Message:
+                    record = Message.read(data, length)
+                else:
+                    record = record_type.read(data)
+            except Exception as err:  # a bad record ends the usable data
+                report.reason = f'corrupt record (opcode 0x{opcode:02x}): {err}'
+                report.truncated_bytes = size - offset
+                return
+            yield record
+            if record_type is Footer:
+                report.had_footer = True
+                report.reason = 'complete file'
+                return
+        offset += 9 + length
+
+
+def recover(src: str | Path, dst: str | Path, *, compression: str = 'zstd') -> RecoveryReport:
+    """Copy every intact record of ``src`` (e.g. a recorder killed with SIGKILL) into a new,
+    complete bag ``dst``: schemas, channels, metadata and the messages of all intact chunks
+    (and unchunked messages), with their original times and sequence numbers."""
+    report = RecoveryReport()
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    channel_map: dict[int, int] = {}
+    writer = BagWriter(dst, compression=compression, library='replan_ros bag_recover',
+                       chunk_interval=1e9)
+
+    def take(record) -> None:
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels[record.id] = record
+        elif isinstance(record, Message):
+            if record.channel_id not in channel_map:
+                channel = channels.get(record.channel_id)
+                if channel is None:
+                    return   # a message without its channel cannot be interpreted
+                schema = schemas.get(channel.schema_id)
+                type_name = schema.name if schema else 'unknown/msg/Unknown'
+                channel_map[record.channel_id] = writer.add_channel(
+                    channel.topic, type_name,
+                    channel.metadata.get('offered_qos_profiles', ''),
+                    channel.metadata.get('topic_type_hash', ''),
+                    definition=schema.data.decode() if schema else '')
+                report.channels += 1
+            writer.write(channel_map[record.channel_id], record.data, record.log_time,
+                         record.publish_time, sequence=record.sequence)
+            report.messages += 1
+
+    try:
+        with open(src, 'rb') as stream:
+            for record in _iter_records_tolerant(stream, report):
+                if isinstance(record, Chunk):
+                    try:
+                        inner = breakup_chunk(record, validate_crc=True)
+                    except Exception as err:
+                        report.reason = f'corrupt chunk: {err}'
+                        break
+                    report.chunks += 1
+                    for item in inner:
+                        take(item)
+                elif isinstance(record, Metadata):
+                    if record.name != 'rosbag2':   # the writer adds its own
+                        writer.add_metadata(record.name, dict(record.metadata))
+                        report.metadata += 1
+                else:
+                    take(record)
+    finally:
+        writer.close()
+    return report

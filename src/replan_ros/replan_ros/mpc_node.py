@@ -1,0 +1,310 @@
+"""MPC node: re-plans the CoM from the actual state at every ``footholds`` (issue 3).
+
+- ``footholds`` stamped ``t_k`` (reliable, transient local) is a re-plan request. The node takes
+  the actual CoM state at ``t_k``: position and velocity from pinocchio
+  (``RobotModel.com_state``) on the ``joint_states`` and ``odom`` of that very stamp (both best
+  effort, the last ~100 stamps buffered), acceleration from its own previous plan sampled at
+  ``t_k`` (zero for the first plan). Until both states of ``t_k`` have arrived the request stays
+  pending (a callback never waits); the simulator republishes the state of ``t_k`` while the
+  controller waits for this plan, so it does arrive.
+- It solves the jerk QP (``replan_core.mpc``, built once, warm-started) and publishes
+  ``com_plan``, ``zmp_plan`` and ``com_path`` stamped ``t_k`` (reliable, transient local, depth 1)
+  and a ``/diagnostics`` status: solve time, iterations, status, ZMP margin, fallback flag.
+- A failed solve still publishes the core's safe fallback plan (flagged WARN on /diagnostics); a
+  rejected request (bad message, non-finite state) is logged (throttled) and, when the core has
+  an earlier plan, answered with that plan shifted to ``t_k``.
+- ``contact_events`` are only logged.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections import OrderedDict
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry, Path
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import JointState as JointStateMsg
+from sensor_msgs.msg import PointCloud2
+from trajectory_msgs.msg import MultiDOFJointTrajectory
+
+from replan_core.mpc import LipMpc, MpcResult, MpcSettings
+from replan_core.robot_model import RobotModel
+from replan_core.types import LEGS, BaseState, ComPlan, FootholdPlan, JointState
+from replan_ros import diagnostics
+from replan_ros.interfaces import (
+    base_state_from_odom,
+    com_plan_to_msg,
+    contact_events_from_msg,
+    footholds_from_msg,
+    joint_state_from_msg,
+    path_msg,
+    sec_to_stamp,
+    stamp_to_ns,
+)
+from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SENSOR
+
+
+class MpcNode(Node):
+    """Footholds in, CoM plan out, from the actual state of the footholds' stamp."""
+
+    def __init__(self) -> None:
+        super().__init__('mpc')
+        d = MpcSettings()
+        self._declared: list[str] = []
+        self._declare('urdf_path', '', "robot URDF for the CoM (pinocchio); '' = $REPLAN_URDF")
+        self._declare('dt', d.dt, 'sampling = constant-jerk interval of the plan, s')
+        self._declare('horizon', d.horizon, 'planning horizon, s (paper: 8 s)')
+        self._declare('com_height', d.com_height,
+                      'LIP CoM height above the mean stance foot height, m (eq. 1)')
+        self._declare('gravity', d.gravity, 'gravity, m/s^2')
+        self._declare('jerk_weight', d.jerk_weight, 'R of eq. (6), weight of the squared jerk')
+        self._declare('velocity_weight', d.velocity_weight,
+                      'weight of the velocity-tracking term (0 disables it)')
+        self._declare('zmp_margin', 0.02, 'inward safety margin of the support polygons, m')
+        self._declare('terminal_capture_point', d.terminal_capture_point,
+                      'keep the capture point at the end of the horizon in the last polygon')
+        self._declare('eps_abs', d.eps_abs, 'proxsuite absolute tolerance')
+        self._declare('max_iter', d.max_iter, 'proxsuite iterations per QP solve')
+        self._declare('state_buffer', 100, 'joint_states / odom stamps kept for the lookup')
+        self._declare('warn_period', 2.0, 'throttle of repeated warnings, wall s')
+        p = {name: self.get_parameter(name).value for name in self._declared}
+        self.settings = self._settings(p)
+        self.mpc = LipMpc(self.settings)                       # QP built once, here
+        self.model = self._robot_model(str(p['urdf_path']))
+        self.state_buffer = max(int(p['state_buffer']), 2)
+        self.warn_period = float(p['warn_period'])
+        self._warned: dict[str, float] = {}
+
+        self.com_plan_pub = self.create_publisher(MultiDOFJointTrajectory, 'com_plan', LATCHED)
+        self.zmp_pub = self.create_publisher(Path, 'zmp_plan', LATCHED)
+        self.com_path_pub = self.create_publisher(Path, 'com_path', LATCHED)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
+        self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED)
+        self.create_subscription(JointStateMsg, 'joint_states', self._on_joint_states, SENSOR)
+        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR)
+        self.create_subscription(PointCloud2, 'contact_events', self._on_contact_events,
+                                 CONTACTS)
+
+        self.joints: OrderedDict[int, JointState] = OrderedDict()
+        self.bases: OrderedDict[int, BaseState] = OrderedDict()
+        self.pending: tuple[int, FootholdPlan] | None = None
+        self.last_plan: ComPlan | None = None
+        self.last_stamp_ns: int | None = None
+        self.replans = 0
+        self.get_logger().info(
+            f'mpc: N={self.mpc.n} per axis ({self.settings.horizon} s / {self.settings.dt} s), '
+            f'h={self.settings.com_height} m, R={self.settings.jerk_weight}, '
+            f'w_v={self.settings.velocity_weight}, margin={self.settings.zmp_margin} m')
+
+    # ----------------------------------------------------------------------------- set-up
+
+    def _declare(self, name, default, description):
+        self._declared.append(name)
+        self.declare_parameter(name, default, ParameterDescriptor(description=description))
+
+    def _settings(self, p) -> MpcSettings:
+        try:
+            s = MpcSettings(dt=float(p['dt']), horizon=float(p['horizon']),
+                            com_height=float(p['com_height']), gravity=float(p['gravity']),
+                            jerk_weight=float(p['jerk_weight']),
+                            velocity_weight=float(p['velocity_weight']),
+                            zmp_margin=float(p['zmp_margin']),
+                            terminal_capture_point=bool(p['terminal_capture_point']),
+                            eps_abs=float(p['eps_abs']), max_iter=int(p['max_iter']))
+            if not (s.dt > 0 and s.horizon >= s.dt and s.com_height > 0 and s.gravity > 0
+                    and s.jerk_weight > 0 and s.velocity_weight >= 0 and s.zmp_margin >= 0
+                    and s.eps_abs > 0 and s.max_iter > 0):
+                raise ValueError('out of range')
+            return s
+        except (TypeError, ValueError) as err:
+            self.get_logger().error(f'invalid mpc parameters ({err}); using the defaults')
+            return MpcSettings(zmp_margin=0.02)
+
+    def _robot_model(self, urdf_path: str) -> RobotModel | None:
+        path = urdf_path or os.environ.get('REPLAN_URDF', '')
+        try:
+            return RobotModel(path)
+        except Exception as err:   # any load error: keep running, refuse to plan (logged)
+            self.get_logger().error(f'cannot load the URDF {path!r} ({err}): no CoM, no plans')
+            return None
+
+    def _warn(self, key: str, text: str) -> None:
+        """Warning throttled per ``key``: at most one every ``warn_period`` wall seconds."""
+        now = time.monotonic()
+        if now - self._warned.get(key, -math.inf) >= self.warn_period:
+            self._warned[key] = now
+            self.get_logger().warn(text)
+
+    # ----------------------------------------------------------------------------- inputs
+
+    def _store(self, buffer: OrderedDict, ns: int, value) -> None:
+        buffer[ns] = value
+        buffer.move_to_end(ns)
+        while len(buffer) > self.state_buffer:
+            buffer.popitem(last=False)
+
+    def _on_joint_states(self, msg: JointStateMsg) -> None:
+        try:
+            js = joint_state_from_msg(msg)
+            if not (np.all(np.isfinite(js.position)) and np.all(np.isfinite(js.velocity))):
+                raise ValueError('non-finite joint positions or velocities')
+        except ValueError as err:
+            self._warn('joint_states', f'joint_states rejected: {err}')
+            return
+        self._store(self.joints, stamp_to_ns(msg.header.stamp), js)
+        self._process()
+
+    def _on_odom(self, msg: Odometry) -> None:
+        try:
+            base = base_state_from_odom(msg)
+            if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
+                    and np.all(np.isfinite(base.linear_velocity))
+                    and np.all(np.isfinite(base.angular_velocity))
+                    and np.linalg.norm(base.quaternion) > 0.5):
+                raise ValueError('non-finite pose or twist')
+        except ValueError as err:
+            self._warn('odom', f'odom rejected: {err}')
+            return
+        self._store(self.bases, stamp_to_ns(msg.header.stamp), base)
+        self._process()
+
+    def _on_footholds(self, msg: PointCloud2) -> None:
+        try:
+            plan = footholds_from_msg(msg)
+        except ValueError as err:
+            self._warn('footholds', f'footholds rejected: {err}; keeping the last plan')
+            return
+        ns = stamp_to_ns(msg.header.stamp)
+        if self.last_stamp_ns is not None and ns == self.last_stamp_ns:
+            return                                   # transient-local repeat: already planned
+        if self.last_stamp_ns is not None and ns < self.last_stamp_ns:
+            self.get_logger().warn(f'footholds stamped {ns * 1e-9:.3f} s before the last plan '
+                                   f'({self.last_stamp_ns * 1e-9:.3f} s): a new run, '
+                                   'forgetting the previous plan')
+            self.mpc.reset()
+            self.last_plan = None
+        if self.pending is not None and self.pending[0] != ns:
+            self._warn('superseded', f'footholds of {self.pending[0] * 1e-9:.3f} s superseded '
+                       f'by {ns * 1e-9:.3f} s before their state arrived')
+        self.pending = (ns, plan)
+        self._process()
+
+    def _on_contact_events(self, msg: PointCloud2) -> None:
+        try:
+            events = contact_events_from_msg(msg)
+        except ValueError as err:
+            self._warn('contact_events', f'contact_events rejected: {err}')
+            return
+        t = stamp_to_ns(msg.header.stamp) * 1e-9
+        for leg, kind, _pos, force in events:
+            self.get_logger().info(f'contact event t={t:.3f} s: {LEGS[leg]} {kind} '
+                                   f'(fz {force[2]:.0f} N)')
+
+    # ----------------------------------------------------------------------------- re-plan
+
+    def _process(self) -> None:
+        """Solve the pending request once the joint_states and odom of its stamp are here."""
+        if self.pending is None:
+            return
+        ns, plan = self.pending
+        joints, base = self.joints.get(ns), self.bases.get(ns)
+        if joints is None or base is None:
+            return
+        self.pending = None
+        self._replan(ns, plan, base, joints)
+
+    def _replan(self, ns: int, plan: FootholdPlan, base: BaseState, joints: JointState) -> None:
+        t = ns * 1e-9
+        if self.model is None:
+            self._publish_diag(t, None, 'no robot model (URDF not loaded)')
+            return
+        try:
+            com, vcom = self.model.com_state(base, joints)
+        except (ValueError, RuntimeError) as err:
+            com, vcom = np.full(3, np.nan), np.full(3, np.nan)
+            self._warn('com_state', f'com_state failed at t={t:.3f} s: {err}')
+        acc = np.zeros(3)
+        if self.last_plan is not None and self.last_plan.start_time <= t:
+            acc = self.last_plan.sample(t)[2]       # eq. (2): the planned acceleration at t_k
+        v_ref = footholds_velocity(plan)
+        res = self.mpc.solve(t, com, vcom, acc, plan, v_ref=v_ref)
+        self.last_stamp_ns = ns
+        self.replans += 1
+        if res.status != 'solved':
+            self._warn(f'status {res.status}', f'mpc at t={t:.3f} s: {res.status} '
+                       f'({res.reason}); fallback: {res.fallback or "none"}')
+        if res.plan is not None:
+            self.last_plan = res.plan
+            self._publish_plan(t, res)
+        self._publish_diag(t, res, '')
+
+    def _publish_plan(self, t: float, res: MpcResult) -> None:
+        plan = res.plan
+        msg = com_plan_to_msg(plan)
+        msg.header.stamp = sec_to_stamp(t)        # exactly the footholds' stamp
+        self.com_plan_pub.publish(msg)
+        ground = plan.position[0, 2] - self.settings.com_height
+        zmp = np.column_stack([res.zmp, np.full(len(res.zmp), ground)])
+        zmp_msg = path_msg(t, plan.dt, zmp)
+        zmp_msg.header.stamp = msg.header.stamp
+        self.zmp_pub.publish(zmp_msg)
+        com_msg = path_msg(t, plan.dt, plan.position)
+        com_msg.header.stamp = msg.header.stamp
+        self.com_path_pub.publish(com_msg)
+
+    def _publish_diag(self, t: float, res: MpcResult | None, why: str) -> None:
+        if res is None:
+            st = diagnostics.status('mpc', diagnostics.ERROR, why, {'replans': self.replans})
+        else:
+            level = (diagnostics.OK if res.ok else
+                     diagnostics.WARN if res.plan is not None else diagnostics.ERROR)
+            message = res.status if res.ok else f'{res.status}: {res.reason}'
+            st = diagnostics.status('mpc', level, message, {
+                'stamp': t,
+                'solve_time_ms': res.solve_time_ms,
+                'iterations': res.iterations,
+                'status': res.status,
+                'zmp_margin_m': res.min_zmp_margin_m,
+                'max_zmp_violation_m': res.max_zmp_violation_m,
+                'fallback': res.is_fallback,
+                'fallback_kind': res.fallback or 'none',
+                'replans': self.replans,
+            })
+        self.diag_pub.publish(diagnostics.array(sec_to_stamp(t), st))
+
+
+def footholds_velocity(plan: FootholdPlan) -> np.ndarray:
+    """Mean horizontal velocity (m/s) the footholds imply: the stance centre's displacement
+    from the initial feet to the last footholds over the time to the last touchdown."""
+    if not plan.steps:
+        return np.zeros(2)
+    feet = np.array(plan.initial_feet, dtype=float)
+    for s in plan.steps:
+        feet[s.leg] = s.target
+    duration = plan.steps[-1].touchdown_time - plan.start_time
+    if not duration > 0.0:
+        return np.zeros(2)
+    v = (feet[:, :2].mean(axis=0) - np.asarray(plan.initial_feet)[:, :2].mean(axis=0))
+    v = v / duration
+    return v if np.all(np.isfinite(v)) else np.zeros(2)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = MpcNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

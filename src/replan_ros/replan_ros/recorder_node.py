@@ -1,0 +1,431 @@
+"""Recorder: every topic of the graph (or a list / a regex) into an mcap bag that rosbag2,
+Foxglove and any mcap reader open (conventions in ``bag_io``).
+
+- Topics are discovered as they appear (graph polled every ``discovery_period`` s) and
+  subscribed with ``raw=True``: payloads are stored as received, serialized CDR.
+- The subscription QoS follows the publishers, as rosbag2 does: reliable only if every publisher
+  is reliable, transient local only if every publisher is (so latched plans are received).
+- Times: ``log_time`` = receive time on the node clock (sim time with ``use_sim_time``, as
+  ``ros2 bag record --use-sim-time``); ``publish_time`` per ``publish_time`` parameter: ``source``
+  (the DDS source timestamp, wall clock: what rosbag2 writes), ``header`` (``header.stamp`` where
+  the type has a header, else the receive time) or ``receive``.
+- Callbacks only queue the bytes; a writer thread compresses and writes, so the executor keeps up
+  with the graph's rates. Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s.
+- The run's configuration goes in mcap metadata records: ``replan_run`` (git revision, recorder
+  parameters, command line, ...), ``replan_config`` (path -> content of each ``config_files``
+  entry), ``replan_scenario`` (``scenario_file``), ``replan_user`` (``metadata_json``).
+- SIGINT/SIGTERM: the last chunk, indexes and summary are written. SIGKILL: the finished chunks
+  are on disk; ``python -m replan_ros.tools.bag_recover BAG`` rebuilds a complete bag from them.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import re
+import socket
+import subprocess
+import sys
+import threading
+from datetime import datetime
+from pathlib import Path
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from replan_ros import diagnostics
+from replan_ros.bag_io import (
+    BagWriter,
+    has_header,
+    header_stamp_ns,
+    message_definition,
+    normalize_type_name,
+    qos_profiles_yaml,
+)
+from replan_ros.introspection import message_class
+from replan_ros.qos import COMMAND
+
+_PUBLISH_TIME_SOURCES = ('source', 'header', 'receive')
+
+
+def _git(root: Path, *args: str) -> str:
+    try:
+        out = subprocess.run(['git', '-C', str(root), *args], capture_output=True, text=True,
+                             timeout=5, check=True)
+        return out.stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ''
+
+
+def _is_hidden(topic: str) -> bool:
+    return any(part.startswith('_') for part in topic.split('/'))
+
+
+class _Topic:
+    """One recorded topic: its channel, subscription and counters."""
+
+    def __init__(self, name: str, type_name: str, channel_id: int, stamp_in_header: bool):
+        self.name = name
+        self.type_name = type_name
+        self.channel_id = channel_id
+        self.stamp_in_header = stamp_in_header
+        self.subscription = None
+        self.received = 0
+        self.written = 0
+
+
+class RecorderNode(Node):
+    """Records the graph into one mcap file."""
+
+    def __init__(self) -> None:
+        super().__init__('recorder')
+        self._declare(
+            'output', '', 'bag file (*.mcap) or directory for <dir>/replan_<date>_<time>.mcap; '
+            'empty: output_dir')
+        self._declare('output_dir', '', 'directory for <dir>/replan_<date>_<time>.mcap when '
+                      'output is empty; both empty: ./runs/')
+        self._declare('topics', Parameter.Type.STRING_ARRAY,
+                      'topics to record (exact names); with topics_regex empty too: all topics')
+        self._declare('topics_regex', '', 'record the topics whose full name matches this regex')
+        self._declare('exclude_regex', '', 'never record topics matching this regex')
+        self._declare('include_hidden', False, 'also record hidden topics (a part starts with _)')
+        self._declare('discovery_period', 0.5, 'period of the graph poll for new topics, s')
+        self._declare('queue_depth', 1000,
+                      'history depth of each subscription (absorbs executor stalls), messages')
+        self._declare('chunk_size', 1 << 20,
+                      'close an mcap chunk at this many uncompressed bytes (bounds SIGKILL loss)')
+        self._declare('chunk_interval', 1.0,
+                      'close an mcap chunk at least this often, wall s (bounds SIGKILL loss)')
+        self._declare('compression', 'zstd', 'chunk compression: zstd, lz4 or none')
+        self._declare('publish_time', 'source',
+                      'mcap publish_time: source (DDS source timestamp, as rosbag2), header '
+                      '(header.stamp where there is one, else receive time) or receive')
+        self._declare('config_files', Parameter.Type.STRING_ARRAY,
+                      'parameter YAML files of the run, stored in the bag (metadata replan_config)')
+        self._declare('scenario_file', '', 'scenario file of the run, stored in the bag')
+        self._declare('metadata_json', '',
+                      'JSON object of extra key/values stored in the bag (metadata replan_user)')
+        self._declare('diagnostics_period', 1.0, 'period of the /diagnostics status, wall s')
+
+        p = self._params()
+        self._topics_wanted = set(p['topics'])
+        self._include = self._regex(p['topics_regex'], 'topics_regex', '(?!)')
+        self._exclude = self._regex(p['exclude_regex'], 'exclude_regex', None)
+        if p['compression'] not in ('zstd', 'lz4', 'none'):
+            self.get_logger().error(f'compression must be zstd, lz4 or none: '
+                                    f'{p["compression"]!r}; using zstd')
+            p['compression'] = 'zstd'
+        self._include_hidden = p['include_hidden']
+        self._queue_depth = max(int(p['queue_depth']), 1)
+        if p['publish_time'] not in _PUBLISH_TIME_SOURCES:
+            self.get_logger().error(
+                f'publish_time must be one of {_PUBLISH_TIME_SOURCES}: {p["publish_time"]!r}; '
+                'using source')
+            p['publish_time'] = 'source'
+        self._publish_time = p['publish_time']
+
+        self.path = self._bag_path(p['output'] or p['output_dir'])
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._writer = BagWriter(self.path, chunk_size=int(p['chunk_size']),
+                                 chunk_interval=float(p['chunk_interval']),
+                                 compression=p['compression'],
+                                 library='replan_ros recorder_node (mcap-python)')
+        self._lock = threading.Lock()   # guards self._writer (writer thread vs. discovery)
+        self._write_config(p)
+
+        self._recorded: dict[str, _Topic] = {}
+        self._skipped: set[str] = set()
+        self._warned: set[str] = set()
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._write_errors = 0
+        self._closed = False
+        self._thread = threading.Thread(target=self._write_loop, name='bag_writer', daemon=True)
+        self._thread.start()
+
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
+        # Discovery and diagnostics run on the steady clock: a ROS timer under sim time would
+        # stop whenever /clock does (before the sim starts, or when it is paused).
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._discovery_timer = self.create_timer(float(p['discovery_period']), self._discover,
+                                                  clock=steady)
+        self._diag_timer = self.create_timer(float(p['diagnostics_period']), self._report,
+                                             clock=steady)
+        self.get_logger().info(f'recording to {self.path}')
+        self._discover()
+
+    # ------------------------------------------------------------------ parameters, config
+
+    def _declare(self, name: str, default, description: str) -> None:
+        self.declare_parameter(name, default, ParameterDescriptor(description=description))
+
+    def _regex(self, pattern: str, name: str, fallback: str | None):
+        if not pattern:
+            return None
+        try:
+            return re.compile(pattern)
+        except re.error as err:
+            effect = 'matches nothing' if fallback else 'ignored'
+            self.get_logger().error(f'{name} {pattern!r} is not a valid regex ({err}): {effect}')
+            return re.compile(fallback) if fallback else None
+
+    def _params(self) -> dict:
+        names = ('output', 'output_dir', 'topics', 'topics_regex', 'exclude_regex',
+                 'include_hidden',
+                 'discovery_period', 'queue_depth', 'chunk_size', 'chunk_interval',
+                 'compression', 'publish_time', 'config_files', 'scenario_file',
+                 'metadata_json', 'diagnostics_period')
+        values = {}
+        for name in names:
+            try:
+                values[name] = self.get_parameter(name).value
+            except ParameterUninitializedException:   # a list left empty (`[]` in YAML)
+                values[name] = None
+        for name in ('topics', 'config_files'):
+            values[name] = [v for v in (values[name] or []) if v]
+        return values
+
+    @staticmethod
+    def _bag_path(output: str) -> Path:
+        stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
+        target = Path(output) if output else Path(os.environ.get('REPLAN_ROOT', '.'), 'runs')
+        if target.suffix != '.mcap':
+            target = target / f'replan_{stamp}.mcap'
+        return target.resolve()
+
+    def _write_config(self, p: dict) -> None:
+        root = Path(os.environ.get('REPLAN_ROOT', Path(__file__).resolve().parents[3]))
+        revision = _git(root, 'rev-parse', 'HEAD') or 'unknown'
+        status = _git(root, 'status', '--porcelain', '--untracked-files=no')
+        run = {
+            'git_revision': revision,
+            'git_dirty': 'true' if status else 'false',
+            'git_status': status,
+            'wall_start': datetime.now().astimezone().isoformat(),
+            'hostname': socket.gethostname(),
+            'ros_distro': os.environ.get('ROS_DISTRO', 'jazzy'),
+            'rmw_implementation': os.environ.get('RMW_IMPLEMENTATION', ''),
+            'ros_domain_id': os.environ.get('ROS_DOMAIN_ID', '0'),
+            'command_line': ' '.join(sys.argv),
+            'use_sim_time': str(self.get_parameter('use_sim_time').value).lower(),
+            'recorder_parameters': json.dumps(p, sort_keys=True),
+            'config_files': json.dumps([str(Path(f).resolve()) for f in p['config_files']]),
+            'scenario_file': str(Path(p['scenario_file']).resolve()) if p['scenario_file'] else '',
+        }
+        self._writer.add_metadata('replan_run', run)
+        configs = {}
+        for name in p['config_files']:
+            path = Path(name).resolve()
+            try:
+                configs[str(path)] = path.read_text()
+            except OSError as err:
+                self.get_logger().error(f'config file {path} not stored: {err}')
+        if configs:
+            self._writer.add_metadata('replan_config', configs)
+        if p['scenario_file']:
+            path = Path(p['scenario_file']).resolve()
+            try:
+                self._writer.add_metadata('replan_scenario',
+                                          {'path': str(path), 'content': path.read_text()})
+            except OSError as err:
+                self.get_logger().error(f'scenario file {path} not stored: {err}')
+        if p['metadata_json']:
+            try:
+                extra = json.loads(p['metadata_json'])
+                if not isinstance(extra, dict):
+                    raise ValueError('not a JSON object')
+                self._writer.add_metadata('replan_user', {
+                    str(k): v if isinstance(v, str) else json.dumps(v) for k, v in extra.items()})
+            except ValueError as err:
+                self.get_logger().error(f'metadata_json not stored: {err}')
+
+    # ------------------------------------------------------------------ discovery
+
+    def _selected(self, topic: str) -> bool:
+        if self._exclude is not None and self._exclude.search(topic):
+            return False
+        if not self._topics_wanted and self._include is None:
+            return self._include_hidden or not _is_hidden(topic)
+        return topic in self._topics_wanted or (
+            self._include is not None and self._include.search(topic) is not None)
+
+    def _warn_once(self, key: str, text: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            self.get_logger().warning(text)
+
+    def _discover(self) -> None:
+        if self._closed:
+            return
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._recorded or topic in self._skipped:
+                continue
+            if not self._selected(topic):
+                self._skipped.add(topic)
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue   # only subscribers so far: the QoS to request is not known yet
+            if len(types) > 1:
+                self._warn_once(f'types:{topic}',
+                                f'{topic} has several types {types}; recording {types[0]}')
+            self._subscribe(topic, types[0], publishers)
+
+    def _subscribe(self, topic: str, type_name: str, publishers) -> None:
+        try:
+            msg_type = message_class(type_name)
+            definition = message_definition(type_name)
+            stamp_in_header = has_header(type_name)
+        except (ValueError, OSError, RecursionError) as err:
+            self._warn_once(f'type:{topic}', f'not recording {topic}: {err}')
+            self._skipped.add(topic)
+            return
+        profiles = [info.qos_profile for info in publishers]
+        reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in profiles)
+        latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in profiles)
+        qos = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST, depth=self._queue_depth,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                        else DurabilityPolicy.VOLATILE))
+        type_hash = str(publishers[0].topic_type_hash)
+        with self._lock:
+            channel_id = self._writer.add_channel(
+                topic, normalize_type_name(type_name), qos_profiles_yaml(profiles), type_hash,
+                definition=definition)
+        entry = _Topic(topic, type_name, channel_id, stamp_in_header)
+        self._recorded[topic] = entry
+        # The channel exists before the first message can arrive.
+        entry.subscription = self.create_subscription(
+            msg_type, topic, self._make_callback(entry), qos, raw=True)
+        self.get_logger().info(
+            f'recording {topic} [{type_name}] '
+            f'({"reliable" if reliable else "best effort"}'
+            f'{", transient local" if latched else ""})')
+
+    def _make_callback(self, entry: _Topic):
+        clock = self.get_clock()
+        put = self._queue.put
+        mode = self._publish_time
+
+        def on_message(data: bytes, info: dict) -> None:
+            entry.received += 1
+            log_time = clock.now().nanoseconds
+            if mode == 'source':
+                publish_time = info.get('source_timestamp') or log_time
+            elif mode == 'header' and entry.stamp_in_header:
+                publish_time = header_stamp_ns(data)
+                if publish_time is None:
+                    publish_time = log_time
+            else:
+                publish_time = log_time
+            put((entry, data, log_time, publish_time))
+
+        return on_message
+
+    # ------------------------------------------------------------------ writing
+
+    def _write_loop(self) -> None:
+        while True:
+            try:
+                item = self._queue.get(timeout=0.2)
+            except queue.Empty:
+                with self._lock:
+                    if not self._writer.closed:
+                        self._writer.poll()
+                continue
+            with self._lock:
+                # Drain what is queued under one lock: fewer lock round trips at high rates.
+                while item is not None:
+                    self._write_one(*item)
+                    try:
+                        item = self._queue.get_nowait()
+                    except queue.Empty:
+                        break
+            if item is None:
+                return
+
+    def _write_one(self, entry: _Topic, data: bytes, log_time: int, publish_time: int) -> None:
+        try:
+            self._writer.write(entry.channel_id, data, log_time, publish_time)
+            entry.written += 1
+        except Exception as err:  # one bad write must not stop the recording
+            self._write_errors += 1
+            self._warn_once('write', f'write failed: {err}')
+
+    def _counts(self) -> tuple[int, int]:
+        received = sum(t.received for t in self._recorded.values())
+        written = sum(t.written for t in self._recorded.values())
+        return received, written
+
+    def _report(self) -> None:
+        received, written = self._counts()
+        values = {
+            'file': str(self.path),
+            'topics': len(self._recorded),
+            'received': received,
+            'written': written,
+            'queued': received - written,
+            'write_errors': self._write_errors,
+            'chunks': self._writer.chunk_count,
+            'bytes': self._writer.bytes_written,
+        }
+        for topic in sorted(self._recorded):
+            entry = self._recorded[topic]
+            values[f'{topic} received'] = entry.received
+            values[f'{topic} written'] = entry.written
+        level = diagnostics.OK if not self._write_errors else diagnostics.ERROR
+        message = 'recording' if not self._write_errors else 'write errors'
+        self._diag_pub.publish(diagnostics.array(
+            self.get_clock().now().to_msg(),
+            diagnostics.status(f'{self.get_name()}: bag', level, message, values)))
+
+    def close(self) -> None:
+        """Stop subscriptions, write what is queued, finish the file (summary and indexes)."""
+        if self._closed:
+            return
+        self._closed = True
+        for entry in self._recorded.values():
+            if entry.subscription is not None:
+                self.destroy_subscription(entry.subscription)
+                entry.subscription = None
+        self._queue.put(None)
+        self._thread.join(timeout=30.0)
+        with self._lock:
+            self._writer.close()
+        received, written = self._counts()
+        text = (f'closed {self.path}: {written} of {received} received messages written, '
+                f'{len(self._recorded)} topics, {self._writer.chunk_count} chunks')
+        if self.context.ok():
+            self.get_logger().info(text)
+        else:   # after SIGINT/SIGTERM the context is shut down: /rosout is gone
+            print(f'[recorder] {text}', file=sys.stderr, flush=True)
+
+    def destroy_node(self) -> None:
+        self.close()
+        super().destroy_node()
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = RecorderNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

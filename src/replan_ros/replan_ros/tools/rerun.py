@@ -1,0 +1,276 @@
+"""Re-run a recorded run and compare the base trajectory: a bag becomes a reproducible report.
+
+    scripts/rerun.sh BAG [--out DIR] [--tolerance M] [--gui]
+
+1. From BAG: the inputs (``velocity_setpoint``: the set-point each re-plan used; ``applied_wrench``:
+   each external wrench change as applied, both stamped in sim time), the configuration (the
+   ``replan_config`` metadata: every node's parameter file and the ``--params`` files of the run)
+   and the recorded base trajectory (``odom``).
+2. A fresh lock-step simulation with that configuration; before it starts, the inputs are sent
+   with their recorded stamps as ``cmd_vel_stamped`` and ``external_wrench`` (transient local
+   schedule topics), so the new run sees the same inputs at the same sim times.
+3. The new ``odom`` positions are compared with the recorded ones at equal stamps; the largest
+   deviation (m) is printed. Exit code 0 if it is within ``--tolerance`` (1 mm) and the new run
+   covered the recording, 1 otherwise, 2 for a bag that cannot be re-run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from geometry_msgs.msg import TwistStamped, WrenchStamped
+from mcap.reader import make_reader
+from nav_msgs.msg import Odometry
+from rclpy.serialization import deserialize_message
+
+from replan_ros.tools.launch_graph import NODES
+
+INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped}
+ODOM_TOPIC = '/odom'
+
+
+class RerunError(ValueError):
+    """A bag that cannot be re-run, with the reason."""
+
+
+def _stamp_ns(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+@dataclass
+class RecordedRun:
+    """What a re-run needs from a bag."""
+
+    setpoints: list[TwistStamped] = field(default_factory=list)
+    wrenches: list[WrenchStamped] = field(default_factory=list)
+    odom: dict[int, np.ndarray] = field(default_factory=dict)   # stamp ns -> position (m)
+    config_files: list[str] = field(default_factory=list)        # recorded order
+    config_text: dict[str, str] = field(default_factory=dict)    # path -> content
+    run_info: dict[str, str] = field(default_factory=dict)
+    scenario: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def duration(self) -> float:
+        """Sim seconds covered by the recorded ``odom``."""
+        return max(self.odom) * 1e-9 if self.odom else 0.0
+
+
+def odom_positions(messages) -> dict[int, np.ndarray]:
+    """stamp ns -> base position, first message of each stamp (the sim re-publishes a state
+    whose command was lost: duplicates carry the same state)."""
+    out: dict[int, np.ndarray] = {}
+    for msg in messages:
+        stamp = _stamp_ns(msg.header.stamp)
+        if stamp not in out:
+            p = msg.pose.pose.position
+            out[stamp] = np.array([p.x, p.y, p.z])
+    return out
+
+
+def load_run(bag: str | Path) -> RecordedRun:
+    """Inputs, configuration and trajectory of a recorded bag."""
+    run = RecordedRun()
+    odom: list[Odometry] = []
+    with open(bag, 'rb') as stream:
+        reader = make_reader(stream)
+        for record in reader.iter_metadata():
+            if record.name == 'replan_config':
+                run.config_text.update(record.metadata)
+            elif record.name == 'replan_run':
+                run.run_info = dict(record.metadata)
+            elif record.name == 'replan_scenario':
+                run.scenario = dict(record.metadata)
+        topics = [*INPUT_TOPICS, ODOM_TOPIC]
+        for _schema, channel, message in reader.iter_messages(topics=topics,
+                                                              log_time_order=True):
+            if channel.topic == ODOM_TOPIC:
+                odom.append(deserialize_message(message.data, Odometry))
+            elif channel.topic == '/velocity_setpoint':
+                run.setpoints.append(deserialize_message(message.data, TwistStamped))
+            else:
+                run.wrenches.append(deserialize_message(message.data, WrenchStamped))
+    run.odom = odom_positions(odom)
+    try:
+        run.config_files = list(json.loads(run.run_info.get('config_files', '[]')))
+    except ValueError:
+        run.config_files = []
+    for path in run.config_text:
+        if path not in run.config_files:
+            run.config_files.append(path)
+    return run
+
+
+def _twist_key(msg: TwistStamped) -> tuple:
+    t = msg.twist
+    return (t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z)
+
+
+def schedule_inputs(run: RecordedRun) -> tuple[list[TwistStamped], list[WrenchStamped]]:
+    """The inputs to send: set-points where the value changes (a set-point holds from its stamp
+    on, so the value at every re-plan is the same), every applied wrench; sorted by stamp."""
+    setpoints = sorted(run.setpoints, key=lambda m: _stamp_ns(m.header.stamp))
+    changes: list[TwistStamped] = []
+    for msg in setpoints:
+        if not changes or _twist_key(msg) != _twist_key(changes[-1]):
+            changes.append(msg)
+    wrenches = sorted(run.wrenches, key=lambda m: _stamp_ns(m.header.stamp))
+    return changes, wrenches
+
+
+def write_config(run: RecordedRun, out_dir: Path, fallback_dir: Path,
+                 log=print) -> tuple[Path, list[Path]]:
+    """Recreate the run's configuration under ``out_dir``: ``config/<node>.yaml`` for the graph's
+    nodes (the recorded file, else the current one, with a warning) and the other recorded
+    files, in their recorded order, as extra parameter files."""
+    config_dir = out_dir / 'config'
+    params_dir = out_dir / 'params'
+    config_dir.mkdir(parents=True, exist_ok=True)
+    extra: list[Path] = []
+    placed: set[str] = set()
+    for index, path in enumerate(run.config_files):
+        text = run.config_text.get(path)
+        if text is None:
+            log(f'[rerun] {path} was listed but its content is not in the bag: skipped')
+            continue
+        name = Path(path).name
+        node = name[:-len('.yaml')] if name.endswith('.yaml') else ''
+        if node in NODES and node not in placed:
+            (config_dir / name).write_text(text)
+            placed.add(node)
+        else:
+            params_dir.mkdir(parents=True, exist_ok=True)
+            target = params_dir / f'{index:02d}_{name}'
+            target.write_text(text)
+            extra.append(target)
+    for node in (*NODES, 'recorder'):
+        if node in placed:
+            continue
+        source = fallback_dir / f'{node}.yaml'
+        if node != 'recorder':
+            log(f'[rerun] no recorded {node}.yaml: using the current {source}')
+        if source.is_file():
+            shutil.copyfile(source, config_dir / f'{node}.yaml')
+    return config_dir, extra
+
+
+@dataclass
+class Comparison:
+    max_deviation: float            # m, largest position difference at a common stamp
+    at_stamp: float | None          # s, where it occurs
+    matched: int                    # stamps in both runs
+    missing: int                    # recorded stamps the new run does not have
+    rms: float                      # m
+
+    @property
+    def coverage(self) -> float:
+        total = self.matched + self.missing
+        return self.matched / total if total else 0.0
+
+
+def compare_trajectories(recorded: dict[int, np.ndarray],
+                         rerun: dict[int, np.ndarray]) -> Comparison:
+    """Position deviation of ``rerun`` from ``recorded`` at their common stamps."""
+    common = sorted(set(recorded) & set(rerun))
+    missing = len(set(recorded) - set(rerun))
+    if not common:
+        return Comparison(float('inf'), None, 0, missing, float('inf'))
+    ref = np.array([recorded[s] for s in common])
+    new = np.array([rerun[s] for s in common])
+    dev = np.linalg.norm(new - ref, axis=1)
+    worst = int(np.argmax(dev))
+    return Comparison(float(dev[worst]), common[worst] * 1e-9, len(common), missing,
+                      float(np.sqrt(np.mean(dev ** 2))))
+
+
+def _find_bag(folder: Path) -> Path:
+    bags = sorted(folder.glob('*.mcap'), key=lambda p: p.stat().st_mtime)
+    if not bags:
+        raise RerunError(f'the re-run wrote no bag in {folder}')
+    return bags[-1]
+
+
+def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = False,
+          config_dir: Path | None = None, log=print) -> tuple[Comparison, int]:
+    """Re-run ``bag`` into ``out_dir``; returns the comparison and the launcher's exit code."""
+    from replan_ros import qos
+    from replan_ros.tools.launch_graph import Graph, run_graph
+
+    run = load_run(bag)
+    if not run.odom:
+        raise RerunError(f'{bag} has no {ODOM_TOPIC}: nothing to compare')
+    if not run.config_text:
+        log('[rerun] the bag holds no configuration (replan_config): using the current one')
+    setpoints, wrenches = schedule_inputs(run)
+    if max(len(setpoints), len(wrenches)) > qos.SCHEDULE.depth:
+        log(f'[rerun] more inputs than the schedule depth {qos.SCHEDULE.depth}: '
+            'the early ones may not reach a late subscriber')
+    fallback = config_dir or Path(os.environ.get('REPLAN_CONFIG', 'config'))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    new_config, param_files = write_config(run, out_dir, fallback, log=log)
+    extra_params = {}
+    if run.scenario.get('content'):
+        (out_dir / 'scenario.yaml').write_text(run.scenario['content'])
+        extra_params = {'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}}
+    bag_dir = out_dir / 'bag'
+    graph = Graph(out_dir, config_dir=new_config, param_files=param_files, record_dir=bag_dir,
+                  gui=gui, respawn=False, extra_params=extra_params, log=log)
+
+    def send_inputs(node) -> None:
+        cmd_pub = node.create_publisher(TwistStamped, 'cmd_vel_stamped', qos.SCHEDULE)
+        wrench_pub = node.create_publisher(WrenchStamped, 'external_wrench', qos.SCHEDULE)
+        for msg in setpoints:
+            cmd_pub.publish(msg)
+        for msg in wrenches:
+            wrench_pub.publish(msg)
+        log(f'[rerun] sent {len(setpoints)} set-points and {len(wrenches)} wrenches')
+
+    log(f'[rerun] {bag}: {run.duration:.2f} s of sim time, recorded at git '
+        f'{run.run_info.get("git_revision", "?")}; output in {out_dir}')
+    code = run_graph(graph, run.duration, wall_timeout=max(300.0, 20.0 * run.duration),
+                     on_start=send_inputs)
+    new_run = load_run(_find_bag(bag_dir))
+    return compare_trajectories(run.odom, new_run.odom), code
+
+
+def report(comparison: Comparison, tolerance: float) -> tuple[str, bool]:
+    ok = comparison.max_deviation <= tolerance and comparison.coverage >= 0.99
+    at = f' at t = {comparison.at_stamp:.3f} s' if comparison.at_stamp is not None else ''
+    text = (f'[rerun] largest base position deviation: {comparison.max_deviation:.6f} m{at} '
+            f'(rms {comparison.rms:.6f} m, {comparison.matched} common stamps, '
+            f'{comparison.missing} recorded stamps missing) -> '
+            f'{"MATCH" if ok else "DIFFERENT"} (tolerance {tolerance} m)')
+    return text, ok
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='rerun.sh', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('bag', type=Path)
+    parser.add_argument('--out', type=Path, help='output folder (default runs/rerun-<time>)')
+    parser.add_argument('--tolerance', type=float, default=1e-3, help='m (default 0.001)')
+    parser.add_argument('--gui', action='store_true')
+    args = parser.parse_args(argv)
+    root = Path(os.environ.get('REPLAN_ROOT', '.'))
+    out = args.out or root / 'runs' / f'rerun-{time.strftime("%Y%m%d-%H%M%S")}'
+    try:
+        comparison, code = rerun(args.bag, out, tolerance=args.tolerance, gui=args.gui)
+    except (RerunError, OSError) as err:
+        print(f'rerun: {err}', file=sys.stderr)
+        return 2
+    text, ok = report(comparison, args.tolerance)
+    print(text)
+    if code != 0:
+        print(f'[rerun] the launcher exited with code {code}', file=sys.stderr)
+    return 0 if ok and code == 0 else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
