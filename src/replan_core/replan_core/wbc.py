@@ -54,6 +54,11 @@ class WbcParams:
     weight_moment: float = 10.0     # QP weight of the angular (moment) rows, 1/(N m)^2
     regularization: float = 1e-4    # QP weight of |f|^2: spreads the load, keeps H definite
     haptic_velocity: float = 0.15   # m/s, descent of a haptic swing foot after planned touchdown
+    # m, a haptic swing aims this far below its foothold: the foot lags its reference by ~1-2 cm,
+    # and a swing that ends exactly at ground level meets the ground late (the re-plan follows
+    # the sensed touchdown, so every step would take longer than planned and the robot walk
+    # slower than commanded). Aiming lower makes contact happen at the planned time.
+    touchdown_depth: float = 0.03
     fallback_kp: float = 300.0      # N m/rad, joint PD of the safe stand
     fallback_kd: float = 10.0       # N m s/rad
     qp_max_iter: int = 200
@@ -147,11 +152,12 @@ class PlanFollower:
 
     def __init__(self, footholds: FootholdPlan, com_plan: ComPlan,
                  min_swing_fraction: float = 0.5, max_extension: float = 0.3,
-                 haptic_velocity: float = 0.15) -> None:
+                 haptic_velocity: float = 0.15, touchdown_depth: float = 0.0) -> None:
         self.footholds = footholds
         self.com_plan = com_plan
         self.tracker = StepTracker(footholds, min_swing_fraction, max_extension)
         self.haptic_velocity = haptic_velocity
+        self.touchdown_depth = touchdown_depth
         self._liftoff_position: dict[int, np.ndarray] = {}
         self._yaw = footholds.initial_yaw
 
@@ -181,11 +187,13 @@ class PlanFollower:
             step = self.footholds.steps[index]
             liftoff = self.tracker.liftoff_tick[index]
             start = self._liftoff_position.get(index, step.target)
+            target = step.target
             if step.haptic:
                 touchdown = liftoff + (step.touchdown_time - step.liftoff_time)
+                target = step.target - np.array([0.0, 0.0, self.touchdown_depth])
             else:
                 touchdown = max(step.touchdown_time, liftoff + 1e-3)
-            timed = Step(step.leg, liftoff, touchdown, step.target, step.step_height,
+            timed = Step(step.leg, liftoff, touchdown, target, step.step_height,
                          step.haptic, step.replan, step.yaw)
             stance[step.leg] = False
             swing = (swing_reference(timed, start, t, swing_trajectory, self.haptic_velocity),)

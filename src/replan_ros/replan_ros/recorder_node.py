@@ -24,10 +24,12 @@ import json
 import os
 import queue
 import re
+import signal
 import socket
 import subprocess
 import sys
 import threading
+import time
 from datetime import datetime
 from pathlib import Path
 
@@ -36,10 +38,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterUninitializedException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
 from replan_ros import diagnostics
 from replan_ros.bag_io import (
@@ -312,7 +315,7 @@ class RecorderNode(Node):
 
     def _make_callback(self, entry: _Topic):
         clock = self.get_clock()
-        put = self._queue.put
+        lock, write = self._lock, self._write_one
         mode = self._publish_time
 
         def on_message(data: bytes, info: dict) -> None:
@@ -326,7 +329,12 @@ class RecorderNode(Node):
                     publish_time = log_time
             else:
                 publish_time = log_time
-            put((entry, data, log_time, publish_time))
+            # Written here, not handed to the writer thread: a hand-off per message costs a GIL
+            # switch each, which measured as the recorder's largest cost at the graph's rates.
+            # A chunk compression stalls this callback for a few ms; the subscriptions' history
+            # depth (queue_depth) absorbs that.
+            with lock:
+                write(entry, data, log_time, publish_time)
 
         return on_message
 
@@ -359,6 +367,10 @@ class RecorderNode(Node):
         except Exception as err:  # one bad write must not stop the recording
             self._write_errors += 1
             self._warn_once('write', f'write failed: {err}')
+
+    def received_count(self) -> int:
+        """Messages received so far, over all recorded topics."""
+        return sum(t.received for t in self._recorded.values())
 
     def _counts(self) -> tuple[int, int]:
         received = sum(t.received for t in self._recorded.values())
@@ -413,12 +425,32 @@ class RecorderNode(Node):
         super().destroy_node()
 
 
+DRAIN_QUIET = 0.3     # s without a new message: the subscriptions are drained
+DRAIN_LIMIT = 10.0    # s, longest drain before closing anyway
+
+
 def main(args=None):
-    rclpy.init(args=args)
+    # Own signal handling: on SIGINT/SIGTERM the recorder first takes what is still queued in
+    # its subscriptions (it runs a little behind the graph under load), then closes the bag.
+    # rclpy's handlers would shut the context down at once and lose that tail.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop: list[int] = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, _frame: stop.append(signum))
     node = None
     try:
         node = RecorderNode()
-        rclpy.spin(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        end = time.monotonic() + DRAIN_LIMIT
+        last_count, quiet_since = node.received_count(), time.monotonic()
+        while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
+            executor.spin_once(timeout_sec=0.05)
+            count = node.received_count()
+            if count != last_count:
+                last_count, quiet_since = count, time.monotonic()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -112,12 +112,13 @@ class SimNode(Node):
         self._rtf_samples: deque[tuple[float, float]] = deque()
         self._free_ref = (0.0, 0)                     # (wall, tick) where free-running began
 
+        self._clock_every = max(1, round(p['clock_period'] / p['control_period']))
         self.free_timer = self.create_timer(p['control_period'] / self.rtf_target,
                                             self._on_free_run_timer)
         self.free_timer.cancel()
         self.create_timer(_WATCHDOG_PERIOD, self._on_watchdog)
         self.create_timer(p['diagnostics_period'], self._on_diagnostics)
-        self._publish_state()
+        self._publish_state(with_clock=True)
         stepping = 'lock-step' if self.lock_step else 'free-run'
         self.get_logger().info(
             f'sim: {urdf} on {p["terrain"]} terrain, {stepping}, tick {p["control_period"]} s, '
@@ -130,6 +131,8 @@ class SimNode(Node):
             ('urdf_path', '', "robot URDF; '' = $REPLAN_URDF or <repo>/urdf/hyq.urdf"),
             ('physics_dt', 0.001, 'physics step, s'),
             ('control_period', 0.004, 'control tick, s (a multiple of physics_dt)'),
+            ('clock_period', 0.02, '/clock period, s (a multiple of control_period): every node '
+             'pays a callback per /clock message, and stamps, not /clock, drive the control'),
             ('standing_joint_positions', STANDING_POSE.tolist(),
              'spawn joint angles, rad, JOINT_NAMES order'),
             ('initial_base_height', 0.0, 'spawn base_link height, m; 0 = feet touching ground'),
@@ -172,10 +175,11 @@ class SimNode(Node):
         """Current sim time (the state stamp), ns."""
         return sec_to_ns(self.world.time)
 
-    def _publish_state(self, with_clock: bool = True, with_events: bool = True) -> None:
+    def _publish_state(self, with_clock: bool = False, with_events: bool = True) -> None:
+        """State of the current tick; /clock on its grid (clock_period) or when forced."""
         w = self.world
         stamp = ns_to_stamp(self.now_ns)
-        if with_clock:
+        if with_clock or w.tick % self._clock_every == 0:
             self.clock_pub.publish(Clock(clock=stamp))
         self.joint_pub.publish(joint_state_to_msg(w.joint_state()))
         self.odom_pub.publish(odom_from_base_state(w.base_state()))

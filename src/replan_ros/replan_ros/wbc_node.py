@@ -82,6 +82,9 @@ class WbcNode(Node):
                       'end (must equal the gait node value)')
         self._declare('haptic_velocity', 0.15,
                       'm/s, descent of a haptic swing foot after its planned touchdown')
+        self._declare('touchdown_depth', WbcParams().touchdown_depth,
+                      'm, a haptic swing aims this far below its foothold so that contact '
+                      'comes at the planned time despite the swing tracking lag')
         defaults = WbcParams()
         self._declare('com_kp', defaults.com_kp.tolist(), '1/s^2, CoM PD stiffness x y z')
         self._declare('com_kd', defaults.com_kd.tolist(), '1/s, CoM PD damping x y z')
@@ -113,6 +116,7 @@ class WbcNode(Node):
             weight_moment=float(p['weight_moment']),
             regularization=float(p['regularization']),
             haptic_velocity=float(p['haptic_velocity']),
+            touchdown_depth=float(p['touchdown_depth']),
             fallback_kp=float(p['fallback_kp']), fallback_kd=float(p['fallback_kd']))
         for gain in ('com_kp', 'com_kd', 'trunk_kp', 'trunk_kd', 'swing_kp', 'swing_kd'):
             if getattr(params, gain).shape != (3,):
@@ -123,6 +127,7 @@ class WbcNode(Node):
         self.min_swing_fraction = float(p['min_swing_fraction'])
         self.max_extension = float(p['max_extension'])
         self.haptic_velocity = params.haptic_velocity
+        self.touchdown_depth = params.touchdown_depth
 
         urdf = p['urdf_path'] or os.environ.get('REPLAN_URDF') or str(
             Path(__file__).resolve().parents[3] / 'urdf' / 'hyq.urdf')
@@ -333,7 +338,8 @@ class WbcNode(Node):
         """Make the pair stamped ``plan_stamp`` active at tick ``stamp``."""
         footholds, com_plan = self._footholds[plan_stamp], self._com_plans[plan_stamp]
         self._follower = PlanFollower(footholds, com_plan, self.min_swing_fraction,
-                                      self.max_extension, self.haptic_velocity)
+                                      self.max_extension, self.haptic_velocity,
+                                      self.touchdown_depth)
         if stamp > plan_stamp:       # started late (first tick, or an unannounced plan)
             self._follower.update(stamp / _NS, self._contacts[stamp])
             self.get_logger().info(f'adopted plans stamped {plan_stamp / _NS:.3f} s at tick '

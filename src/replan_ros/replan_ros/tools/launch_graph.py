@@ -159,20 +159,24 @@ class Graph:
         return True
 
     def stop(self) -> None:
-        # Stop the producers of commands first so the sim does not log a dead controller.
-        for node in reversed(self.nodes):
-            node.signal(signal.SIGINT)
-        deadline = time.monotonic() + STOP_TIMEOUT
-        for node in self.nodes:
-            if node.process is None:
-                continue
-            try:
-                node.process.wait(max(deadline - time.monotonic(), 0.1))
-            except subprocess.TimeoutExpired:
-                self.log(f'[launch {_stamp()}] {node.name} ignored SIGINT, killing it')
-                node.signal(signal.SIGKILL)
-                node.process.wait(5)
-            node.close()
+        """SIGINT to every node, the recorder last (it drains what it has not written yet),
+        SIGKILL to any that does not exit within STOP_TIMEOUT."""
+        producers = [n for n in self.nodes if n.name != 'recorder']
+        recorders = [n for n in self.nodes if n.name == 'recorder']
+        for group in (producers, recorders):
+            for node in reversed(group):
+                node.signal(signal.SIGINT)
+            deadline = time.monotonic() + STOP_TIMEOUT
+            for node in group:
+                if node.process is None:
+                    continue
+                try:
+                    node.process.wait(max(deadline - time.monotonic(), 0.1))
+                except subprocess.TimeoutExpired:
+                    self.log(f'[launch {_stamp()}] {node.name} ignored SIGINT, killing it')
+                    node.signal(signal.SIGKILL)
+                    node.process.wait(5)
+                node.close()
         self.log(f'[launch {_stamp()}] all nodes stopped')
 
 

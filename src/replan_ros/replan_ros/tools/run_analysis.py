@@ -36,7 +36,10 @@ def bag_files(bag: Path) -> list[Path]:
 
 
 def read_messages(bag: Path, topics=TOPICS) -> dict[str, list[tuple[int, object]]]:
-    """topic -> [(log_time ns, message)], decoded; unreadable tails are skipped."""
+    """topic -> [(publish_time ns, message)], decoded; unreadable tails are skipped.
+
+    The recorder stores the DDS source timestamp (wall clock at the publisher) as publish_time,
+    as rosbag2 does; its log_time is the receive time on its sim-time clock."""
     out: dict[str, list] = defaultdict(list)
     classes: dict[str, type] = {}
     for path in bag_files(bag):
@@ -48,7 +51,7 @@ def read_messages(bag: Path, topics=TOPICS) -> dict[str, list[tuple[int, object]
                     if cls is None:
                         cls = classes[schema.name] = message_class(schema.name)
                     out[channel.topic].append(
-                        (message.log_time, deserialize_message(message.data, cls)))
+                        (message.publish_time, deserialize_message(message.data, cls)))
             except Exception as err:   # a truncated file (SIGKILL) still gives what it holds
                 out['_errors'].append((0, f'{path.name}: {err}'))
     return out
