@@ -32,6 +32,11 @@ FEET = np.array([[0.3708, 0.3241, 0.0215], [0.3708, -0.3241, 0.0215],
                  [-0.3708, 0.3241, 0.0215], [-0.3708, -0.3241, 0.0215]])
 LH, LF = LEGS.index('lh'), LEGS.index('lf')
 
+# What these tests are written for, whatever config/gait.yaml says: one step per second, and
+# every first foothold about the actual hips (correction_threshold 0, literal section V.B).
+TIMING = {'swing_duration': 0.5, 'four_feet_duration': 0.5, 'start_delay': 1.0,
+          'correction_threshold': 0.0}
+
 
 class FakeSim:
     """Test-side publishers of the simulator's state topics and of the user's cmd_vel."""
@@ -102,7 +107,7 @@ class FakeSim:
 
 @pytest.fixture
 def sim(launcher, probe):
-    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml')
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml', params=TIMING)
     fake = FakeSim(probe)
     fake.wait_connected(launcher)
     return fake
@@ -182,8 +187,10 @@ def test_bad_cmd_vel_is_rejected_or_clamped(sim, launcher):
     used = sim.setpoint_at(2.1)
     # Each component clipped to its limit (0.15, 0.1, 0.25), then the combination scaled to
     # strides the legs can make (gait.clamp_velocity, the node's defaults).
-    np.testing.assert_allclose(used, clamp_velocity((0.5, -0.3, -0.4), GaitParams()), atol=1e-9)
-    assert 0 < used[0] <= 0.15 and -0.1 <= used[1] < 0 and -0.25 <= used[2] < 0
+    node_params = GaitParams(swing_duration=TIMING['swing_duration'],
+                             four_feet_duration=TIMING['four_feet_duration'])
+    np.testing.assert_allclose(used, clamp_velocity((0.5, -0.3, -0.4), node_params), atol=1e-9)
+    assert 0 < used[0] <= 0.2 and -0.1 <= used[1] < 0 and -0.25 <= used[2] < 0
     assert all(np.all(np.isfinite(s.target)) for s in plan.steps)
 
     # No cmd_vel for more than cmd_vel_timeout (0.5 s of sim time): stand still.
@@ -197,7 +204,7 @@ def test_bad_cmd_vel_is_rejected_or_clamped(sim, launcher):
 
 def test_non_haptic_replans_at_the_planned_touchdown(launcher, probe):
     launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
-                   params={'haptic': False, 'replan_window': 2})
+                   params={**TIMING, 'haptic': False, 'replan_window': 2})
     sim = FakeSim(probe)
     sim.wait_connected(launcher)
     plan = sim.replan_at(0.0, launcher)

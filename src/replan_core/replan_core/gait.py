@@ -46,16 +46,16 @@ _EPS = 1e-9
 class GaitParams:
     """Crawl parameters. Times in s, lengths in m, velocities in m/s and rad/s.
 
-    Defaults: one step per second (0.5 s swing + 0.5 s four-feet phase), so the paper's 8
-    footholds span its 8 s MPC horizon; a cycle of 4 s; at the 0.15 m/s target each foot moves
-    0.6 m per step and stays within +-0.26 m of its hip along x (HFE-to-sole 0.57 m, standing
-    0.51 m, of HyQ's 0.70 m straight leg at the 0.6 m standing trunk height). Velocity limits
-    are chosen so that a full cycle never exceeds the step-length limits: 0.15 * 4 = 0.6 <= 0.65
-    and 0.10 * 4 = 0.4 <= 0.45; combinations are scaled down by ``clamp_velocity``.
+    Defaults (as config/gait.yaml): a step every 0.75 s (0.5 s swing + 0.25 s four-feet phase),
+    a 3 s cycle, so the paper's 8 footholds span 6 s of its 8 s MPC horizon (the last stance
+    holds to its end). At the 0.2 m/s limit each foot moves 0.6 m per cycle and stays within
+    about +-0.26 m of its hip (reach 0.61 m of 0.70 m at a 0.55 m trunk height). Velocity
+    limits keep a full cycle inside the step-length limits: 0.2 * 3 = 0.6 <= 0.65 and
+    0.1 * 3 = 0.3 <= 0.45. The paper's one step per second would need 0.8 m at 0.2 m/s.
     """
 
     swing_duration: float = 0.5            # s, one swing
-    four_feet_duration: float = 0.5        # s, all four feet down before each swing
+    four_feet_duration: float = 0.25       # s, all four feet down before each swing
     step_height: float = 0.10              # m, apex above the higher of lift-off and target
     sequence: tuple[int, ...] = DEFAULT_SEQUENCE   # swing order, leg indices
     hip_offsets: tuple[tuple[float, float], ...] = HYQ_HIP_OFFSETS   # m, base frame xy
@@ -64,13 +64,16 @@ class GaitParams:
     stance_offsets: tuple[tuple[float, float], ...] = HYQ_STANCE_OFFSETS
     max_step_length_x: float = 0.65        # m, |foot displacement| per step, body x
     max_step_length_y: float = 0.45        # m, |foot displacement| per step, body y
-    max_linear_x: float = 0.15             # m/s, |vx| limit of the set-point
+    max_linear_x: float = 0.2              # m/s, |vx| limit of the set-point
     max_linear_y: float = 0.10             # m/s, |vy| limit
     max_angular_z: float = 0.25            # rad/s, |wz| limit
     n_footholds: int = 8                   # steps per plan (paper: 8 over an 8 s horizon)
     replan_window: int = 1                 # K: re-plan at every K-th touchdown (paper: 1)
     haptic: bool = True                    # swings end at sensed contact (section V.A)
     foothold_correction: bool = True       # section V.B
+    # m: the first foothold of a leg moves to the actual hip only when the hip-relative and
+    # foot-relative placements differ by more than this (after a push); 0 = always (literal V.B)
+    correction_threshold: float = 0.10
 
     @property
     def step_period(self) -> float:
@@ -98,9 +101,11 @@ class GaitParams:
         if len(self.hip_offsets) != 4 or len(self.stance_offsets) != 4:
             raise ValueError('hip_offsets and stance_offsets need one (x, y) per leg')
         values = (self.step_height, self.max_step_length_x, self.max_step_length_y,
-                  self.max_linear_x, self.max_linear_y, self.max_angular_z)
+                  self.max_linear_x, self.max_linear_y, self.max_angular_z,
+                  self.correction_threshold)
         if not all(math.isfinite(v) and v >= 0 for v in values):
-            raise ValueError('heights, step-length and velocity limits must be finite, >= 0')
+            raise ValueError('heights, step-length and velocity limits and the correction '
+                             'threshold must be finite, >= 0')
 
 
 @dataclass
@@ -265,16 +270,22 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         if leg in last_mid:
             # Later footholds of a leg: previous foothold plus one stride of the reference.
             target = last_xy[leg] + ref.foot(mid, offset) - ref.foot(last_mid[leg], offset)
-        elif params.foothold_correction:
-            # First foothold, corrected: about the actual hip, moved as the reference hip moves.
-            hip_now = ref.foot(start_time, hip_offsets[leg])
-            hip_mid = ref.foot(mid, hip_offsets[leg])
-            _, yaw_mid = ref.pose(mid)
-            target = hips_xy[leg] + (hip_mid - hip_now) + _rot(yaw_mid) @ stance[leg]
         else:
             # First foothold, uncorrected: the foot's actual position plus one stride.
             prev_mid = mid - params.cycle_duration
             target = last_xy[leg] + ref.foot(mid, offset) - ref.foot(prev_mid, offset)
+            if params.foothold_correction:
+                # Corrected: about the actual hip, moved as the reference hip moves (V.B), when
+                # the two placements differ by more than the threshold (a push). Below it the
+                # foot-relative placement stands: hip-relative placement at every step feeds
+                # the crawl's sway and lag back into the feet, and the walk settles ~20 %
+                # slower than commanded (docs/gait.md).
+                hip_now = ref.foot(start_time, hip_offsets[leg])
+                hip_mid = ref.foot(mid, hip_offsets[leg])
+                _, yaw_mid = ref.pose(mid)
+                corrected = hips_xy[leg] + (hip_mid - hip_now) + _rot(yaw_mid) @ stance[leg]
+                if np.linalg.norm(corrected - target) > params.correction_threshold:
+                    target = corrected
         target = _clamp_step(last_xy[leg], target, yaw_td, params)
         last_xy[leg] = target
         last_mid[leg] = mid

@@ -262,3 +262,29 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
                for k in np.flatnonzero(degenerate)]
     return SupportSchedule(times, A, b, active, n_feet, degenerate, reasons,
                            [polys[i] for i in inverse])
+
+
+def implied_velocity(plan: FootholdPlan) -> np.ndarray:
+    """Horizontal velocity (m/s, world) the footholds imply: the reference of the velocity
+    term of the cost.
+
+    With at least two steps per leg it is the advance of the stance centre over the last full
+    cycle (each leg moved once more) divided by its duration: the first step of each leg also
+    makes up for where the feet happen to be (foothold correction, lag), which would bias a
+    start-to-end average. With fewer steps it falls back to that average.
+    """
+    steps = plan.steps
+    if not steps:
+        return np.zeros(2)
+    feet = np.array(plan.initial_feet, dtype=float)
+    centres = [(plan.start_time, feet[:, :2].mean(axis=0))]
+    for s in steps:
+        feet[s.leg] = s.target
+        centres.append((s.touchdown_time, feet[:, :2].mean(axis=0)))
+    n_legs = len(plan.initial_feet)
+    first = len(centres) - 1 - n_legs if len(steps) >= 2 * n_legs else 0
+    (t0, c0), (t1, c1) = centres[first], centres[-1]
+    if not t1 - t0 > 0.0:
+        return np.zeros(2)
+    v = (c1 - c0) / (t1 - t0)
+    return v if np.all(np.isfinite(v)) else np.zeros(2)

@@ -58,7 +58,7 @@ class WbcParams:
     # and a swing that ends exactly at ground level meets the ground late (the re-plan follows
     # the sensed touchdown, so every step would take longer than planned and the robot walk
     # slower than commanded). Aiming lower makes contact happen at the planned time.
-    touchdown_depth: float = 0.03
+    touchdown_depth: float = 0.015
     fallback_kp: float = 300.0      # N m/rad, joint PD of the safe stand
     fallback_kd: float = 10.0       # N m s/rad
     qp_max_iter: int = 200

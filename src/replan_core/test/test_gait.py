@@ -90,7 +90,8 @@ def test_schedule_timing_order_and_flags():
         assert step.step_height == params.step_height
         lo = step.touchdown_time + params.four_feet_duration
     # The paper's 8 footholds span its 8 s horizon with the defaults.
-    assert plan.steps[-1].touchdown_time - plan.start_time == pytest.approx(8.0, abs=TOL)
+    assert plan.steps[-1].touchdown_time - plan.start_time == pytest.approx(
+        params.n_footholds * params.step_period, abs=TOL)
 
 
 def test_start_delay_stands_first():
@@ -170,7 +171,7 @@ def test_linear_set_point_advances_footholds_by_v_times_t(correction, v):
 @pytest.mark.parametrize('correction', [True, False])
 def test_walking_off_from_standing(correction):
     # From the nominal stance the first footholds are clamped if the set-point asks for more.
-    params = GaitParams(foothold_correction=correction)
+    params = GaitParams(foothold_correction=correction, correction_threshold=0.0)
     v = 0.05
     plan = plan_for((v, 0.0, 0.0), params, t0=0.0, delay=1.0)
     feet = standing_feet(params)
@@ -186,7 +187,7 @@ def test_walking_off_from_standing(correction):
 
 
 def test_yaw_set_point_rotates_footholds_about_the_com():
-    params = GaitParams()
+    params = GaitParams(correction_threshold=0.0)      # every first foothold about the hips
     wz, yaw0, base_xy = 0.2, 0.4, np.array([0.5, 0.3])
     plan = plan_for((0.0, 0.0, wz), params, base_xy=base_xy, yaw=yaw0)
     half_stance = 0.5 * params.stance_duration
@@ -219,7 +220,7 @@ def test_turning_while_walking_follows_the_arc():
 def test_foothold_correction_follows_the_hips_after_a_lateral_push():
     params_on = GaitParams(foothold_correction=True)
     params_off = GaitParams(foothold_correction=False)
-    push = np.array([0.0, 0.08])          # the CoM was pushed 8 cm to the left
+    push = np.array([0.0, 0.15])          # the CoM was pushed 15 cm to the left
     feet = standing_feet(params_on)       # the feet stayed where they were
     on = plan_for((0.0, 0.0, 0.0), params_on, base_xy=push, feet=feet)
     off = plan_for((0.0, 0.0, 0.0), params_off, base_xy=push, feet=feet)
@@ -231,7 +232,7 @@ def test_foothold_correction_follows_the_hips_after_a_lateral_push():
                                    hips[leg, :2] + params_on.stance_offsets[leg], atol=TOL)
         np.testing.assert_allclose(first_off[leg].target[:2], feet[leg, :2], atol=TOL)
         assert np.linalg.norm(first_off[leg].target[:2] - first_on[leg].target[:2]) == (
-            pytest.approx(0.08))
+            pytest.approx(0.15))
     # Later footholds keep the first one's placement (stride only).
     for plan in (on, off):
         for leg in range(4):
@@ -240,7 +241,7 @@ def test_foothold_correction_follows_the_hips_after_a_lateral_push():
 
 
 def test_correction_uses_the_actual_hips_not_the_nominal_offsets():
-    params = GaitParams()
+    params = GaitParams(correction_threshold=0.0)
     feet = standing_feet(params)
     hips = hips_of(params, (0.0, 0.0), 0.0)
     hips[:, 1] += 0.01                    # e.g. a rolled trunk moves the hips sideways
@@ -250,6 +251,22 @@ def test_correction_uses_the_actual_hips_not_the_nominal_offsets():
     for leg in range(4):
         np.testing.assert_allclose(first[leg].target[:2],
                                    hips[leg, :2] + params.stance_offsets[leg], atol=TOL)
+
+
+def test_correction_threshold_keeps_small_deviations_foot_relative():
+    # 5 cm off (the crawl's own sway): below the 10 cm default, the first footholds stay
+    # foot-relative (no lag feedback in steady walking); 15 cm (a push): they move to the hips.
+    params = GaitParams()
+    feet = standing_feet(params)
+    for shift, follows_hips in ((0.05, False), (0.15, True)):
+        push = np.array([0.0, shift])
+        plan = plan_for((0.0, 0.0, 0.0), params, base_xy=push, feet=feet)
+        hips = hips_of(params, push, 0.0)
+        first, _ = legs_first_last(plan)
+        for leg in range(4):
+            expected = (hips[leg, :2] + params.stance_offsets[leg] if follows_hips
+                        else feet[leg, :2])
+            np.testing.assert_allclose(first[leg].target[:2], expected, atol=TOL)
 
 
 def test_step_length_is_clamped():

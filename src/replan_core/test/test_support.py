@@ -77,3 +77,23 @@ def test_two_legs_swinging_is_degenerate_with_sample_index():
     assert sched.degenerate.any()
     assert sched.first_degenerate() == 4                 # sample 5: t = 0.2 s
     assert sched.reasons[0].startswith('sample 5')
+
+
+def test_implied_velocity_is_the_stride_rate_not_the_catch_up():
+    from replan_core.support import implied_velocity
+    from replan_core.types import FootholdPlan, Step
+
+    # Feet 5 cm behind their nominal place; then a crawl at 0.2 m/s, 0.75 s steps (3 s cycle).
+    nominal = np.array([[0.37, 0.32, 0.0], [0.37, -0.32, 0.0], [-0.37, 0.32, 0.0],
+                        [-0.37, -0.32, 0.0]])
+    feet = nominal - [0.05, 0.0, 0.0]
+    v, period, steps = 0.2, 0.75, []
+    for i, leg in enumerate([2, 0, 3, 1] * 2):
+        t_td = 10.0 + (i + 1) * period
+        target = nominal[leg] + [v * (t_td - 10.0), 0.0, 0.0]
+        steps.append(Step(leg, t_td - 0.5, t_td, target, 0.1, True, i == 0, 0.0))
+    plan = FootholdPlan(10.0, feet, 0.0, steps)
+    np.testing.assert_allclose(implied_velocity(plan), [v, 0.0], atol=1e-12)
+    short = FootholdPlan(10.0, feet, 0.0, steps[:3])
+    assert implied_velocity(short)[0] > 0
+    assert np.all(implied_velocity(FootholdPlan(10.0, feet, 0.0, [])) == 0)

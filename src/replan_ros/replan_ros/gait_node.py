@@ -93,6 +93,9 @@ class GaitNode(Node):
         self._declare('haptic', d.haptic, 'swings end at sensed contact (paper section V.A)')
         self._declare('foothold_correction', d.foothold_correction,
                       'first foothold of each leg about the actual hip (paper section V.B)')
+        self._declare('correction_threshold', d.correction_threshold,
+                      'm, foothold correction moves a first foothold to the actual hip only '
+                      'when that differs from the foot-relative one by more (0: always)')
         self._declare('min_swing_fraction', 0.5,
                       'haptic touchdown accepted after this fraction of the planned swing; '
                       'must equal the controller\'s')
@@ -168,7 +171,8 @@ class GaitNode(Node):
                 max_linear_x=float(p['max_linear_x']), max_linear_y=float(p['max_linear_y']),
                 max_angular_z=float(p['max_angular_z']), n_footholds=int(p['n_footholds']),
                 replan_window=int(p['replan_window']), haptic=bool(p['haptic']),
-                foothold_correction=bool(p['foothold_correction']))
+                foothold_correction=bool(p['foothold_correction']),
+                correction_threshold=float(p['correction_threshold']))
             params.validate()
             return params
         except ValueError as err:

@@ -36,6 +36,7 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.mpc import LipMpc, MpcResult, MpcSettings
 from replan_core.robot_model import RobotModel
+from replan_core.support import implied_velocity
 from replan_core.types import LEGS, BaseState, ComPlan, FootholdPlan, JointState
 from replan_ros import diagnostics
 from replan_ros.interfaces import (
@@ -233,7 +234,7 @@ class MpcNode(Node):
         acc = np.zeros(3)
         if self.last_plan is not None and self.last_plan.start_time <= t:
             acc = self.last_plan.sample(t)[2]       # eq. (2): the planned acceleration at t_k
-        v_ref = footholds_velocity(plan)
+        v_ref = implied_velocity(plan)
         res = self.mpc.solve(t, com, vcom, acc, plan, v_ref=v_ref)
         self.last_stamp_ns = ns
         self.replans += 1
@@ -278,22 +279,6 @@ class MpcNode(Node):
                 'replans': self.replans,
             })
         self.diag_pub.publish(diagnostics.array(sec_to_stamp(t), st))
-
-
-def footholds_velocity(plan: FootholdPlan) -> np.ndarray:
-    """Mean horizontal velocity (m/s) the footholds imply: the stance centre's displacement
-    from the initial feet to the last footholds over the time to the last touchdown."""
-    if not plan.steps:
-        return np.zeros(2)
-    feet = np.array(plan.initial_feet, dtype=float)
-    for s in plan.steps:
-        feet[s.leg] = s.target
-    duration = plan.steps[-1].touchdown_time - plan.start_time
-    if not duration > 0.0:
-        return np.zeros(2)
-    v = (feet[:, :2].mean(axis=0) - np.asarray(plan.initial_feet)[:, :2].mean(axis=0))
-    v = v / duration
-    return v if np.all(np.isfinite(v)) else np.zeros(2)
 
 
 def main(args=None):
