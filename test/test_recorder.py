@@ -7,13 +7,11 @@ the schema right.
 
 from __future__ import annotations
 
-import importlib.util
 import re
 import signal
 import subprocess
 import time
 
-import pytest
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Transform, Twist
@@ -300,9 +298,6 @@ events:
 """
 
 
-@pytest.mark.slow
-@pytest.mark.skipif(importlib.util.find_spec('replan_ros.mpc_node') is None,
-                    reason='the four-node graph is not assembled yet (no mpc_node)')
 def test_rerun_of_a_recorded_walk_matches_within_a_millimetre(ros_domain, tmp_path):
     env = graph_env(ros_domain)
     scenario = tmp_path / 'walk.yaml'

@@ -159,7 +159,13 @@ class PlanFollower:
         self.haptic_velocity = haptic_velocity
         self.touchdown_depth = touchdown_depth
         self._liftoff_position: dict[int, np.ndarray] = {}
-        self._yaw = footholds.initial_yaw
+        # Trunk yaw reference: a ramp through the plan's yaw at its start and at each planned
+        # touchdown. Stepping it at the sensed touchdowns would never turn the robot: each
+        # touchdown brings a new plan that starts from the actual (not yet turned) yaw.
+        self._yaw_times = np.array([footholds.start_time]
+                                   + [s.touchdown_time for s in footholds.steps])
+        self._yaw_values = np.unwrap(np.array([footholds.initial_yaw]
+                                              + [s.yaw for s in footholds.steps]))
 
     def update(self, t: float, contacts: ContactState) -> list[StepEvent]:
         """Feed the tick at ``t``; returns its lift-off/touchdown events."""
@@ -168,8 +174,6 @@ class PlanFollower:
             if event.kind == 'liftoff':
                 self._liftoff_position[event.step] = np.array(
                     contacts.foot_position[event.leg], dtype=float)
-            else:
-                self._yaw = self.footholds.steps[event.step].yaw   # from this touchdown on
         return events
 
     @property
@@ -197,7 +201,16 @@ class PlanFollower:
                          step.haptic, step.replan, step.yaw)
             stance[step.leg] = False
             swing = (swing_reference(timed, start, t, swing_trajectory, self.haptic_velocity),)
-        return com_ref, self._yaw, stance, swing
+        yaw = float(np.interp(t, self._yaw_times, self._yaw_values))
+        return com_ref, yaw, stance, swing
+
+    def yaw_rate(self, t: float) -> float:
+        """Rate of the yaw reference at ``t`` (rad/s): the slope of its ramp there."""
+        k = int(np.searchsorted(self._yaw_times, t, side='right'))
+        if k <= 0 or k >= len(self._yaw_times):
+            return 0.0
+        dt = self._yaw_times[k] - self._yaw_times[k - 1]
+        return float((self._yaw_values[k] - self._yaw_values[k - 1]) / dt) if dt > 0 else 0.0
 
 
 class StandHold:
@@ -317,20 +330,22 @@ class WholeBodyController:
     def compute(self, base: BaseState, joints: JointState, contact: np.ndarray,
                 com_reference: tuple[np.ndarray, np.ndarray, np.ndarray], yaw_reference: float,
                 stance: Sequence[bool] | np.ndarray,
-                swing: Sequence[SwingReference] = ()) -> WbcResult:
+                swing: Sequence[SwingReference] = (), *,
+                yaw_rate_reference: float = 0.0) -> WbcResult:
         """Joint torques (JOINT_NAMES order) for one tick.
 
         ``com_reference`` = desired CoM position, velocity, acceleration (world, e.g.
-        ``ComPlan.sample``); ``yaw_reference`` trunk yaw (rad), roll and pitch are kept level;
-        ``stance`` (4,) legs carrying the robot; ``swing`` one reference per swing leg (a leg
-        neither in stance nor in ``swing`` gets gravity compensation only).
+        ``ComPlan.sample``); ``yaw_reference`` trunk yaw (rad) and ``yaw_rate_reference`` its rate
+        (rad/s, feed-forward: a turning reference is then tracked without lag), roll and pitch
+        are kept level; ``stance`` (4,) legs carrying the robot; ``swing`` one reference per
+        swing leg (a leg neither in stance nor in ``swing`` gets gravity compensation only).
         """
         start = time.perf_counter()
         stance = np.asarray(stance, dtype=bool).copy()
         contact = np.asarray(contact, dtype=bool).copy()
         try:
             result = self._compute(base, joints, contact, com_reference, yaw_reference, stance,
-                                   swing)
+                                   swing, float(yaw_rate_reference))
         except (ValueError, FloatingPointError, np.linalg.LinAlgError, RuntimeError) as error:
             result = self._fallback(joints, contact, stance, f'exception: {error}')
         result.compute_time = time.perf_counter() - start
@@ -338,7 +353,8 @@ class WholeBodyController:
 
     def _compute(self, base: BaseState, joints: JointState, contact: np.ndarray,
                  com_reference: tuple[np.ndarray, np.ndarray, np.ndarray], yaw_reference: float,
-                 stance: np.ndarray, swing: Sequence[SwingReference]) -> WbcResult:
+                 stance: np.ndarray, swing: Sequence[SwingReference],
+                 yaw_rate_reference: float = 0.0) -> WbcResult:
         p = self.params
         # One isfinite over everything (numpy call overhead dominates at this size).
         values = np.concatenate([
@@ -378,7 +394,8 @@ class WholeBodyController:
                        [0.0, 0.0, 1.0]])
         kp_w = rz @ np.diag(p.trunk_kp) @ rz.T
         kd_w = rz @ np.diag(p.trunk_kd) @ rz.T
-        omega_dot = kp_w @ orientation_error - kd_w @ omega
+        omega_ref = np.array([0.0, 0.0, yaw_rate_reference])
+        omega_dot = kp_w @ orientation_error + kd_w @ (omega_ref - omega)
         inertia = data.Ig.inertia               # centroidal composite inertia, world axes
         wrench = np.concatenate([
             self.mass * (acc + np.array([0.0, 0.0, GRAVITY])),     # sum f = m (a + g)

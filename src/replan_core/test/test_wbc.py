@@ -297,3 +297,23 @@ def test_stand_hold_lowers_a_lifted_leg(world, robot):
     assert world.contact_state().contact.all()
     assert hold.standing.all()
     assert max(np.linalg.norm(r.com_error) for *_, r in log) < 0.02
+
+
+def test_plan_follower_yaw_ramps_through_the_planned_touchdowns():
+    """Turning: the yaw reference moves between touchdowns, not only at them (each re-plan
+    starts from the actual yaw, so a stepwise reference would never turn the robot)."""
+    from replan_core.types import ComPlan, FootholdPlan
+    from replan_core.wbc import PlanFollower
+
+    feet = np.array([[0.37, 0.32, 0.02], [0.37, -0.32, 0.02], [-0.37, 0.32, 0.02],
+                     [-0.37, -0.32, 0.02]])
+    steps = [Step(leg, 5.25 + 0.75 * i, 5.75 + 0.75 * i, feet[leg], 0.1, True, i == 0,
+                  0.1 + 0.2 * (0.75 + 0.75 * i)) for i, leg in enumerate([2, 0, 3, 1])]
+    plan = FootholdPlan(5.0, feet, 0.1, steps)
+    com = ComPlan(5.0, 0.04, np.zeros((201, 3)), np.zeros((201, 3)), np.zeros((201, 3)))
+    follower = PlanFollower(plan, com)
+    for t in (5.0, 5.3, 5.75, 6.0, 7.1):
+        expected = 0.1 + 0.2 * (t - 5.0)          # 0.2 rad/s from 0.1 rad
+        assert follower.references(t)[1] == pytest.approx(expected, abs=1e-9)
+        assert follower.yaw_rate(t) == pytest.approx(0.2, abs=1e-9)
+    assert follower.yaw_rate(4.0) == 0.0 and follower.yaw_rate(9.0) == 0.0

@@ -369,9 +369,12 @@ class WbcNode(Node):
             self._enter_stand(stamp, self._stand_reason)
         if self._stand is not None:
             com_ref, yaw, stance, swing = self._stand.references(t, contacts)
+            yaw_rate = 0.0
         else:
             com_ref, yaw, stance, swing = self._follower.references(t)
-        result = self.wbc.compute(base, joints, contacts.contact, com_ref, yaw, stance, swing)
+            yaw_rate = self._follower.yaw_rate(t)
+        result = self.wbc.compute(base, joints, contacts.contact, com_ref, yaw, stance, swing,
+                                  yaw_rate_reference=yaw_rate)
         msg = torque_cmd_to_msg(t, result.torque)
         msg.header.stamp = ns_to_stamp(stamp)        # exactly the stamp answered
         self.cmd_pub.publish(msg)

@@ -116,6 +116,8 @@ class Graph:
                 cmd += ['-p', f'{key}:={value}']
             self.nodes.append(ManagedNode(name, cmd, self.log_dir / f'{name}.log', respawn))
         self.failed: list[str] = []
+        self.peak_memory_mb: dict[str, float] = {}     # filled by run_graph before stopping
+        self.real_time_factor: float | None = None     # sim s per wall s from the first tick
 
     def start(self, watch: ClockWatch | None = None) -> None:
         """Start every node; with a recorder and a ``watch`` node, the wbc (which lets the sim
@@ -157,6 +159,21 @@ class Graph:
             node.start(self.env)
             self.log(f'[launch {_stamp()}] respawned {node.name} (pid {node.process.pid})')
         return True
+
+    def memory_peaks_mb(self) -> dict[str, float]:
+        """Peak resident memory (VmHWM, MB) of each running node process."""
+        peaks = {}
+        for node in self.nodes:
+            if not node.alive:
+                continue
+            try:
+                status = Path(f'/proc/{node.process.pid}/status').read_text()
+            except OSError:
+                continue
+            for line in status.splitlines():
+                if line.startswith('VmHWM:'):
+                    peaks[node.name] = int(line.split()[1]) / 1024.0
+        return peaks
 
     def stop(self) -> None:
         """SIGINT to every node, the recorder last (it drains what it has not written yet),
@@ -224,12 +241,15 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
     watch = ClockWatch(graph.env)
     code = 0
     start_wall = time.monotonic()
+    first_tick: tuple[float, float] | None = None      # (wall, sim) when the sim first moved
     try:
         if on_start is not None:
             on_start(watch.node)
         graph.start(watch)
         while not stop_requested:
             watch.spin(0.1)
+            if first_tick is None and watch.sim_time > 0.0:
+                first_tick = (time.monotonic(), watch.sim_time)
             if on_tick is not None:
                 on_tick(watch.sim_time)
             if not graph.poll():
@@ -246,6 +266,14 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
                 break
         if stop_requested:
             graph.log(f'[launch {_stamp()}] signal {stop_requested[0]}: stopping')
+        graph.peak_memory_mb = graph.memory_peaks_mb()
+        if first_tick is not None and watch.sim_time > first_tick[1]:
+            wall = time.monotonic() - first_tick[0]
+            graph.real_time_factor = (watch.sim_time - first_tick[1]) / wall
+            graph.log(f'[launch {_stamp()}] {watch.sim_time:.1f} s of sim time, real-time '
+                      f'factor {graph.real_time_factor:.2f} (from the first tick); peak memory '
+                      f'{sum(graph.peak_memory_mb.values()):.0f} MB in '
+                      f'{len(graph.peak_memory_mb)} nodes')
     finally:
         graph.stop()
         watch.close()

@@ -197,6 +197,9 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
     wall = time.monotonic() - wall_start
     metrics = analyse_run(bag_dir, scenario, out_dir, launch_exit_code=code,
                           dead_nodes=graph.failed, wall_time_total=wall)
+    metrics['launcher_real_time_factor'] = graph.real_time_factor
+    metrics['peak_memory_mb'] = {k: round(v, 1) for k, v in graph.peak_memory_mb.items()}
+    metrics['peak_memory_total_mb'] = round(sum(graph.peak_memory_mb.values()), 1)
     (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2))
     return metrics
 
@@ -231,7 +234,8 @@ def summary(metrics: dict, out: Path) -> str:
              f'  distance {metrics.get("distance_m", 0):.2f} m, re-plans {metrics.get("replans")}, '
              f'MPC solve median {metrics.get("mpc_solve_ms_median")} ms, '
              f'p99 {metrics.get("mpc_solve_ms_p99")} ms, '
-             f'min ZMP margin {metrics.get("min_zmp_margin_m")} m']
+             f'min ZMP margin {metrics.get("min_zmp_margin_m")} m, '
+             f'peak memory {metrics.get("peak_memory_total_mb")} MB']
     for seg in metrics.get('velocity_tracking', []):
         if seg.get('achieved') is None:
             continue

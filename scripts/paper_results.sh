@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Reproduce the paper's comparisons (section VI) and print one table:
+# forward (replan window 1, haptic on) vs replan window 2 vs haptic off, and a lateral push
+# with vs without foothold correction. Usage: scripts/paper_results.sh [OUT_DIR]
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+[ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
+# shellcheck disable=SC1091
+source "$ROOT/scripts/env.sh"
+out="${1:-$ROOT/runs/paper-$(date +%Y%m%d-%H%M%S)}"
+runs=()
+for name in forward paper_replan_window_2 paper_haptic_off push paper_push_no_correction; do
+    "$ROOT/scripts/scenario.sh" "$ROOT/config/scenarios/$name.yaml" --out "$out/$name" \
+        | grep -E '^\[scenario\] [a-z_0-9]+: ' || true
+    runs+=("$out/$name")
+done
+python -m replan_ros.tools.compare_runs "${runs[@]}" | tee "$out/table.md"
