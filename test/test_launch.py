@@ -1,0 +1,104 @@
+"""scripts/launch.sh and scripts/cmd_vel.sh as users run them: respawn, --no-respawn, steering."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import threading
+import time
+
+from geometry_msgs.msg import TwistStamped
+from harness import REPO_ROOT, graph_env
+
+from replan_ros.qos import SCHEDULE
+
+
+class LaunchProcess:
+    """scripts/launch.sh in its own process group, its output collected line by line."""
+
+    def __init__(self, args: list[str], domain: int) -> None:
+        self.process = subprocess.Popen(
+            [str(REPO_ROOT / 'scripts' / 'launch.sh'), *args], env=graph_env(domain),
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        self.lines: list[str] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip())
+
+    @property
+    def output(self) -> str:
+        return '\n'.join(self.lines)
+
+    def wait_for(self, pattern: str, timeout: float) -> re.Match | None:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            for line in list(self.lines):
+                match = re.search(pattern, line)
+                if match:
+                    return match
+            time.sleep(0.1)
+        return None
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            os.killpg(self.process.pid, signal.SIGINT)
+            try:
+                self.process.wait(30)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait(5)
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_dead_node_is_reported_and_respawned_and_cmd_vel_steers(ros_domain, tmp_path, probe):
+    launch = LaunchProcess(['--run-dir', str(tmp_path / 'run'), '--duration', '12'], ros_domain)
+    try:
+        started = launch.wait_for(r'started mpc \(pid (\d+)\)', 60)
+        assert started, launch.output
+        assert launch.wait_for(r'started wbc', 60), launch.output
+        setpoints = probe.subscribe(TwistStamped, 'velocity_setpoint', SCHEDULE)
+        steer = subprocess.run(
+            [str(REPO_ROOT / 'scripts' / 'cmd_vel.sh'), '0.1', '0', '0', '--for', '3'],
+            env=graph_env(ros_domain), capture_output=True, text=True, timeout=120)
+        assert steer.returncode == 0, steer.stdout + steer.stderr
+        assert probe.spin_until(lambda: any(abs(m.twist.linear.x - 0.1) < 1e-9
+                                            for m in setpoints), 30), launch.output
+        os.kill(int(started.group(1)), signal.SIGKILL)
+        assert launch.wait_for(r'node mpc died \(exit code -9\)', 30), launch.output
+        assert launch.wait_for(r'respawned mpc', 30), launch.output
+        launch.process.wait(180)
+        assert launch.process.returncode == 0, launch.output
+        assert 'reached 12.0 s of sim time' in launch.output
+        assert (tmp_path / 'run' / 'logs' / 'mpc.log').read_text().count('start #') == 2
+    finally:
+        launch.stop()
+
+
+def test_no_respawn_stops_the_others_and_exits_non_zero(ros_domain, tmp_path):
+    launch = LaunchProcess(['--run-dir', str(tmp_path / 'run'), '--no-respawn'], ros_domain)
+    try:
+        pids = {}
+        for name in ('sim', 'gait', 'mpc', 'wbc'):
+            match = launch.wait_for(rf'started {name} \(pid (\d+)\)', 60)
+            assert match, launch.output
+            pids[name] = int(match.group(1))
+        time.sleep(2.0)
+        os.kill(pids['gait'], signal.SIGKILL)
+        launch.process.wait(60)
+        assert launch.process.returncode != 0, launch.output
+        assert 'node gait died' in launch.output and '--no-respawn' in launch.output
+        assert not any(_pid_alive(pid) for pid in pids.values()), launch.output
+    finally:
+        launch.stop()
