@@ -9,7 +9,7 @@ from pathlib import Path
 
 COLUMNS = (
     ('fell', 'fell', '{}'),
-    ('mean |v error| m/s', 'mean_linear_tracking_error_mps', '{:.3f}'),
+    ('mean speed error m/s', 'mean_linear_tracking_error_mps', '{:.3f}'),
     ('max roll deg', 'max_roll_rad', 'deg'),
     ('max pitch deg', 'max_pitch_rad', 'deg'),
     ('trunk z min m', 'trunk_height_min_m', '{:.3f}'),

@@ -98,8 +98,11 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     fell, fall_time, why = detect_fall(times, pos[:, 2], rpy, limits)
     sim_times = np.array([stamp_to_sec(m.clock) for _, m in clock])
     wall_ns = np.array([t for t, _ in clock])
-    sim_span = float(sim_times.max() - sim_times.min())
-    wall_span = float(wall_ns.max() - wall_ns.min()) * 1e-9
+    # From the last /clock of the start time (the sim republishes it while it waits for the
+    # controller's first command) to the end: the time the graph was actually running.
+    first = int(np.flatnonzero(sim_times == sim_times.min())[-1])
+    sim_span = float(sim_times.max() - sim_times[first])
+    wall_span = float(wall_ns.max() - wall_ns[first]) * 1e-9
     straight, path_length = distance_travelled(pos)
     segments = command_segments(
         [(t, c) for t, c in scenario.cmd_vel_events], end_time=float(times[-1]))
