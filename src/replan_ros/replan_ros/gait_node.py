@@ -55,6 +55,7 @@ from replan_ros.interfaces import (
     yaw_of,
 )
 from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR
+from replan_ros.stamped_buffer import RawStampedBuffer
 
 # Leg colours of the markers (r, g, b), LEGS order.
 _LEG_COLOURS = ((0.9, 0.2, 0.2), (0.2, 0.7, 0.2), (0.2, 0.4, 0.9), (0.9, 0.7, 0.1))
@@ -130,7 +131,8 @@ class GaitNode(Node):
         self.create_subscription(TwistStamped, 'cmd_vel_stamped', self._on_cmd_vel_stamped,
                                  SCHEDULE)
         self.create_subscription(PointCloud2, 'contacts', self._on_contacts, CONTACTS)
-        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR)
+        # Every tick arrives, one per re-plan is needed: keep them serialized (raw=True).
+        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR, raw=True)
 
         # Set-points: the last good cmd_vel and the sim time it arrived at; stamped ones by stamp.
         self.cmd_vel: np.ndarray | None = None
@@ -205,7 +207,7 @@ class GaitNode(Node):
         self.last_tick_ns: int | None = None
         self.pending: tuple[int, ContactState, bool] | None = None   # (stamp, contacts, initial)
         self.unprocessed: deque[ContactState] = deque()
-        self.odom: dict[int, BaseState] = {}
+        self.odom = RawStampedBuffer(Odometry, _decode_odom, _ODOM_BUFFER)
         self.replans = 0
 
     def _warn(self, key: str, text: str) -> None:
@@ -266,21 +268,12 @@ class GaitNode(Node):
 
     # ----------------------------------------------------------------------------- state
 
-    def _on_odom(self, msg: Odometry) -> None:
-        try:
-            base = base_state_from_odom(msg)
-            if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
-                    and np.linalg.norm(base.quaternion) > 0.5):
-                raise ValueError('non-finite pose')
-        except ValueError as err:
-            self._warn('odom', f'odom rejected: {err}')
+    def _on_odom(self, cdr: bytes) -> None:
+        ns = self.odom.add(cdr)
+        if ns is None:
+            self._warn('odom', 'odom rejected: no readable header stamp')
             return
-        ns = stamp_to_ns(msg.header.stamp)
-        self.odom[ns] = base
-        self.latest_stamp = max(self.latest_stamp, base.stamp)
-        if len(self.odom) > _ODOM_BUFFER:
-            for old in sorted(self.odom)[:len(self.odom) - _ODOM_BUFFER]:
-                del self.odom[old]
+        self.latest_stamp = max(self.latest_stamp, ns * 1e-9)
         self._process()
 
     def _on_contacts(self, msg: PointCloud2) -> None:
@@ -330,13 +323,24 @@ class GaitNode(Node):
     def _replan(self) -> bool:
         """Compute and publish the plan of the pending tick; False while its odom is missing."""
         ns, cs, initial = self.pending
-        base = self.odom.get(ns)
+        stamps = self.odom.stamps()
+        base = None
+        if ns in self.odom:
+            try:
+                base = self.odom.get(ns)
+            except ValueError as err:
+                self._warn('odom', f'odom rejected: {err}')
+                return False               # wait for the sim to send that tick again
         if base is None:
-            if not self.odom or max(self.odom) <= ns:
+            if not stamps or max(stamps) <= ns:
                 return False               # may still come (the sim republishes while it waits)
             # A newer odom came: the one of this stamp was lost (best effort, free-run mode).
-            nearest = min(self.odom, key=lambda s: abs(s - ns))
-            base = self.odom[nearest]
+            nearest = min(stamps, key=lambda s: abs(s - ns))
+            try:
+                base = self.odom.get(nearest)
+            except ValueError as err:
+                self._warn('odom', f'odom rejected: {err}')
+                return False
             self._warn('odom lost', f'no odom stamped {ns * 1e-9:.3f} s: re-planning with the '
                        f'one of {nearest * 1e-9:.3f} s')
         t = cs.stamp                       # the very float the controller gets from the stamp
@@ -430,6 +434,14 @@ class GaitNode(Node):
                                          z=float(p[2]) + 0.002 * k))   # stacked, readable
             markers.append(poly)
         return MarkerArray(markers=markers)
+
+
+def _decode_odom(msg: Odometry) -> BaseState:
+    base = base_state_from_odom(msg)
+    if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
+            and np.linalg.norm(base.quaternion) > 0.5):
+        raise ValueError('non-finite pose')
+    return base
 
 
 def main(args=None):

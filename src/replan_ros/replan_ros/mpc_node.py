@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections import OrderedDict
 
 import numpy as np
 import rclpy
@@ -50,6 +49,7 @@ from replan_ros.interfaces import (
     stamp_to_ns,
 )
 from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SENSOR
+from replan_ros.stamped_buffer import RawStampedBuffer
 
 
 class MpcNode(Node):
@@ -88,13 +88,15 @@ class MpcNode(Node):
         self.com_path_pub = self.create_publisher(Path, 'com_path', LATCHED)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
         self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED)
-        self.create_subscription(JointStateMsg, 'joint_states', self._on_joint_states, SENSOR)
-        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR)
+        # Every tick arrives, one tick per re-plan is needed: keep them serialized (raw=True).
+        self.create_subscription(JointStateMsg, 'joint_states', self._on_joint_states, SENSOR,
+                                 raw=True)
+        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR, raw=True)
         self.create_subscription(PointCloud2, 'contact_events', self._on_contact_events,
                                  CONTACTS)
 
-        self.joints: OrderedDict[int, JointState] = OrderedDict()
-        self.bases: OrderedDict[int, BaseState] = OrderedDict()
+        self.joints = RawStampedBuffer(JointStateMsg, _decode_joints, self.state_buffer)
+        self.bases = RawStampedBuffer(Odometry, _decode_odom, self.state_buffer)
         self.pending: tuple[int, FootholdPlan] | None = None
         self.last_plan: ComPlan | None = None
         self.last_stamp_ns: int | None = None
@@ -145,36 +147,13 @@ class MpcNode(Node):
 
     # ----------------------------------------------------------------------------- inputs
 
-    def _store(self, buffer: OrderedDict, ns: int, value) -> None:
-        buffer[ns] = value
-        buffer.move_to_end(ns)
-        while len(buffer) > self.state_buffer:
-            buffer.popitem(last=False)
+    def _on_joint_states(self, cdr: bytes) -> None:
+        if self.joints.add(cdr) is not None:
+            self._process()
 
-    def _on_joint_states(self, msg: JointStateMsg) -> None:
-        try:
-            js = joint_state_from_msg(msg)
-            if not (np.all(np.isfinite(js.position)) and np.all(np.isfinite(js.velocity))):
-                raise ValueError('non-finite joint positions or velocities')
-        except ValueError as err:
-            self._warn('joint_states', f'joint_states rejected: {err}')
-            return
-        self._store(self.joints, stamp_to_ns(msg.header.stamp), js)
-        self._process()
-
-    def _on_odom(self, msg: Odometry) -> None:
-        try:
-            base = base_state_from_odom(msg)
-            if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
-                    and np.all(np.isfinite(base.linear_velocity))
-                    and np.all(np.isfinite(base.angular_velocity))
-                    and np.linalg.norm(base.quaternion) > 0.5):
-                raise ValueError('non-finite pose or twist')
-        except ValueError as err:
-            self._warn('odom', f'odom rejected: {err}')
-            return
-        self._store(self.bases, stamp_to_ns(msg.header.stamp), base)
-        self._process()
+    def _on_odom(self, cdr: bytes) -> None:
+        if self.bases.add(cdr) is not None:
+            self._process()
 
     def _on_footholds(self, msg: PointCloud2) -> None:
         try:
@@ -215,8 +194,12 @@ class MpcNode(Node):
         if self.pending is None:
             return
         ns, plan = self.pending
-        joints, base = self.joints.get(ns), self.bases.get(ns)
-        if joints is None or base is None:
+        if ns not in self.joints or ns not in self.bases:
+            return
+        try:
+            joints, base = self.joints.get(ns), self.bases.get(ns)
+        except ValueError as err:       # that tick's state is unusable: wait for a re-send
+            self._warn('state', f'state at t={ns * 1e-9:.3f} s rejected: {err}')
             return
         self.pending = None
         self._replan(ns, plan, base, joints)
@@ -279,6 +262,23 @@ class MpcNode(Node):
                 'replans': self.replans,
             })
         self.diag_pub.publish(diagnostics.array(sec_to_stamp(t), st))
+
+
+def _decode_joints(msg: JointStateMsg) -> JointState:
+    js = joint_state_from_msg(msg)
+    if not (np.all(np.isfinite(js.position)) and np.all(np.isfinite(js.velocity))):
+        raise ValueError('non-finite joint positions or velocities')
+    return js
+
+
+def _decode_odom(msg: Odometry) -> BaseState:
+    base = base_state_from_odom(msg)
+    if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
+            and np.all(np.isfinite(base.linear_velocity))
+            and np.all(np.isfinite(base.angular_velocity))
+            and np.linalg.norm(base.quaternion) > 0.5):
+        raise ValueError('non-finite pose or twist')
+    return base
 
 
 def main(args=None):

@@ -1,0 +1,45 @@
+import math
+
+import numpy as np
+import pytest
+from nav_msgs.msg import Odometry
+from rclpy.serialization import serialize_message
+
+from replan_core.types import BaseState
+from replan_ros.interfaces import base_state_from_odom, odom_from_base_state
+from replan_ros.stamped_buffer import RawStampedBuffer, cdr_header_stamp_ns
+
+
+def _odom_cdr(t: float, x: float) -> bytes:
+    base = BaseState(t, np.array([x, 0.0, 0.6]), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
+                     np.zeros(3))
+    return serialize_message(odom_from_base_state(base))
+
+
+def _decode(msg: Odometry) -> BaseState:
+    base = base_state_from_odom(msg)
+    if not math.isfinite(base.position[0]):
+        raise ValueError('non-finite')
+    return base
+
+
+def test_stamp_is_read_from_the_cdr_header():
+    assert cdr_header_stamp_ns(_odom_cdr(12.348, 0.0)) == 12_348_000_000
+    assert cdr_header_stamp_ns(b'\x00\x01') is None
+
+
+def test_buffer_keeps_the_last_ones_and_decodes_on_request():
+    buffer = RawStampedBuffer(Odometry, _decode, capacity=3)
+    for k in range(5):
+        assert buffer.add(_odom_cdr(k * 0.004, float(k))) == k * 4_000_000
+    assert buffer.stamps() == [8_000_000, 12_000_000, 16_000_000]
+    assert buffer.get(4_000_000) is None                       # dropped: capacity 3
+    assert buffer.get(12_000_000).position[0] == 3.0
+
+
+def test_a_message_that_fails_to_decode_is_dropped_with_the_error():
+    buffer = RawStampedBuffer(Odometry, _decode, capacity=3)
+    ns = buffer.add(_odom_cdr(1.0, float('nan')))
+    with pytest.raises(ValueError, match='non-finite'):
+        buffer.get(ns)
+    assert ns not in buffer
