@@ -44,8 +44,13 @@ class StepEvent:
 class StepTracker:
     """Follows a FootholdPlan tick by tick and decides lift-offs and touchdowns."""
 
-    def __init__(self, plan: FootholdPlan, min_swing_fraction: float = 0.5,
-                 max_extension: float = 0.3) -> None:
+    def __init__(self, plan: FootholdPlan, min_swing_fraction: float | None = None,
+                 max_extension: float | None = None) -> None:
+        """The rule's two values come with the plan; the arguments override them (tests)."""
+        if min_swing_fraction is None:
+            min_swing_fraction = plan.min_swing_fraction
+        if max_extension is None:
+            max_extension = plan.max_extension
         if not 0.0 <= min_swing_fraction <= 1.0:
             raise ValueError('min_swing_fraction must be within [0, 1]')
         if max_extension < 0.0:

@@ -151,11 +151,10 @@ class PlanFollower:
     """
 
     def __init__(self, footholds: FootholdPlan, com_plan: ComPlan,
-                 min_swing_fraction: float = 0.5, max_extension: float = 0.3,
                  haptic_velocity: float = 0.15, touchdown_depth: float = 0.0) -> None:
         self.footholds = footholds
         self.com_plan = com_plan
-        self.tracker = StepTracker(footholds, min_swing_fraction, max_extension)
+        self.tracker = StepTracker(footholds)      # the touchdown rule comes with the plan
         self.haptic_velocity = haptic_velocity
         self.touchdown_depth = touchdown_depth
         self._liftoff_position: dict[int, np.ndarray] = {}

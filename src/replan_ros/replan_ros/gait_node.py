@@ -98,11 +98,11 @@ class GaitNode(Node):
                       'm, foothold correction moves a first foothold to the actual hip only '
                       'when that differs from the foot-relative one by more (0: always)')
         self._declare('min_swing_fraction', 0.5,
-                      'haptic touchdown accepted after this fraction of the planned swing; '
-                      'must equal the controller\'s')
+                      'haptic touchdown accepted after this fraction of the planned swing '
+                      '(sent in footholds: the controller applies the same)')
         self._declare('max_extension', 0.3,
-                      'haptic swing forced to end this long after its planned touchdown, s; '
-                      'must equal the controller\'s')
+                      'haptic swing forced to end this long after its planned touchdown, s '
+                      '(sent in footholds)')
         self._declare('start_delay', 1.0,
                       'first plan: stand this long before the first lift-off, s')
         self._declare('cmd_vel_timeout', 0.5,
@@ -364,11 +364,14 @@ class GaitNode(Node):
                                     'previous plan')
             self.pending = None
             return True
+        # The touchdown rule travels with the plan: the controller applies the same values.
+        plan.min_swing_fraction = self.min_swing_fraction
+        plan.max_extension = self.max_extension
         msg = footholds_to_msg(plan)
         # Track the plan exactly as the controller decodes it from the message, so both trackers
         # compare bit-identical times.
         self.plan = footholds_from_msg(msg)
-        self.tracker = StepTracker(self.plan, self.min_swing_fraction, self.max_extension)
+        self.tracker = StepTracker(self.plan)
         self.pending = None
         self.replans += 1
         stamp = ns_to_stamp(ns)

@@ -218,7 +218,8 @@ CONTACT_DTYPE = np.dtype([('x', '<f8'), ('y', '<f8'), ('z', '<f8'), ('leg', 'u1'
 FOOTHOLD_DTYPE = np.dtype([('x', '<f8'), ('y', '<f8'), ('z', '<f8'), ('leg', 'u1'),
                            ('step', '<i4'), ('liftoff_time', '<f8'), ('touchdown_time', '<f8'),
                            ('step_height', '<f8'), ('haptic', 'u1'), ('replan', 'u1'),
-                           ('yaw', '<f8')])
+                           ('yaw', '<f8'), ('min_swing_fraction', '<f8'),
+                           ('max_extension', '<f8')])
 
 
 def _contact_table(cs: ContactState, rows: np.ndarray) -> np.ndarray:
@@ -274,11 +275,13 @@ def footholds_to_msg(plan: FootholdPlan) -> PointCloud2:
     table = np.zeros(4 + len(plan.steps), dtype=FOOTHOLD_DTYPE)
     for leg in range(4):
         p = plan.initial_feet[leg]
-        table[leg] = (p[0], p[1], p[2], leg, -1, 0.0, 0.0, 0.0, 0, 0, plan.initial_yaw)
+        table[leg] = (p[0], p[1], p[2], leg, -1, 0.0, 0.0, 0.0, 0, 0, plan.initial_yaw,
+                      plan.min_swing_fraction, plan.max_extension)
     for i, s in enumerate(plan.steps):
         table[4 + i] = (s.target[0], s.target[1], s.target[2], s.leg, i,
                         s.liftoff_time - plan.start_time, s.touchdown_time - plan.start_time,
-                        s.step_height, s.haptic, s.replan, s.yaw)
+                        s.step_height, s.haptic, s.replan, s.yaw, plan.min_swing_fraction,
+                        plan.max_extension)
     return table_to_cloud(header(plan.start_time), table)
 
 
@@ -302,7 +305,9 @@ def footholds_from_msg(msg: PointCloud2) -> FootholdPlan:
     return FootholdPlan(start_time=t0,
                         initial_feet=np.stack([initial['x'], initial['y'], initial['z']],
                                               axis=1).astype(float),
-                        initial_yaw=float(initial['yaw'][0]), steps=steps)
+                        initial_yaw=float(initial['yaw'][0]), steps=steps,
+                        min_swing_fraction=float(initial['min_swing_fraction'][0]),
+                        max_extension=float(initial['max_extension'][0]))
 
 
 # ---------------------------------------------------------------------------------------------

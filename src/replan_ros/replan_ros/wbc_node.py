@@ -74,12 +74,6 @@ class WbcNode(Node):
         self._declare('stale_ticks', 3,
                       'a gap of more than this many control periods between answered ticks '
                       'means the inputs went stale (sim free-ran): stand until a new plan')
-        self._declare('min_swing_fraction', 0.5,
-                      'StepTracker: earliest haptic touchdown as a fraction of the swing '
-                      '(must equal the gait node value)')
-        self._declare('max_extension', 0.3,
-                      'StepTracker: s after the planned touchdown a haptic step is forced to '
-                      'end (must equal the gait node value)')
         self._declare('haptic_velocity', 0.15,
                       'm/s, descent of a haptic swing foot after its planned touchdown')
         self._declare('touchdown_depth', WbcParams().touchdown_depth,
@@ -124,8 +118,6 @@ class WbcNode(Node):
         self.plan_timeout = float(p['plan_timeout'])
         self.plan_max_age = float(p['plan_max_age'])
         self.stale_gap_ns = sec_to_ns(int(p['stale_ticks']) / float(p['control_rate']))
-        self.min_swing_fraction = float(p['min_swing_fraction'])
-        self.max_extension = float(p['max_extension'])
         self.haptic_velocity = params.haptic_velocity
         self.touchdown_depth = params.touchdown_depth
 
@@ -337,8 +329,7 @@ class WbcNode(Node):
     def _adopt(self, plan_stamp: int, stamp: int) -> None:
         """Make the pair stamped ``plan_stamp`` active at tick ``stamp``."""
         footholds, com_plan = self._footholds[plan_stamp], self._com_plans[plan_stamp]
-        self._follower = PlanFollower(footholds, com_plan, self.min_swing_fraction,
-                                      self.max_extension, self.haptic_velocity,
+        self._follower = PlanFollower(footholds, com_plan, self.haptic_velocity,
                                       self.touchdown_depth)
         if stamp > plan_stamp:       # started late (first tick, or an unannounced plan)
             self._follower.update(stamp / _NS, self._contacts[stamp])

@@ -101,8 +101,9 @@ def test_footholds_round_trip():
     feet = np.array([[0.37, 0.3, 0.0], [0.37, -0.3, 0.0], [-0.37, 0.3, 0.0], [-0.37, -0.3, 0.0]])
     steps = [Step(leg, 10.2 + i, 10.7 + i, feet[leg] + [0.1, 0, 0], 0.1, i % 2 == 0, i == 0,
                   0.05 * i) for i, leg in enumerate([2, 0, 3, 1])]
-    plan = FootholdPlan(10.0, feet, 0.0, steps)
+    plan = FootholdPlan(10.0, feet, 0.0, steps, min_swing_fraction=0.4, max_extension=0.25)
     back = itf.footholds_from_msg(_through_wire(itf.footholds_to_msg(plan)))
+    assert (back.min_swing_fraction, back.max_extension) == (0.4, 0.25)
     assert back.start_time == pytest.approx(10.0)
     np.testing.assert_array_equal(back.initial_feet, feet)
     assert [s.leg for s in back.steps] == [2, 0, 3, 1]
