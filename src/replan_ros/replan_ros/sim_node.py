@@ -151,7 +151,8 @@ class SimNode(Node):
             ('debounce_ticks', 2, 'ticks the force must stay above/below the threshold'),
             ('lock_step', True, 'advance one tick per joint_torque_cmd of the current stamp'),
             ('republish_period', 0.1, 'lock-step: republish the state after this many wall s'),
-            ('command_timeout', 1.0, 'wall s without a command before damping mode'),
+            ('command_timeout', 3.0, 'wall s without a command before damping mode (above the '
+             "controller's plan_timeout)"),
             ('damping_gain', 40.0, 'controller-dead joint damping, N m s/rad'),
             ('real_time_factor', 1.0, 'free-run/damping: sim s per wall s to aim for'),
             ('gui', False, 'open the PyBullet GUI'),

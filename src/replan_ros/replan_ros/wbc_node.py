@@ -69,6 +69,10 @@ class WbcNode(Node):
         self._declare('plan_timeout', 2.0,
                       'wall s to wait for footholds + com_plan of a due re-plan (or the first '
                       'plans); then go on with the old plans (or stand) and report WARN')
+        self._declare('first_plan_timeout', 30.0,
+                      'wall s to wait for the very first plans before standing: the sim does '
+                      'not advance before the first command, so waiting costs nothing, while '
+                      'standing up without them would make the run depend on start-up speed')
         self._declare('plan_max_age', 6.0,
                       'sim s: a plan pair older than this (or past its horizon) -> stand')
         self._declare('stale_ticks', 3,
@@ -116,6 +120,7 @@ class WbcNode(Node):
             if getattr(params, gain).shape != (3,):
                 raise ValueError(f'parameter {gain} needs 3 values')
         self.plan_timeout = float(p['plan_timeout'])
+        self.first_plan_timeout = float(p['first_plan_timeout'])
         self.plan_max_age = float(p['plan_max_age'])
         self.stale_gap_ns = sec_to_ns(int(p['stale_ticks']) / float(p['control_rate']))
         self.haptic_velocity = params.haptic_velocity
@@ -299,8 +304,8 @@ class WbcNode(Node):
     def _wait(self, stamp: int, first: bool) -> None:
         self._waiting = stamp
         self._waiting_first = first
-        self._wait_timer = self.create_timer(self.plan_timeout, self._on_wait_timeout,
-                                             clock=self._wall)
+        timeout = self.first_plan_timeout if first else self.plan_timeout
+        self._wait_timer = self.create_timer(timeout, self._on_wait_timeout, clock=self._wall)
 
     def _end_wait(self) -> None:
         self._waiting = None
@@ -318,7 +323,8 @@ class WbcNode(Node):
         self._period_timeouts += 1
         if first or self._follower is None:
             self.get_logger().warning(
-                f'no plans after {self.plan_timeout} s at t = {stamp / _NS:.3f}: standing')
+                f'no plans after {self.first_plan_timeout if first else self.plan_timeout} s '
+                f'at t = {stamp / _NS:.3f}: standing')
             self._enter_stand(stamp, 'no plan yet (plan_timeout)')
         else:
             self.get_logger().warning(

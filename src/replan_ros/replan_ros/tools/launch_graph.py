@@ -23,6 +23,7 @@ from pathlib import Path
 import rclpy
 from ament_index_python.packages import get_package_prefix
 from rclpy.context import Context
+from rclpy.duration import Duration as RclpyDuration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -35,6 +36,7 @@ RECORDED_BEFORE_START = ('/clock', '/joint_states', '/odom', '/contacts', '/cont
                          '/applied_wrench', '/footholds', '/velocity_setpoint', '/com_plan',
                          '/zmp_plan')
 RECORDER_WAIT = 20.0    # s, wall
+DELIVERY_WAIT = 30.0    # s, wall: scheduled inputs acknowledged by the nodes that use them
 STOP_TIMEOUT = 10.0     # s, SIGINT -> SIGKILL
 RESPAWN_DELAY = 1.0     # s, wall
 
@@ -119,17 +121,36 @@ class Graph:
         self.peak_memory_mb: dict[str, float] = {}     # filled by run_graph before stopping
         self.real_time_factor: float | None = None     # sim s per wall s from the first tick
 
-    def start(self, watch: ClockWatch | None = None) -> None:
-        """Start every node; with a recorder and a ``watch`` node, the wbc (which lets the sim
-        advance) only after the recorder subscribed to the graph's topics, so the bag holds
-        the run from t = 0."""
+    def start(self, watch: ClockWatch | None = None, deliveries=()) -> None:
+        """Start every node. With a ``watch`` node, the wbc (whose first command lets the sim
+        advance) starts only once the recorder, if any, subscribed to the graph's topics (the
+        bag then holds the run from t = 0) and every ``deliveries`` entry (publisher, topic,
+        consumer node name) was received by its consumer (scheduled inputs are then in place
+        before sim time moves, so a run never depends on start-up speed)."""
         recording = any(n.name == 'recorder' for n in self.nodes)
         for node in self.nodes:
-            if node.name == 'wbc' and recording and watch is not None:
-                self._wait_for_recorder(watch)
+            if node.name == 'wbc' and watch is not None:
+                if recording:
+                    self._wait_for_recorder(watch)
+                for publisher, topic, consumer in deliveries:
+                    self._wait_for_delivery(watch, publisher, topic, consumer)
             node.start(self.env)
             self.log(f'[launch {_stamp()}] started {node.name} (pid {node.process.pid}), '
                      f'log {node.log_path}')
+
+    def _wait_for_delivery(self, watch: ClockWatch, publisher, topic: str,
+                           consumer: str) -> None:
+        deadline = time.monotonic() + DELIVERY_WAIT
+        while time.monotonic() < deadline:
+            if any(info.node_name == consumer
+                   for info in watch.node.get_subscriptions_info_by_topic(topic)):
+                break
+            watch.spin(0.1)
+        remaining = max(deadline - time.monotonic(), 0.1)
+        if not publisher.wait_for_all_acked(RclpyDuration(seconds=remaining)):
+            self.log(f'[launch {_stamp()}] {topic}: {consumer} did not acknowledge the '
+                     f'scheduled inputs within {DELIVERY_WAIT} s; starting anyway (the run may '
+                     'differ from a re-run)')
 
     def _wait_for_recorder(self, watch: ClockWatch) -> None:
         deadline = time.monotonic() + RECORDER_WAIT
@@ -229,7 +250,9 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
               on_start=None, on_tick=None) -> int:
     """Start, supervise until the sim-time duration, Ctrl-C, a death (no respawn) or a wall
     timeout; stop. ``on_start(node)`` gets the launcher's own rclpy node before the graph
-    starts (to publish inputs); ``on_tick(sim_time)`` is called about every 0.1 s. Returns an
+    starts, to publish inputs; it may return (publisher, topic, consumer node) entries that
+    must be delivered before the sim may advance. ``on_tick(sim_time)`` is called about every
+    0.1 s. Returns an
     exit code: 0 done, 1 a node died without respawn, 3 wall-time limit."""
     stop_requested = []
 
@@ -243,9 +266,8 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
     start_wall = time.monotonic()
     first_tick: tuple[float, float] | None = None      # (wall, sim) when the sim first moved
     try:
-        if on_start is not None:
-            on_start(watch.node)
-        graph.start(watch)
+        deliveries = on_start(watch.node) if on_start is not None else None
+        graph.start(watch, deliveries or ())
         while not stop_requested:
             watch.spin(0.1)
             if first_tick is None and watch.sim_time > 0.0:

@@ -223,7 +223,7 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
     graph = Graph(out_dir, config_dir=new_config, param_files=param_files, record_dir=bag_dir,
                   gui=gui, respawn=False, extra_params=extra_params, log=log)
 
-    def send_inputs(node) -> None:
+    def send_inputs(node) -> list:
         cmd_pub = node.create_publisher(TwistStamped, 'cmd_vel_stamped', qos.SCHEDULE)
         wrench_pub = node.create_publisher(WrenchStamped, 'external_wrench', qos.SCHEDULE)
         for msg in setpoints:
@@ -231,6 +231,9 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
         for msg in wrenches:
             wrench_pub.publish(msg)
         log(f'[rerun] sent {len(setpoints)} set-points and {len(wrenches)} wrenches')
+        # Received by the gait node and the sim before sim time moves (launch_graph).
+        return ([(cmd_pub, '/cmd_vel_stamped', 'gait')] if setpoints else []) + (
+            [(wrench_pub, '/external_wrench', 'sim')] if wrenches else [])
 
     log(f'[rerun] {bag}: {run.duration:.2f} s of sim time, recorded at git '
         f'{run.run_info.get("git_revision", "?")}; output in {out_dir}')

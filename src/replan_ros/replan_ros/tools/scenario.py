@@ -151,6 +151,7 @@ class EventPublisher:
         self.scenario = scenario
 
     def publish_all(self) -> int:
+        """Publish every event; returns how many messages were sent."""
         count = 0
         for t, (vx, vy, wz) in sorted(self.scenario.cmd_vel_events):
             msg = TwistStamped()
@@ -168,6 +169,15 @@ class EventPublisher:
                 self.wrench_pub.publish(msg)
                 count += 1
         return count
+
+    def deliveries(self) -> list:
+        """(publisher, topic, consumer node) of the inputs to deliver before sim time moves."""
+        out = []
+        if self.scenario.cmd_vel_events:
+            out.append((self.cmd_pub, '/cmd_vel_stamped', 'gait'))
+        if self.scenario.push_events:
+            out.append((self.wrench_pub, '/external_wrench', 'sim'))
+        return out
 
 
 def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
@@ -187,9 +197,11 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                   gui=gui, respawn=False,
                   extra_params={'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}},
                   log=log)
-    def publish_events(node) -> None:
-        count = EventPublisher(node, scenario).publish_all()
+    def publish_events(node) -> list:
+        events = EventPublisher(node, scenario)
+        count = events.publish_all()
         log(f'[scenario] sent {count} timed inputs')
+        return events.deliveries()
 
     wall_start = time.monotonic()
     code = run_graph(graph, scenario.duration,
