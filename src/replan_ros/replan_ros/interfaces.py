@@ -111,7 +111,8 @@ def _reorder(names: list[str], values, what: str) -> np.ndarray:
 
 
 def joint_state_from_msg(msg: JointStateMsg) -> JointState:
-    """Joint state in JOINT_NAMES order; ValueError if names or sizes do not match."""
+    """Joint state in JOINT_NAMES order; ValueError if names or sizes do not match or a
+    position or velocity is not finite."""
     names = list(msg.name)
     if len(names) != len(JOINT_NAMES):
         raise ValueError(f'joint_states: {len(names)} joints, expected {len(JOINT_NAMES)}')
@@ -119,6 +120,8 @@ def joint_state_from_msg(msg: JointStateMsg) -> JointState:
     velocity = _reorder(names, msg.velocity, 'joint_states.velocity')
     effort = (_reorder(names, msg.effort, 'joint_states.effort') if len(msg.effort)
               else np.zeros(len(JOINT_NAMES)))
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))):
+        raise ValueError('joint_states: non-finite joint positions or velocities')
     return JointState(stamp_to_sec(msg.header.stamp), position, velocity, effort)
 
 
@@ -163,10 +166,16 @@ def odom_from_base_state(bs: BaseState) -> Odometry:
 
 
 def base_state_from_odom(msg: Odometry) -> BaseState:
+    """Base state with the twist in the world frame; ValueError on a non-finite pose or twist
+    or a quaternion that is not one."""
     p, o = msg.pose.pose.position, msg.pose.pose.orientation
     q = np.array([o.x, o.y, o.z, o.w])
-    rot = quat_to_matrix(q)
     lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
+    values = np.array([p.x, p.y, p.z, lin.x, lin.y, lin.z, ang.x, ang.y, ang.z])
+    if not (np.all(np.isfinite(values)) and np.all(np.isfinite(q))
+            and abs(np.linalg.norm(q) - 1.0) < 0.1):
+        raise ValueError('odom: non-finite pose or twist, or not a unit quaternion')
+    rot = quat_to_matrix(q)
     return BaseState(stamp=stamp_to_sec(msg.header.stamp),
                      position=np.array([p.x, p.y, p.z]), quaternion=q,
                      linear_velocity=rot @ np.array([lin.x, lin.y, lin.z]),

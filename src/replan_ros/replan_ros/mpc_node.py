@@ -95,8 +95,8 @@ class MpcNode(Node):
         self.create_subscription(PointCloud2, 'contact_events', self._on_contact_events,
                                  CONTACTS)
 
-        self.joints = RawStampedBuffer(JointStateMsg, _decode_joints, self.state_buffer)
-        self.bases = RawStampedBuffer(Odometry, _decode_odom, self.state_buffer)
+        self.joints = RawStampedBuffer(JointStateMsg, joint_state_from_msg, self.state_buffer)
+        self.bases = RawStampedBuffer(Odometry, base_state_from_odom, self.state_buffer)
         self.pending: tuple[int, FootholdPlan] | None = None
         self.last_plan: ComPlan | None = None
         self.last_stamp_ns: int | None = None
@@ -262,23 +262,6 @@ class MpcNode(Node):
                 'replans': self.replans,
             })
         self.diag_pub.publish(diagnostics.array(sec_to_stamp(t), st))
-
-
-def _decode_joints(msg: JointStateMsg) -> JointState:
-    js = joint_state_from_msg(msg)
-    if not (np.all(np.isfinite(js.position)) and np.all(np.isfinite(js.velocity))):
-        raise ValueError('non-finite joint positions or velocities')
-    return js
-
-
-def _decode_odom(msg: Odometry) -> BaseState:
-    base = base_state_from_odom(msg)
-    if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
-            and np.all(np.isfinite(base.linear_velocity))
-            and np.all(np.isfinite(base.angular_velocity))
-            and np.linalg.norm(base.quaternion) > 0.5):
-        raise ValueError('non-finite pose or twist')
-    return base
 
 
 def main(args=None):

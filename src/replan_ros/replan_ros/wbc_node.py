@@ -188,10 +188,10 @@ class WbcNode(Node):
         self._store(self._joints, stamp_to_ns(msg.header.stamp), state)
 
     def _on_odom(self, msg: Odometry) -> None:
-        base = base_state_from_odom(msg)
-        if not (np.all(np.isfinite(base.position)) and np.all(np.isfinite(base.quaternion))
-                and np.linalg.norm(base.quaternion) > 1e-6):
-            self._warn('rejected odom: non-finite pose')
+        try:
+            base = base_state_from_odom(msg)
+        except ValueError as error:
+            self._warn(f'rejected odom: {error}')
             return
         self._store(self._odom, stamp_to_ns(msg.header.stamp), base)
 

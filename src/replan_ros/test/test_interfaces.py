@@ -133,3 +133,20 @@ def test_com_plan_round_trip_and_exact_sampling():
     np.testing.assert_allclose(p, pos[7] + vel[7] * s + acc[7] * s**2 / 2 + jerk[7] * s**3 / 6,
                                atol=1e-9)
     np.testing.assert_allclose(back.sample(3.0 + 8 * dt)[0], pos[8], atol=1e-9)
+
+
+def test_non_finite_states_are_rejected_by_the_conversions():
+    bs = BaseState(1.0, np.array([0.0, 0.0, 0.6]), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
+                   np.zeros(3))
+    msg = itf.odom_from_base_state(bs)
+    msg.twist.twist.linear.x = float('nan')
+    with pytest.raises(ValueError, match='non-finite'):
+        itf.base_state_from_odom(msg)
+    msg = itf.odom_from_base_state(bs)
+    msg.pose.pose.orientation.w = 0.0                 # all-zero quaternion
+    with pytest.raises(ValueError, match='quaternion'):
+        itf.base_state_from_odom(msg)
+    js = itf.joint_state_to_msg(JointState(1.0, np.zeros(12), np.zeros(12), np.zeros(12)))
+    js.velocity[5] = float('inf')
+    with pytest.raises(ValueError, match='non-finite'):
+        itf.joint_state_from_msg(js)
