@@ -18,23 +18,15 @@ from geometry_msgs.msg import Transform, Twist
 from harness import CONFIG_DIR, REPO_ROOT, graph_env
 from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from replan_ros.bag_io import BagWriter, iter_decoded, qos_profiles_yaml, recover
+from replan_ros.qos import CONTACTS, LATCHED, SENSOR
 
-SENSOR = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                    reliability=ReliabilityPolicy.BEST_EFFORT,
-                    durability=DurabilityPolicy.VOLATILE)
-RELIABLE = QoSProfile(depth=50, history=HistoryPolicy.KEEP_LAST,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE)
-LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                     reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+RELIABLE = CONTACTS      # reliable, volatile, depth 50
 TICK = 0.004   # s, the graph's control period (250 Hz)
 
 

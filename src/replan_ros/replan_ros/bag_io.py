@@ -133,17 +133,6 @@ def has_header(type_name: str) -> bool:
     return False
 
 
-def header_stamp_ns(cdr: bytes) -> int | None:
-    """``header.stamp`` of a CDR payload whose first field is a Header, in ns (None if short)."""
-    if len(cdr) < 12:
-        return None
-    little = cdr[1] in (1, 3)   # encapsulation kind: CDR_LE / PL_CDR_LE
-    order = 'little' if little else 'big'
-    sec = int.from_bytes(cdr[4:8], order, signed=True)
-    nanosec = int.from_bytes(cdr[8:12], order, signed=False)
-    return sec * 1_000_000_000 + nanosec
-
-
 # ----------------------------------------------------------------------------- QoS
 
 def _duration_yaml(duration) -> dict:

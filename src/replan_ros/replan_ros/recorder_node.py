@@ -48,13 +48,13 @@ from replan_ros import diagnostics
 from replan_ros.bag_io import (
     BagWriter,
     has_header,
-    header_stamp_ns,
     message_definition,
     normalize_type_name,
     qos_profiles_yaml,
 )
 from replan_ros.introspection import message_class
 from replan_ros.qos import COMMAND
+from replan_ros.stamped_buffer import cdr_header_stamp_ns
 
 _PUBLISH_TIME_SOURCES = ('source', 'header', 'receive')
 
@@ -324,7 +324,7 @@ class RecorderNode(Node):
             if mode == 'source':
                 publish_time = info.get('source_timestamp') or log_time
             elif mode == 'header' and entry.stamp_in_header:
-                publish_time = header_stamp_ns(data)
+                publish_time = cdr_header_stamp_ns(data)
                 if publish_time is None:
                     publish_time = log_time
             else:

@@ -16,6 +16,7 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectory
 
 from replan_ros import bag_io
 from replan_ros.bag_io import SEPARATOR, BagWriter, iter_decoded, message_definition, recover
+from replan_ros.stamped_buffer import cdr_header_stamp_ns
 
 
 def _msg_file(package, name):
@@ -63,7 +64,7 @@ def test_header_detection_and_stamp_extraction():
     assert not bag_io.has_header('geometry_msgs/msg/Twist')
     msg = JointState()
     msg.header.stamp = Time(sec=12, nanosec=345)
-    assert bag_io.header_stamp_ns(serialize_message(msg)) == 12_000_000_345
+    assert cdr_header_stamp_ns(serialize_message(msg)) == 12_000_000_345
 
 
 def test_qos_metadata_round_trip():

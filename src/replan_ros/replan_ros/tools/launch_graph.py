@@ -22,12 +22,15 @@ from pathlib import Path
 
 import rclpy
 from ament_index_python.packages import get_package_prefix
+from geometry_msgs.msg import TwistStamped, WrenchStamped
 from rclpy.context import Context
 from rclpy.duration import Duration as RclpyDuration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
+
+from replan_ros import qos
 
 NODES = ('sim', 'gait', 'mpc', 'wbc')
 # Published by sim, gait and mpc as soon as they are up; with a recorder in the graph the wbc,
@@ -216,6 +219,30 @@ class Graph:
                     node.process.wait(5)
                 node.close()
         self.log(f'[launch {_stamp()}] all nodes stopped')
+
+
+class ScheduledInputs:
+    """Timed inputs sent before sim time moves: stamped set-points for the gait node and
+    external wrenches for the sim, on the transient-local schedule topics (qos.SCHEDULE)."""
+
+    def __init__(self, setpoints: list[TwistStamped], wrenches: list[WrenchStamped]) -> None:
+        self.setpoints = list(setpoints)
+        self.wrenches = list(wrenches)
+
+    def publish(self, node: Node) -> list:
+        """Publish them all from ``node``; returns the (publisher, topic, consumer node)
+        deliveries for ``run_graph`` to wait on before the sim may advance."""
+        deliveries = []
+        for msg_type, topic, consumer, messages in (
+                (TwistStamped, '/cmd_vel_stamped', 'gait', self.setpoints),
+                (WrenchStamped, '/external_wrench', 'sim', self.wrenches)):
+            if not messages:
+                continue
+            publisher = node.create_publisher(msg_type, topic, qos.SCHEDULE)
+            for msg in messages:
+                publisher.publish(msg)
+            deliveries.append((publisher, topic, consumer))
+        return deliveries
 
 
 class ClockWatch:

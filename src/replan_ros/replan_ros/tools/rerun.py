@@ -31,6 +31,7 @@ from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 
+from replan_ros.interfaces import stamp_to_ns
 from replan_ros.tools.launch_graph import NODES
 
 INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped}
@@ -39,10 +40,6 @@ ODOM_TOPIC = '/odom'
 
 class RerunError(ValueError):
     """A bag that cannot be re-run, with the reason."""
-
-
-def _stamp_ns(stamp) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 @dataclass
@@ -68,7 +65,7 @@ def odom_positions(messages) -> dict[int, np.ndarray]:
     whose command was lost: duplicates carry the same state)."""
     out: dict[int, np.ndarray] = {}
     for msg in messages:
-        stamp = _stamp_ns(msg.header.stamp)
+        stamp = stamp_to_ns(msg.header.stamp)
         if stamp not in out:
             p = msg.pose.pose.position
             out[stamp] = np.array([p.x, p.y, p.z])
@@ -116,12 +113,12 @@ def _twist_key(msg: TwistStamped) -> tuple:
 def schedule_inputs(run: RecordedRun) -> tuple[list[TwistStamped], list[WrenchStamped]]:
     """The inputs to send: set-points where the value changes (a set-point holds from its stamp
     on, so the value at every re-plan is the same), every applied wrench; sorted by stamp."""
-    setpoints = sorted(run.setpoints, key=lambda m: _stamp_ns(m.header.stamp))
+    setpoints = sorted(run.setpoints, key=lambda m: stamp_to_ns(m.header.stamp))
     changes: list[TwistStamped] = []
     for msg in setpoints:
         if not changes or _twist_key(msg) != _twist_key(changes[-1]):
             changes.append(msg)
-    wrenches = sorted(run.wrenches, key=lambda m: _stamp_ns(m.header.stamp))
+    wrenches = sorted(run.wrenches, key=lambda m: stamp_to_ns(m.header.stamp))
     return changes, wrenches
 
 
@@ -201,7 +198,7 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
           config_dir: Path | None = None, log=print) -> tuple[Comparison, int]:
     """Re-run ``bag`` into ``out_dir``; returns the comparison and the launcher's exit code."""
     from replan_ros import qos
-    from replan_ros.tools.launch_graph import Graph, run_graph
+    from replan_ros.tools.launch_graph import Graph, ScheduledInputs, run_graph
 
     run = load_run(bag)
     if not run.odom:
@@ -224,16 +221,9 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
                   gui=gui, respawn=False, extra_params=extra_params, log=log)
 
     def send_inputs(node) -> list:
-        cmd_pub = node.create_publisher(TwistStamped, 'cmd_vel_stamped', qos.SCHEDULE)
-        wrench_pub = node.create_publisher(WrenchStamped, 'external_wrench', qos.SCHEDULE)
-        for msg in setpoints:
-            cmd_pub.publish(msg)
-        for msg in wrenches:
-            wrench_pub.publish(msg)
+        deliveries = ScheduledInputs(setpoints, wrenches).publish(node)
         log(f'[rerun] sent {len(setpoints)} set-points and {len(wrenches)} wrenches')
-        # Received by the gait node and the sim before sim time moves (launch_graph).
-        return ([(cmd_pub, '/cmd_vel_stamped', 'gait')] if setpoints else []) + (
-            [(wrench_pub, '/external_wrench', 'sim')] if wrenches else [])
+        return deliveries
 
     log(f'[rerun] {bag}: {run.duration:.2f} s of sim time, recorded at git '
         f'{run.run_info.get("git_revision", "?")}; output in {out_dir}')

@@ -11,7 +11,6 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from mcap.reader import make_reader
 from rclpy.serialization import deserialize_message
 
 from replan_core.metrics import (
@@ -22,6 +21,7 @@ from replan_core.metrics import (
     roll_pitch_yaw,
     tracking_errors,
 )
+from replan_ros.bag_io import iter_raw
 from replan_ros.interfaces import base_state_from_odom, footholds_from_msg, stamp_to_sec
 from replan_ros.introspection import message_class
 
@@ -43,17 +43,15 @@ def read_messages(bag: Path, topics=TOPICS) -> dict[str, list[tuple[int, object]
     out: dict[str, list] = defaultdict(list)
     classes: dict[str, type] = {}
     for path in bag_files(bag):
-        with open(path, 'rb') as stream:
-            reader = make_reader(stream)
-            try:
-                for schema, channel, message in reader.iter_messages(topics=list(topics)):
-                    cls = classes.get(schema.name)
-                    if cls is None:
-                        cls = classes[schema.name] = message_class(schema.name)
-                    out[channel.topic].append(
-                        (message.publish_time, deserialize_message(message.data, cls)))
-            except Exception as err:   # a truncated file (SIGKILL) still gives what it holds
-                out['_errors'].append((0, f'{path.name}: {err}'))
+        try:
+            for schema, channel, message in iter_raw(path, topics):
+                cls = classes.get(schema.name)
+                if cls is None:
+                    cls = classes[schema.name] = message_class(schema.name)
+                out[channel.topic].append(
+                    (message.publish_time, deserialize_message(message.data, cls)))
+        except Exception as err:   # a truncated file (SIGKILL) still gives what it holds
+            out['_errors'].append((0, f'{path.name}: {err}'))
     return out
 
 

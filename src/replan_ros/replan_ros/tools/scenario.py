@@ -32,9 +32,8 @@ from pathlib import Path
 import yaml
 from geometry_msgs.msg import TwistStamped, WrenchStamped
 
-from replan_ros import qos
 from replan_ros.interfaces import sec_to_stamp
-from replan_ros.tools.launch_graph import Graph, run_graph
+from replan_ros.tools.launch_graph import Graph, ScheduledInputs, run_graph
 
 NODE_NAMES = ('sim', 'gait', 'mpc', 'wbc', 'recorder')
 TOP_KEYS = {'name', 'description', 'duration', 'terrain', 'params', 'events', 'fall_limits'}
@@ -142,42 +141,24 @@ def params_document(scenario: Scenario) -> dict:
     return doc
 
 
-class EventPublisher:
-    """Publishes the scenario's inputs up front, stamped with their sim times."""
-
-    def __init__(self, node, scenario: Scenario) -> None:
-        self.cmd_pub = node.create_publisher(TwistStamped, 'cmd_vel_stamped', qos.SCHEDULE)
-        self.wrench_pub = node.create_publisher(WrenchStamped, 'external_wrench', qos.SCHEDULE)
-        self.scenario = scenario
-
-    def publish_all(self) -> int:
-        """Publish every event; returns how many messages were sent."""
-        count = 0
-        for t, (vx, vy, wz) in sorted(self.scenario.cmd_vel_events):
-            msg = TwistStamped()
-            msg.header.stamp = sec_to_stamp(t)
-            msg.header.frame_id = 'base_link'
-            msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z = vx, vy, wz
-            self.cmd_pub.publish(msg)
-            count += 1
-        for t, force, length in sorted(self.scenario.push_events):
-            for stamp, f in ((t, force), (t + length, (0.0, 0.0, 0.0))):
-                msg = WrenchStamped()
-                msg.header.stamp = sec_to_stamp(stamp)
-                msg.header.frame_id = 'odom'
-                msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = f
-                self.wrench_pub.publish(msg)
-                count += 1
-        return count
-
-    def deliveries(self) -> list:
-        """(publisher, topic, consumer node) of the inputs to deliver before sim time moves."""
-        out = []
-        if self.scenario.cmd_vel_events:
-            out.append((self.cmd_pub, '/cmd_vel_stamped', 'gait'))
-        if self.scenario.push_events:
-            out.append((self.wrench_pub, '/external_wrench', 'sim'))
-        return out
+def scenario_inputs(scenario: Scenario) -> ScheduledInputs:
+    """The scenario's events as stamped messages: each push is its wrench from ``t`` and a zero
+    wrench from ``t + duration``."""
+    setpoints, wrenches = [], []
+    for t, (vx, vy, wz) in sorted(scenario.cmd_vel_events):
+        msg = TwistStamped()
+        msg.header.stamp = sec_to_stamp(t)
+        msg.header.frame_id = 'base_link'
+        msg.twist.linear.x, msg.twist.linear.y, msg.twist.angular.z = vx, vy, wz
+        setpoints.append(msg)
+    for t, force, length in sorted(scenario.push_events):
+        for stamp, f in ((t, force), (t + length, (0.0, 0.0, 0.0))):
+            msg = WrenchStamped()
+            msg.header.stamp = sec_to_stamp(stamp)
+            msg.header.frame_id = 'odom'
+            msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = f
+            wrenches.append(msg)
+    return ScheduledInputs(setpoints, wrenches)
 
 
 def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
@@ -197,11 +178,12 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                   gui=gui, respawn=False,
                   extra_params={'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}},
                   log=log)
+    inputs = scenario_inputs(scenario)
+
     def publish_events(node) -> list:
-        events = EventPublisher(node, scenario)
-        count = events.publish_all()
-        log(f'[scenario] sent {count} timed inputs')
-        return events.deliveries()
+        deliveries = inputs.publish(node)
+        log(f'[scenario] sent {len(inputs.setpoints) + len(inputs.wrenches)} timed inputs')
+        return deliveries
 
     wall_start = time.monotonic()
     code = run_graph(graph, scenario.duration,
