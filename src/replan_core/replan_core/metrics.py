@@ -106,3 +106,14 @@ def distance_travelled(positions: np.ndarray) -> tuple[float, float]:
     straight = float(np.linalg.norm(positions[-1, :2] - positions[0, :2]))
     path = float(np.sum(np.linalg.norm(np.diff(positions[:, :2], axis=0), axis=1)))
     return straight, path
+
+
+def interval_stats(times: np.ndarray, skip: int = 0) -> dict | None:
+    """Median, mean, min and max of the intervals between consecutive ``times`` (s), leaving out
+    the first ``skip`` intervals (e.g. the stand at the start); None if none are left."""
+    intervals = np.diff(np.sort(np.asarray(times, dtype=float)))[skip:]
+    if len(intervals) == 0:
+        return None
+    return {'median': float(np.median(intervals)), 'mean': float(np.mean(intervals)),
+            'min': float(np.min(intervals)), 'max': float(np.max(intervals)),
+            'count': len(intervals)}

@@ -63,3 +63,11 @@ def test_achieved_velocity_needs_two_samples():
 def test_distance_travelled():
     pos = np.array([[0, 0], [3, 0], [3, 4]], dtype=float)
     assert distance_travelled(pos) == (5.0, 7.0)
+
+
+def test_interval_stats_skips_the_start():
+    from replan_core.metrics import interval_stats
+    stats = interval_stats(np.array([0.0, 1.4, 2.1, 2.8, 3.6]), skip=1)
+    assert stats['count'] == 3
+    assert stats['median'] == pytest.approx(0.7) and stats['max'] == pytest.approx(0.8)
+    assert interval_stats(np.array([1.0]), skip=0) is None

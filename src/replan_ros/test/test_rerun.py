@@ -118,7 +118,7 @@ def test_identical_runs_match_and_a_deviation_is_found_where_it_is(tmp_path):
     assert bumped.max_deviation == pytest.approx(0.0025, abs=1e-12)
     assert bumped.at_stamp == pytest.approx(137 * 0.004)
     text, ok = report(bumped, 1e-3)
-    assert not ok and '0.002500 m at t = 0.548 s' in text
+    assert not ok and '0.0025 m at t = 0.548 s' in text
 
 
 def test_a_shorter_rerun_is_not_a_match(tmp_path):

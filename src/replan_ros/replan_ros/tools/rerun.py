@@ -236,8 +236,8 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
 def report(comparison: Comparison, tolerance: float) -> tuple[str, bool]:
     ok = comparison.max_deviation <= tolerance and comparison.coverage >= 0.99
     at = f' at t = {comparison.at_stamp:.3f} s' if comparison.at_stamp is not None else ''
-    text = (f'[rerun] largest base position deviation: {comparison.max_deviation:.6f} m{at} '
-            f'(rms {comparison.rms:.6f} m, {comparison.matched} common stamps, '
+    text = (f'[rerun] largest base position deviation: {comparison.max_deviation:.3g} m{at} '
+            f'(rms {comparison.rms:.3g} m, {comparison.matched} common stamps, '
             f'{comparison.missing} recorded stamps missing) -> '
             f'{"MATCH" if ok else "DIFFERENT"} (tolerance {tolerance} m)')
     return text, ok
@@ -250,7 +250,20 @@ def main(argv=None) -> int:
     parser.add_argument('--out', type=Path, help='output folder (default runs/rerun-<time>)')
     parser.add_argument('--tolerance', type=float, default=1e-3, help='m (default 0.001)')
     parser.add_argument('--gui', action='store_true')
+    parser.add_argument('--against', type=Path, metavar='OTHER_BAG',
+                        help='compare BAG with another recorded run instead of re-running '
+                             '(e.g. two runs of one scenario)')
     args = parser.parse_args(argv)
+    if args.against is not None:
+        try:
+            comparison = compare_trajectories(load_run(args.bag).odom,
+                                              load_run(args.against).odom)
+        except (RerunError, OSError) as err:
+            print(f'rerun: {err}', file=sys.stderr)
+            return 2
+        text, ok = report(comparison, args.tolerance)
+        print(text)
+        return 0 if ok else 1
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'rerun-{time.strftime("%Y%m%d-%H%M%S")}'
     try:

@@ -18,6 +18,7 @@ from replan_core.metrics import (
     command_segments,
     detect_fall,
     distance_travelled,
+    interval_stats,
     roll_pitch_yaw,
     tracking_errors,
 )
@@ -125,6 +126,11 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
         mean_linear_tracking_error_mps=_mean([s.get('linear_error_mps') for s in tracking
                                               if any(s['commanded'])]),
         replans=len(data.get('/footholds', [])),
+        # Time between re-plans = one step (haptic: between sensed touchdowns); the first two
+        # intervals are the initial stand and the walk-off.
+        step_period_s=interval_stats(
+            np.array([stamp_to_sec(m.header.stamp) for _, m in data.get('/footholds', [])]),
+            skip=2),
         mpc_solve_ms_median=_round(np.median(solve)) if solve else None,
         mpc_solve_ms_p99=_round(np.percentile(solve, 99)) if solve else None,
         mpc_solves=len(solve),
