@@ -24,6 +24,7 @@ from sensor_msgs.msg import JointState, PointCloud2, PointField
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from replan_ros.bag_io import BagWriter, iter_decoded, qos_profiles_yaml, recover
+from replan_ros.on_demand import helper_name
 from replan_ros.qos import CONTACTS, LATCHED, SENSOR
 
 RELIABLE = CONTACTS      # reliable, volatile, depth 50
@@ -71,7 +72,10 @@ def _trajectory(k: int) -> MultiDOFJointTrajectory:
     return msg
 
 
-def _wait_subscribed(probe, topics, node_name='recorder', timeout=20.0) -> bool:
+RECORDER_READER = helper_name('recorder')     # the node that holds the recorder's readers
+
+
+def _wait_subscribed(probe, topics, node_name=RECORDER_READER, timeout=20.0) -> bool:
     def subscribed():
         return all(any(info.node_name == node_name
                        for info in probe.node.get_subscriptions_info_by_topic(topic))

@@ -1,10 +1,12 @@
 """Gait node: crawl schedule, the shared touchdown rule and foothold re-planning (issue 4).
 
 - Every tick of ``contacts`` goes through ``contact.StepTracker`` (the rule the controller runs
-  too). When a step with ``replan`` touches down at ``t_k`` (and at the first state seen, the
-  start of a run), the footholds are computed from the actual state at ``t_k`` (feet from
-  ``contacts``, base from ``odom`` of that stamp) and published on ``footholds`` stamped ``t_k``,
-  with the set-point used on ``velocity_setpoint`` and RViz markers on ``gait_markers``.
+  too). The ticks are read on demand (``on_demand.py``), in batches: when a ``contact_events``
+  edge arrives (a haptic touchdown: at once) and every ``contacts_poll_period`` otherwise. When a
+  step with ``replan`` touches down at ``t_k`` (and at the first state seen, the start of a run),
+  the footholds are computed from the actual state at ``t_k`` (feet from ``contacts``, base from
+  the ``odom`` of that stamp) and published on ``footholds`` stamped ``t_k``, with the set-point
+  used on ``velocity_setpoint`` and RViz markers on ``gait_markers``.
 - Set-point: ``cmd_vel`` (Twist; clamped; non-finite or absurd values rejected, the last good one
   kept; stand still after ``cmd_vel_timeout`` s of sim time without one) and ``cmd_vel_stamped``
   (TwistStamped, effective from ``header.stamp``, never times out). A re-plan at ``t`` uses the
@@ -26,8 +28,10 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Twist, TwistStamped, Vector3
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
@@ -54,14 +58,25 @@ from replan_ros.interfaces import (
     stamp_to_ns,
     yaw_of,
 )
-from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR
+from replan_ros.on_demand import OnDemandSubscriptions
+from replan_ros.qos import (
+    COMMAND,
+    CONTACTS,
+    INTERNAL_PUB_EVENTS,
+    INTERNAL_SUB_EVENTS,
+    LATCHED,
+    SCHEDULE,
+    SENSOR,
+)
 from replan_ros.stamped_buffer import RawStampedBuffer
 
 # Leg colours of the markers (r, g, b), LEGS order.
 _LEG_COLOURS = ((0.9, 0.2, 0.2), (0.2, 0.7, 0.2), (0.2, 0.4, 0.9), (0.9, 0.7, 0.1))
 # Support polygon corners in cyclic order around the trunk: lf, rf, rh, lh.
 _POLYGON_ORDER = (0, 1, 3, 2)
-_ODOM_BUFFER = 500       # odom samples kept (2 s at 250 Hz)
+_ODOM_QUEUE = 20         # newest odom samples queued until a re-plan reads them
+_CONTACTS_QUEUE = 500    # contacts ticks queued between two reads (2 s at 250 Hz): none lost
+_ODOM_WAIT = 0.02        # wall s a re-plan waits for the odom of its stamp before it retries
 
 
 class GaitNode(Node):
@@ -111,6 +126,10 @@ class GaitNode(Node):
         self._declare('cmd_vel_reject_above', 10.0,
                       'a cmd_vel component above this magnitude is absurd and rejected (m/s, '
                       'rad/s); smaller ones beyond the limits are clamped')
+        self._declare('contacts_poll_period', 0.01,
+                      'wall s between two reads of the queued contacts ticks; a contact event '
+                      'reads them at once. It bounds the delay of a re-plan whose touchdown has '
+                      'no contact event (haptic off, forced)')
         self._declare('warn_period', 2.0, 'throttle of repeated warnings, wall s')
 
         p = {name: self.get_parameter(name).value for name in self._declared}
@@ -123,16 +142,33 @@ class GaitNode(Node):
         self.warn_period = float(p['warn_period'])
         self.model = self._robot_model(p['urdf_path'])
 
-        self.footholds_pub = self.create_publisher(PointCloud2, 'footholds', LATCHED)
-        self.setpoint_pub = self.create_publisher(TwistStamped, 'velocity_setpoint', SCHEDULE)
-        self.markers_pub = self.create_publisher(MarkerArray, 'gait_markers', LATCHED)
-        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
+        self.footholds_pub = self.create_publisher(PointCloud2, 'footholds', LATCHED,
+                                                   event_callbacks=INTERNAL_PUB_EVENTS)
+        self.setpoint_pub = self.create_publisher(TwistStamped, 'velocity_setpoint', SCHEDULE,
+                                                  event_callbacks=INTERNAL_PUB_EVENTS)
+        self.markers_pub = self.create_publisher(MarkerArray, 'gait_markers', LATCHED,
+                                                 event_callbacks=INTERNAL_PUB_EVENTS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
+                                              event_callbacks=INTERNAL_PUB_EVENTS)
         self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, COMMAND)
         self.create_subscription(TwistStamped, 'cmd_vel_stamped', self._on_cmd_vel_stamped,
                                  SCHEDULE)
-        self.create_subscription(PointCloud2, 'contacts', self._on_contacts, CONTACTS)
-        # Every tick arrives, one per re-plan is needed: keep them serialized (raw=True).
-        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR, raw=True)
+        # The per-tick state is read on demand (on_demand.py): every contacts tick goes through
+        # the tracker, but in batches, when a contact event says a touchdown may have come or
+        # every contacts_poll_period; odom only at a re-plan.
+        self.state_input = OnDemandSubscriptions(self)
+        self.state_input.subscribe(
+            PointCloud2, 'contacts',
+            QoSProfile(depth=_CONTACTS_QUEUE, reliability=CONTACTS.reliability,
+                       durability=CONTACTS.durability), self._on_contacts, raw=False)
+        self.state_input.subscribe(
+            Odometry, 'odom', QoSProfile(depth=_ODOM_QUEUE, reliability=SENSOR.reliability,
+                                         durability=SENSOR.durability), self._on_odom)
+        self.create_subscription(PointCloud2, 'contact_events', self._on_contact_events,
+                                 CONTACTS,
+                                 event_callbacks=INTERNAL_SUB_EVENTS)
+        self.create_timer(float(p['contacts_poll_period']), self._poll,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
         # Set-points: the last good cmd_vel and the sim time it arrived at; stamped ones by stamp.
         self.cmd_vel: np.ndarray | None = None
@@ -207,7 +243,7 @@ class GaitNode(Node):
         self.last_tick_ns: int | None = None
         self.pending: tuple[int, ContactState, bool] | None = None   # (stamp, contacts, initial)
         self.unprocessed: deque[ContactState] = deque()
-        self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_BUFFER)
+        self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
         self.replans = 0
 
     def _warn(self, key: str, text: str) -> None:
@@ -274,7 +310,6 @@ class GaitNode(Node):
             self._warn('odom', 'odom rejected: no readable header stamp')
             return
         self.latest_stamp = max(self.latest_stamp, ns * 1e-9)
-        self._process()
 
     def _on_contacts(self, msg: PointCloud2) -> None:
         try:
@@ -286,6 +321,16 @@ class GaitNode(Node):
             return
         self.latest_stamp = max(self.latest_stamp, cs.stamp)
         self.unprocessed.append(cs)
+
+    def _on_contact_events(self, msg: PointCloud2) -> None:
+        """A contact edge at t_k: read the contacts up to t_k now, not at the next poll."""
+        ns = stamp_to_ns(msg.header.stamp)
+        self.state_input.drain(lambda: round(self.latest_stamp * 1e9) >= ns,
+                               timeout=_ODOM_WAIT)
+        self._process()
+
+    def _poll(self) -> None:
+        self.state_input.drain()
         self._process()
 
     def _process(self) -> None:
@@ -323,6 +368,7 @@ class GaitNode(Node):
     def _replan(self) -> bool:
         """Compute and publish the plan of the pending tick; False while its odom is missing."""
         ns, cs, initial = self.pending
+        self.state_input.drain(lambda: ns in self.odom, timeout=_ODOM_WAIT)
         stamps = self.odom.stamps()
         base = None
         if ns in self.odom:
@@ -333,7 +379,9 @@ class GaitNode(Node):
                 return False               # wait for the sim to send that tick again
         if base is None:
             if not stamps or max(stamps) <= ns:
-                return False               # may still come (the sim republishes while it waits)
+                # May still come: the sim republishes while it waits, and the contacts of
+                # that republish bring us back here.
+                return False
             # A newer odom came: the one of this stamp was lost (best effort, free-run mode).
             nearest = min(stamps, key=lambda s: abs(s - ns))
             try:
@@ -437,6 +485,10 @@ class GaitNode(Node):
                                          z=float(p[2]) + 0.002 * k))   # stacked, readable
             markers.append(poly)
         return MarkerArray(markers=markers)
+
+    def destroy_node(self) -> None:
+        self.state_input.destroy()
+        super().destroy_node()
 
 
 def main(args=None):

@@ -4,9 +4,12 @@
   the actual CoM state at ``t_k``: position and velocity from pinocchio
   (``RobotModel.com_state``) on the ``joint_states`` and ``odom`` of that very stamp (both best
   effort, the last ~100 stamps buffered), acceleration from its own previous plan sampled at
-  ``t_k`` (zero for the first plan). Until both states of ``t_k`` have arrived the request stays
-  pending (a callback never waits); the simulator republishes the state of ``t_k`` while the
-  controller waits for this plan, so it does arrive.
+  ``t_k`` (zero for the first plan). The two state topics are read on demand
+  (``on_demand.OnDemandSubscriptions``): their newest samples wait in the DDS queue and are
+  taken only when a request comes, so the node does not wake at every tick. Until both states
+  of ``t_k`` are there the request stays pending and is retried every ``retry_period``; the
+  simulator republishes the state of ``t_k`` while the controller waits for this plan, so it
+  does arrive.
 - It solves the jerk QP (``replan_core.mpc``, built once, warm-started) and publishes
   ``com_plan``, ``zmp_plan`` and ``com_path`` stamped ``t_k`` (reliable, transient local, depth 1)
   and a ``/diagnostics`` status: solve time, iterations, status, ZMP margin, fallback flag.
@@ -27,8 +30,10 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
@@ -48,7 +53,15 @@ from replan_ros.interfaces import (
     sec_to_stamp,
     stamp_to_ns,
 )
-from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SENSOR
+from replan_ros.on_demand import OnDemandSubscriptions
+from replan_ros.qos import (
+    COMMAND,
+    CONTACTS,
+    INTERNAL_PUB_EVENTS,
+    INTERNAL_SUB_EVENTS,
+    LATCHED,
+    SENSOR,
+)
 from replan_ros.stamped_buffer import RawStampedBuffer
 
 
@@ -73,30 +86,46 @@ class MpcNode(Node):
                       'keep the capture point at the end of the horizon in the last polygon')
         self._declare('eps_abs', d.eps_abs, 'proxsuite absolute tolerance')
         self._declare('max_iter', d.max_iter, 'proxsuite iterations per QP solve')
-        self._declare('state_buffer', 100, 'joint_states / odom stamps kept for the lookup')
+        self._declare('state_buffer', 20,
+                      'joint_states / odom samples queued for the lookup (newest ones)')
+        self._declare('state_wait', 0.02,
+                      'wall s a request waits for the state of its stamp before it is left '
+                      'pending (the state normally arrives before the footholds)')
+        self._declare('retry_period', 0.02, 'wall s between two looks for a pending state')
         self._declare('warn_period', 2.0, 'throttle of repeated warnings, wall s')
         p = {name: self.get_parameter(name).value for name in self._declared}
         self.settings = self._settings(p)
         self.mpc = LipMpc(self.settings)                       # QP built once, here
         self.model = self._robot_model(str(p['urdf_path']))
         self.state_buffer = max(int(p['state_buffer']), 2)
+        self.state_wait = max(float(p['state_wait']), 0.0)
         self.warn_period = float(p['warn_period'])
         self._warned: dict[str, float] = {}
 
-        self.com_plan_pub = self.create_publisher(MultiDOFJointTrajectory, 'com_plan', LATCHED)
-        self.zmp_pub = self.create_publisher(Path, 'zmp_plan', LATCHED)
-        self.com_path_pub = self.create_publisher(Path, 'com_path', LATCHED)
-        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
-        self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED)
-        # Every tick arrives, one tick per re-plan is needed: keep them serialized (raw=True).
-        self.create_subscription(JointStateMsg, 'joint_states', self._on_joint_states, SENSOR,
-                                 raw=True)
-        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR, raw=True)
+        self.com_plan_pub = self.create_publisher(MultiDOFJointTrajectory, 'com_plan', LATCHED,
+                                                  event_callbacks=INTERNAL_PUB_EVENTS)
+        self.zmp_pub = self.create_publisher(Path, 'zmp_plan', LATCHED,
+                                             event_callbacks=INTERNAL_PUB_EVENTS)
+        self.com_path_pub = self.create_publisher(Path, 'com_path', LATCHED,
+                                                  event_callbacks=INTERNAL_PUB_EVENTS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
+                                              event_callbacks=INTERNAL_PUB_EVENTS)
+        self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED,
+                                 event_callbacks=INTERNAL_SUB_EVENTS)
         self.create_subscription(PointCloud2, 'contact_events', self._on_contact_events,
-                                 CONTACTS)
-
+                                 CONTACTS,
+                                 event_callbacks=INTERNAL_SUB_EVENTS)
+        # One tick in ~190 is needed: read on demand, kept serialized until then.
         self.joints = RawStampedBuffer(JointStateMsg, joint_state_from_msg, self.state_buffer)
         self.bases = RawStampedBuffer(Odometry, base_state_from_odom, self.state_buffer)
+        state_qos = QoSProfile(depth=self.state_buffer, reliability=SENSOR.reliability,
+                               durability=SENSOR.durability)
+        self.state_input = OnDemandSubscriptions(self)
+        self.state_input.subscribe(JointStateMsg, 'joint_states', state_qos, self.joints.add)
+        self.state_input.subscribe(Odometry, 'odom', state_qos, self.bases.add)
+        self.retry_timer = self.create_timer(float(p['retry_period']), self._process,
+                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.retry_timer.cancel()
         self.pending: tuple[int, FootholdPlan] | None = None
         self.last_plan: ComPlan | None = None
         self.last_stamp_ns: int | None = None
@@ -147,14 +176,6 @@ class MpcNode(Node):
 
     # ----------------------------------------------------------------------------- inputs
 
-    def _on_joint_states(self, cdr: bytes) -> None:
-        if self.joints.add(cdr) is not None:
-            self._process()
-
-    def _on_odom(self, cdr: bytes) -> None:
-        if self.bases.add(cdr) is not None:
-            self._process()
-
     def _on_footholds(self, msg: PointCloud2) -> None:
         try:
             plan = footholds_from_msg(msg)
@@ -192,16 +213,22 @@ class MpcNode(Node):
     def _process(self) -> None:
         """Solve the pending request once the joint_states and odom of its stamp are here."""
         if self.pending is None:
+            self.retry_timer.cancel()
             return
         ns, plan = self.pending
-        if ns not in self.joints or ns not in self.bases:
-            return
+        arrived = self.state_input.drain(lambda: ns in self.joints and ns in self.bases,
+                                          timeout=self.state_wait)
         try:
-            joints, base = self.joints.get(ns), self.bases.get(ns)
+            joints, base = (self.joints.get(ns), self.bases.get(ns)) if arrived else (None, None)
         except ValueError as err:       # that tick's state is unusable: wait for a re-send
             self._warn('state', f'state at t={ns * 1e-9:.3f} s rejected: {err}')
+            arrived = False
+        if not arrived:
+            if self.retry_timer.is_canceled():
+                self.retry_timer.reset()
             return
         self.pending = None
+        self.retry_timer.cancel()
         self._replan(ns, plan, base, joints)
 
     def _replan(self, ns: int, plan: FootholdPlan, base: BaseState, joints: JointState) -> None:
@@ -262,6 +289,10 @@ class MpcNode(Node):
                 'replans': self.replans,
             })
         self.diag_pub.publish(diagnostics.array(sec_to_stamp(t), st))
+
+    def destroy_node(self) -> None:
+        self.state_input.destroy()
+        super().destroy_node()
 
 
 def main(args=None):

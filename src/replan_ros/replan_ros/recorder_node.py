@@ -3,14 +3,19 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
 
 - Topics are discovered as they appear (graph polled every ``discovery_period`` s) and
   subscribed with ``raw=True``: payloads are stored as received, serialized CDR.
+- The subscriptions are read on demand (``on_demand.py``): their samples wait in the DDS queues
+  (``queue_depth`` each) and are taken every ``take_period`` wall s, all topics at once, and
+  written in the order they were received. One wake-up per period instead of one per message
+  keeps the recorder from slowing the lock-step graph (README, "Performance").
 - The subscription QoS follows the publishers, as rosbag2 does: reliable only if every publisher
   is reliable, transient local only if every publisher is (so latched plans are received).
-- Times: ``log_time`` = receive time on the node clock (sim time with ``use_sim_time``, as
-  ``ros2 bag record --use-sim-time``); ``publish_time`` per ``publish_time`` parameter: ``source``
+- Times: ``log_time`` = the node clock (sim time with ``use_sim_time``, as
+  ``ros2 bag record --use-sim-time``) when the message was taken, within ``take_period`` of its
+  arrival; ``publish_time`` per ``publish_time`` parameter: ``source``
   (the DDS source timestamp, wall clock: what rosbag2 writes), ``header`` (``header.stamp`` where
   the type has a header, else the receive time) or ``receive``.
-- Callbacks only queue the bytes; a writer thread compresses and writes, so the executor keeps up
-  with the graph's rates. Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s.
+- Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s (a writer thread closes them
+  when nothing is recorded).
 - The run's configuration goes in mcap metadata records: ``replan_run`` (git revision, recorder
   parameters, command line, ...), ``replan_config`` (path -> content of each ``config_files``
   entry), ``replan_scenario`` (``scenario_file``), ``replan_user`` (``metadata_json``).
@@ -53,7 +58,8 @@ from replan_ros.bag_io import (
     qos_profiles_yaml,
 )
 from replan_ros.introspection import message_class
-from replan_ros.qos import COMMAND
+from replan_ros.on_demand import OnDemandSubscriptions
+from replan_ros.qos import COMMAND, INTERNAL_PUB_EVENTS
 from replan_ros.stamped_buffer import cdr_header_stamp_ns
 
 _PUBLISH_TIME_SOURCES = ('source', 'header', 'receive')
@@ -80,7 +86,6 @@ class _Topic:
         self.type_name = type_name
         self.channel_id = channel_id
         self.stamp_in_header = stamp_in_header
-        self.subscription = None
         self.received = 0
         self.written = 0
 
@@ -102,7 +107,8 @@ class RecorderNode(Node):
         self._declare('include_hidden', False, 'also record hidden topics (a part starts with _)')
         self._declare('discovery_period', 0.5, 'period of the graph poll for new topics, s')
         self._declare('queue_depth', 1000,
-                      'history depth of each subscription (absorbs executor stalls), messages')
+                      'history depth of each subscription: messages kept until taken')
+        self._declare('take_period', 0.02, 'wall s between two takes of the queued messages')
         self._declare('chunk_size', 1 << 20,
                       'close an mcap chunk at this many uncompressed bytes (bounds SIGKILL loss)')
         self._declare('chunk_interval', 1.0,
@@ -153,7 +159,10 @@ class RecorderNode(Node):
         self._thread = threading.Thread(target=self._write_loop, name='bag_writer', daemon=True)
         self._thread.start()
 
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
+        self._input = OnDemandSubscriptions(self)
+        self._batch: list[tuple[int, int, _Topic, bytes, int]] = []
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
+                                               event_callbacks=INTERNAL_PUB_EVENTS)
         # Discovery and diagnostics run on the steady clock: a ROS timer under sim time would
         # stop whenever /clock does (before the sim starts, or when it is paused).
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -161,6 +170,7 @@ class RecorderNode(Node):
                                                   clock=steady)
         self._diag_timer = self.create_timer(float(p['diagnostics_period']), self._report,
                                              clock=steady)
+        self._take_timer = self.create_timer(float(p['take_period']), self.take, clock=steady)
         self.get_logger().info(f'recording to {self.path}')
         self._discover()
 
@@ -182,7 +192,7 @@ class RecorderNode(Node):
     def _params(self) -> dict:
         names = ('output', 'output_dir', 'topics', 'topics_regex', 'exclude_regex',
                  'include_hidden',
-                 'discovery_period', 'queue_depth', 'chunk_size', 'chunk_interval',
+                 'discovery_period', 'queue_depth', 'take_period', 'chunk_size', 'chunk_interval',
                  'compression', 'publish_time', 'config_files', 'scenario_file',
                  'metadata_json', 'diagnostics_period')
         values = {}
@@ -306,37 +316,47 @@ class RecorderNode(Node):
         entry = _Topic(topic, type_name, channel_id, stamp_in_header)
         self._recorded[topic] = entry
         # The channel exists before the first message can arrive.
-        entry.subscription = self.create_subscription(
-            msg_type, topic, self._make_callback(entry), qos, raw=True)
+        self._input.subscribe(msg_type, topic, qos, self._make_callback(entry), raw=True,
+                              with_info=True)
         self.get_logger().info(
             f'recording {topic} [{type_name}] '
             f'({"reliable" if reliable else "best effort"}'
             f'{", transient local" if latched else ""})')
 
     def _make_callback(self, entry: _Topic):
-        clock = self.get_clock()
-        lock, write = self._lock, self._write_one
-        mode = self._publish_time
+        batch = self._batch
 
         def on_message(data: bytes, info: dict) -> None:
             entry.received += 1
-            log_time = clock.now().nanoseconds
-            if mode == 'source':
-                publish_time = info.get('source_timestamp') or log_time
-            elif mode == 'header' and entry.stamp_in_header:
-                publish_time = cdr_header_stamp_ns(data)
-                if publish_time is None:
-                    publish_time = log_time
-            else:
-                publish_time = log_time
-            # Written here, not handed to the writer thread: a hand-off per message costs a GIL
-            # switch each, which measured as the recorder's largest cost at the graph's rates.
-            # A chunk compression stalls this callback for a few ms; the subscriptions' history
-            # depth (queue_depth) absorbs that.
-            with lock:
-                write(entry, data, log_time, publish_time)
+            batch.append((info.get('received_timestamp', 0), len(batch), entry, data,
+                          info.get('source_timestamp', 0)))
 
         return on_message
+
+    def take(self) -> int:
+        """Take every queued message of every topic and write them in the order they were
+        received. Returns how many."""
+        if self._closed:
+            return 0
+        self._input.drain()
+        if not self._batch:
+            return 0
+        self._batch.sort(key=lambda item: (item[0], item[1]))
+        log_time = self.get_clock().now().nanoseconds
+        # Written here, not handed to the writer thread: a hand-off per message costs a GIL
+        # switch each, which measured as the recorder's largest cost at the graph's rates.
+        with self._lock:
+            for _, _, entry, data, source_time in self._batch:
+                if self._publish_time == 'source':
+                    publish_time = source_time or log_time
+                elif self._publish_time == 'header' and entry.stamp_in_header:
+                    publish_time = cdr_header_stamp_ns(data) or log_time
+                else:
+                    publish_time = log_time
+                self._write_one(entry, data, log_time, publish_time)
+        count = len(self._batch)
+        self._batch.clear()
+        return count
 
     # ------------------------------------------------------------------ writing
 
@@ -403,11 +423,9 @@ class RecorderNode(Node):
         """Stop subscriptions, write what is queued, finish the file (summary and indexes)."""
         if self._closed:
             return
+        self.take()
         self._closed = True
-        for entry in self._recorded.values():
-            if entry.subscription is not None:
-                self.destroy_subscription(entry.subscription)
-                entry.subscription = None
+        self._input.destroy()
         self._queue.put(None)
         self._thread.join(timeout=30.0)
         with self._lock:
@@ -445,12 +463,11 @@ def main(args=None):
         while not stop and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
         end = time.monotonic() + DRAIN_LIMIT
-        last_count, quiet_since = node.received_count(), time.monotonic()
+        quiet_since = time.monotonic()
         while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
-            executor.spin_once(timeout_sec=0.05)
-            count = node.received_count()
-            if count != last_count:
-                last_count, quiet_since = count, time.monotonic()
+            if node.take():
+                quiet_since = time.monotonic()
+            time.sleep(0.05)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

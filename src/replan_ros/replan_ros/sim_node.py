@@ -89,14 +89,22 @@ class SimNode(Node):
         self.damping_gain: float = p['damping_gain']
         self.rtf_target: float = max(p['real_time_factor'], 1e-3)
 
-        self.clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK)
-        self.joint_pub = self.create_publisher(JointState, 'joint_states', qos.SENSOR)
-        self.odom_pub = self.create_publisher(Odometry, 'odom', qos.SENSOR)
-        self.contacts_pub = self.create_publisher(PointCloud2, 'contacts', qos.CONTACTS)
-        self.events_pub = self.create_publisher(PointCloud2, 'contact_events', qos.CONTACTS)
-        self.applied_pub = self.create_publisher(WrenchStamped, 'applied_wrench', qos.SCHEDULE)
-        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.COMMAND)
-        self.create_subscription(JointState, 'joint_torque_cmd', self._on_command, qos.COMMAND)
+        self.clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK,
+                                               event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.joint_pub = self.create_publisher(JointState, 'joint_states', qos.SENSOR,
+                                               event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.odom_pub = self.create_publisher(Odometry, 'odom', qos.SENSOR,
+                                              event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.contacts_pub = self.create_publisher(PointCloud2, 'contacts', qos.CONTACTS,
+                                                  event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.events_pub = self.create_publisher(PointCloud2, 'contact_events', qos.CONTACTS,
+                                                event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.applied_pub = self.create_publisher(WrenchStamped, 'applied_wrench', qos.SCHEDULE,
+                                                 event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.COMMAND,
+                                              event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.create_subscription(JointState, 'joint_torque_cmd', self._on_command, qos.COMMAND,
+                                 event_callbacks=qos.INTERNAL_SUB_EVENTS)
         self.create_subscription(WrenchStamped, 'external_wrench', self._on_wrench,
                                  qos.SCHEDULE)
 

@@ -50,12 +50,21 @@ from replan_ros.interfaces import (
     stamp_to_ns,
     torque_cmd_to_msg,
 )
-from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SENSOR
+from replan_ros.on_demand import OnDemandSubscriptions
+from replan_ros.qos import (
+    COMMAND,
+    CONTACTS,
+    INTERNAL_PUB_EVENTS,
+    INTERNAL_SUB_EVENTS,
+    LATCHED,
+    SENSOR,
+)
 
 _NS = 1_000_000_000
 _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead of the ticks)
 _KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
 _KEEP_STATES = 50        # partial state triples kept per topic while waiting for the rest
+_STATE_WAIT = 0.01       # wall s to wait for the joint_states / odom of a contacts tick
 
 
 class WbcNode(Node):
@@ -158,13 +167,22 @@ class WbcNode(Node):
         self._period_fallbacks = 0
         self._ticks = 0
 
-        self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND)
-        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND)
-        self.create_subscription(JointStateMsg, 'joint_states', self._on_joint_states, SENSOR)
-        self.create_subscription(Odometry, 'odom', self._on_odom, SENSOR)
-        self.create_subscription(PointCloud2, 'contacts', self._on_contacts, CONTACTS)
-        self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED)
-        self.create_subscription(MultiDOFJointTrajectory, 'com_plan', self._on_com_plan, LATCHED)
+        self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND,
+                                             event_callbacks=INTERNAL_PUB_EVENTS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
+                                              event_callbacks=INTERNAL_PUB_EVENTS)
+        # One wake-up per tick: the sim publishes contacts last, so when they arrive the
+        # joint_states and odom of the tick are queued, and are taken then (on_demand.py).
+        self.create_subscription(PointCloud2, 'contacts', self._on_contacts, CONTACTS,
+                                 event_callbacks=INTERNAL_SUB_EVENTS)
+        self.state_input = OnDemandSubscriptions(self)
+        self.state_input.subscribe(JointStateMsg, 'joint_states', SENSOR,
+                                   self._on_joint_states, raw=False)
+        self.state_input.subscribe(Odometry, 'odom', SENSOR, self._on_odom, raw=False)
+        self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED,
+                                 event_callbacks=INTERNAL_SUB_EVENTS)
+        self.create_subscription(MultiDOFJointTrajectory, 'com_plan', self._on_com_plan, LATCHED,
+                                 event_callbacks=INTERNAL_SUB_EVENTS)
         self.create_timer(float(p['diagnostics_period']), self._publish_diagnostics,
                           clock=self._wall)
         self.get_logger().info(
@@ -196,12 +214,17 @@ class WbcNode(Node):
         self._store(self._odom, stamp_to_ns(msg.header.stamp), base)
 
     def _on_contacts(self, msg: PointCloud2) -> None:
+        stamp = stamp_to_ns(msg.header.stamp)
+        # The tick's other two messages were published before this one; should one have been
+        # lost (best effort), the sim's republish of the tick brings it again.
+        self.state_input.drain(lambda: stamp in self._joints and stamp in self._odom,
+                               timeout=_STATE_WAIT)
         try:
             state = contacts_from_msg(msg)
         except ValueError as error:
             self._warn(f'rejected contacts: {error}')
             return
-        self._store(self._contacts, stamp_to_ns(msg.header.stamp), state)
+        self._store(self._contacts, stamp, state)
 
     def _store(self, buffer: dict, stamp: int, value) -> None:
         buffer[stamp] = value
@@ -435,6 +458,10 @@ class WbcNode(Node):
                  else self.get_clock().now().to_msg())
         self.diag_pub.publish(diagnostics.array(stamp, diagnostics.status('wbc', level, message,
                                                                           values)))
+
+    def destroy_node(self) -> None:
+        self.state_input.destroy()
+        super().destroy_node()
 
 
 def main(args=None):

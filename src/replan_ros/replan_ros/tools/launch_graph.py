@@ -31,6 +31,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from replan_ros import qos
+from replan_ros.on_demand import helper_name
 
 NODES = ('sim', 'gait', 'mpc', 'wbc')
 # Published by sim, gait and mpc as soon as they are up; with a recorder in the graph the wbc,
@@ -160,7 +161,7 @@ class Graph:
         missing = list(RECORDED_BEFORE_START)
         while time.monotonic() < deadline:
             missing = [t for t in RECORDED_BEFORE_START
-                       if not any(info.node_name == 'recorder' for info in
+                       if not any(info.node_name == helper_name('recorder') for info in
                                   watch.node.get_subscriptions_info_by_topic(t))]
             if not missing:
                 return
