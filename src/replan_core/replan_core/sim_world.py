@@ -18,6 +18,7 @@ Conventions:
 from __future__ import annotations
 
 import contextlib
+import math
 
 import numpy as np
 import pybullet
@@ -212,20 +213,29 @@ class SimWorld:
                 continue
             # c[7] is the normal on B pointing to A: the push of the ground on the foot; the
             # friction impulses along lateralFrictionDir1/2 act on A with the same sign
-            # (checked in test_sim_world: the GRFs balance a horizontal push).
-            force[k] += (c[9] * np.array(c[7]) + c[10] * np.array(c[11])
-                         + c[12] * np.array(c[13]))
-            normal[k] += c[9]
+            # (checked in test_sim_world: the GRFs balance a horizontal push). Plain floats:
+            # this runs per contact point and physics step.
+            fn, f1, f2 = c[9], c[10], c[12]
+            n, d1, d2 = c[7], c[11], c[13]
+            row = force[k]
+            row[0] += fn * n[0] + f1 * d1[0] + f2 * d2[0]
+            row[1] += fn * n[1] + f1 * d1[1] + f2 * d2[1]
+            row[2] += fn * n[2] + f1 * d1[2] + f2 * d2[2]
+            normal[k] += fn
 
     # ------------------------------------------------------------------ sensing
     def base_state(self) -> BaseState:
         """Pose of base_link in the world and its twist (world frame) at the current tick."""
-        pos, quat = self._base_pose()
-        v_com, omega = (np.array(v) for v in self._p.getBaseVelocity(self._robot))
-        com = np.array(self._p.getBasePositionAndOrientation(self._robot)[0])
-        v_origin = v_com + np.cross(omega, pos - com)    # rigid-body velocity transfer
+        pos, quat, com = self._base_pose(with_com=True)
+        v_com, omega = self._p.getBaseVelocity(self._robot)
+        # Rigid-body velocity transfer v_origin = v_com + omega x (origin - com); plain floats:
+        # numpy costs more than the arithmetic on 3-vectors, at every tick.
+        rx, ry, rz = pos[0] - com[0], pos[1] - com[1], pos[2] - com[2]
+        wx, wy, wz = omega
+        v_origin = np.array([v_com[0] + wy * rz - wz * ry, v_com[1] + wz * rx - wx * rz,
+                             v_com[2] + wx * ry - wy * rx])
         return BaseState(stamp=self.time, position=pos, quaternion=quat,
-                         linear_velocity=v_origin, angular_velocity=omega)
+                         linear_velocity=v_origin, angular_velocity=np.array(omega))
 
     def joint_state(self) -> JointState:
         """Joint positions, velocities and the torques actually applied (after clipping)."""
@@ -265,12 +275,15 @@ class SimWorld:
 
     # ------------------------------------------------------------------ internals
     # Pose conversions in numpy: pybullet.multiplyTransforms computes in single precision.
-    def _base_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        com_pos, com_quat = (np.array(v) for v in
-                             self._p.getBasePositionAndOrientation(self._robot))
+    def _base_pose(self, with_com: bool = False):
+        """(position, quaternion) of base_link in the world; with ``with_com`` also the
+        position of the base's inertial frame, which pybullet reports."""
+        com_pos, com_quat = self._p.getBasePositionAndOrientation(self._robot)
+        com_pos = np.array(com_pos)
         quat = _quat_mul(com_quat, _quat_conj(self._local_quat))
-        quat /= np.linalg.norm(quat)
-        return com_pos - _quat_rotate(quat, self._local_pos), quat
+        quat /= math.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
+        pose = com_pos - _quat_rotate(quat, self._local_pos), quat
+        return (*pose, com_pos) if with_com else pose
 
     def _set_base_pose(self, pos: np.ndarray, quat: np.ndarray) -> None:
         com_pos = pos + _quat_rotate(quat, self._local_pos)
@@ -369,6 +382,9 @@ def _quat_conj(q: np.ndarray) -> np.ndarray:
 
 
 def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vector v by the unit quaternion q (x, y, z, w)."""
-    u, w = np.asarray(q[:3]), q[3]
-    return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
+    """Rotate vector v by the unit quaternion q (x, y, z, w): v + 2 u x (u x v + w v)."""
+    ux, uy, uz, w = q
+    vx, vy, vz = v
+    tx, ty, tz = uy * vz - uz * vy + w * vx, uz * vx - ux * vz + w * vy, ux * vy - uy * vx + w * vz
+    return np.array([vx + 2.0 * (uy * tz - uz * ty), vy + 2.0 * (uz * tx - ux * tz),
+                     vz + 2.0 * (ux * ty - uy * tx)])

@@ -126,7 +126,7 @@ class GaitNode(Node):
         self._declare('cmd_vel_reject_above', 10.0,
                       'a cmd_vel component above this magnitude is absurd and rejected (m/s, '
                       'rad/s); smaller ones beyond the limits are clamped')
-        self._declare('contacts_poll_period', 0.01,
+        self._declare('contacts_poll_period', 0.02,
                       'wall s between two reads of the queued contacts ticks; a contact event '
                       'reads them at once. It bounds the delay of a re-plan whose touchdown has '
                       'no contact event (haptic off, forced)')

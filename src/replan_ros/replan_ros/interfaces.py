@@ -6,11 +6,12 @@ used by every producer and consumer so the two sides cannot drift apart.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
-from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Transform, Twist, Vector3
+from geometry_msgs.msg import Point, PoseStamped, Quaternion, Transform, Twist, Vector3
 from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2, PointField
@@ -78,6 +79,20 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
+def _rotate(q, v, inverse: bool = False) -> tuple[float, float, float]:
+    """v rotated by the unit quaternion q (x, y, z, w), or by its inverse. Plain floats: these run
+    for every state message, and numpy costs more than the arithmetic on 3-vectors."""
+    x, y, z, w = (float(c) for c in q)
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    if inverse:
+        x, y, z = -x, -y, -z
+    vx, vy, vz = (float(c) for c in v)
+    tx, ty, tz = y * vz - z * vy + w * vx, z * vx - x * vz + w * vy, x * vy - y * vx + w * vz
+    return (vx + 2.0 * (y * tz - z * ty), vy + 2.0 * (z * tx - x * tz),
+            vz + 2.0 * (x * ty - y * tx))
+
+
 def yaw_of(q: np.ndarray) -> float:
     x, y, z, w = q
     return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
@@ -85,6 +100,9 @@ def yaw_of(q: np.ndarray) -> float:
 
 # ---------------------------------------------------------------------------------------------
 # Joint states and torque commands
+
+
+_JOINT_NAME_LIST = list(JOINT_NAMES)
 
 
 def joint_state_to_msg(js: JointState) -> JointStateMsg:
@@ -116,10 +134,17 @@ def joint_state_from_msg(msg: JointStateMsg) -> JointState:
     names = list(msg.name)
     if len(names) != len(JOINT_NAMES):
         raise ValueError(f'joint_states: {len(names)} joints, expected {len(JOINT_NAMES)}')
-    position = _reorder(names, msg.position, 'joint_states.position')
-    velocity = _reorder(names, msg.velocity, 'joint_states.velocity')
-    effort = (_reorder(names, msg.effort, 'joint_states.effort') if len(msg.effort)
-              else np.zeros(len(JOINT_NAMES)))
+    n = len(JOINT_NAMES)
+    if (names == _JOINT_NAME_LIST and len(msg.position) == n and len(msg.velocity) == n
+            and len(msg.effort) in (0, n)):      # the sim's order: no reordering needed
+        position = np.array(msg.position, dtype=float)
+        velocity = np.array(msg.velocity, dtype=float)
+        effort = np.array(msg.effort, dtype=float) if len(msg.effort) else np.zeros(n)
+    else:
+        position = _reorder(names, msg.position, 'joint_states.position')
+        velocity = _reorder(names, msg.velocity, 'joint_states.velocity')
+        effort = (_reorder(names, msg.effort, 'joint_states.effort') if len(msg.effort)
+                  else np.zeros(n))
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))):
         raise ValueError('joint_states: non-finite joint positions or velocities')
     return JointState(stamp_to_sec(msg.header.stamp), position, velocity, effort)
@@ -154,14 +179,13 @@ def odom_from_base_state(bs: BaseState) -> Odometry:
     msg.header = header(bs.stamp, WORLD_FRAME)
     msg.child_frame_id = BASE_FRAME
     p, q = bs.position, bs.quaternion
-    msg.pose.pose = Pose(position=Point(x=float(p[0]), y=float(p[1]), z=float(p[2])),
-                         orientation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]),
-                                                w=float(q[3])))
-    rot_t = quat_to_matrix(q).T
-    v = rot_t @ bs.linear_velocity
-    w = rot_t @ bs.angular_velocity
-    msg.twist.twist = Twist(linear=Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2])),
-                            angular=Vector3(x=float(w[0]), y=float(w[1]), z=float(w[2])))
+    position, orientation = msg.pose.pose.position, msg.pose.pose.orientation
+    position.x, position.y, position.z = float(p[0]), float(p[1]), float(p[2])
+    orientation.x, orientation.y = float(q[0]), float(q[1])
+    orientation.z, orientation.w = float(q[2]), float(q[3])
+    linear, angular = msg.twist.twist.linear, msg.twist.twist.angular
+    linear.x, linear.y, linear.z = _rotate(q, bs.linear_velocity, inverse=True)
+    angular.x, angular.y, angular.z = _rotate(q, bs.angular_velocity, inverse=True)
     return msg
 
 
@@ -169,17 +193,16 @@ def base_state_from_odom(msg: Odometry) -> BaseState:
     """Base state with the twist in the world frame; ValueError on a non-finite pose or twist
     or a quaternion that is not one."""
     p, o = msg.pose.pose.position, msg.pose.pose.orientation
-    q = np.array([o.x, o.y, o.z, o.w])
+    q = (o.x, o.y, o.z, o.w)
     lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
-    values = np.array([p.x, p.y, p.z, lin.x, lin.y, lin.z, ang.x, ang.y, ang.z])
-    if not (np.all(np.isfinite(values)) and np.all(np.isfinite(q))
-            and abs(np.linalg.norm(q) - 1.0) < 0.1):
+    values = (p.x, p.y, p.z, lin.x, lin.y, lin.z, ang.x, ang.y, ang.z, *q)
+    if not (all(math.isfinite(v) for v in values)
+            and abs(math.sqrt(sum(c * c for c in q)) - 1.0) < 0.1):
         raise ValueError('odom: non-finite pose or twist, or not a unit quaternion')
-    rot = quat_to_matrix(q)
     return BaseState(stamp=stamp_to_sec(msg.header.stamp),
-                     position=np.array([p.x, p.y, p.z]), quaternion=q,
-                     linear_velocity=rot @ np.array([lin.x, lin.y, lin.z]),
-                     angular_velocity=rot @ np.array([ang.x, ang.y, ang.z]))
+                     position=np.array([p.x, p.y, p.z]), quaternion=np.array(q),
+                     linear_velocity=np.array(_rotate(q, (lin.x, lin.y, lin.z))),
+                     angular_velocity=np.array(_rotate(q, (ang.x, ang.y, ang.z))))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -191,13 +214,17 @@ _NUMPY_OF_FIELD = {PointField.INT8: 'i1', PointField.UINT8: 'u1', PointField.INT
 _FIELD_OF_NUMPY = {np.dtype(v).str: k for k, v in _NUMPY_OF_FIELD.items()}
 
 
+@functools.lru_cache(maxsize=16)
+def _point_fields(dtype: np.dtype) -> tuple[PointField, ...]:
+    """The PointField layout of a table dtype, built once (never modified afterwards)."""
+    return tuple(PointField(name=name, offset=dtype.fields[name][1],
+                            datatype=_FIELD_OF_NUMPY[dtype.fields[name][0].str], count=1)
+                 for name in dtype.names)
+
+
 def table_to_cloud(hdr: Header, table: np.ndarray) -> PointCloud2:
     """Pack a 1-D numpy structured array (no padding) into a PointCloud2."""
-    fields = []
-    for name in table.dtype.names:
-        dtype, offset = table.dtype.fields[name][:2]
-        fields.append(PointField(name=name, offset=offset, datatype=_FIELD_OF_NUMPY[dtype.str],
-                                 count=1))
+    fields = list(_point_fields(table.dtype))
     msg = PointCloud2(header=hdr, height=1, width=len(table), fields=fields,
                       is_bigendian=False, point_step=table.dtype.itemsize,
                       row_step=table.dtype.itemsize * len(table), is_dense=True)
@@ -205,14 +232,20 @@ def table_to_cloud(hdr: Header, table: np.ndarray) -> PointCloud2:
     return msg
 
 
+@functools.lru_cache(maxsize=16)
+def _table_dtype(fields: tuple[tuple[str, int, int], ...], itemsize: int) -> np.dtype:
+    """The numpy dtype of a PointCloud2 layout; a few layouts recur at every message."""
+    return np.dtype({'names': [name for name, _, _ in fields],
+                     'formats': [_NUMPY_OF_FIELD[datatype] for _, datatype, _ in fields],
+                     'offsets': [offset for _, _, offset in fields], 'itemsize': itemsize})
+
+
 def cloud_to_table(msg: PointCloud2, required: tuple[str, ...] = ()) -> np.ndarray:
     """Unpack a PointCloud2 written by ``table_to_cloud`` (or any little-endian flat one)."""
     if msg.is_bigendian:
         raise ValueError('big-endian PointCloud2 tables are not supported')
-    dtype = np.dtype({'names': [f.name for f in msg.fields],
-                      'formats': [_NUMPY_OF_FIELD[f.datatype] for f in msg.fields],
-                      'offsets': [f.offset for f in msg.fields],
-                      'itemsize': msg.point_step})
+    dtype = _table_dtype(tuple((f.name, f.datatype, f.offset) for f in msg.fields),
+                         msg.point_step)
     missing = [name for name in required if name not in dtype.names]
     if missing:
         raise ValueError(f'table misses fields {missing}')
@@ -233,10 +266,13 @@ FOOTHOLD_DTYPE = np.dtype([('x', '<f8'), ('y', '<f8'), ('z', '<f8'), ('leg', 'u1
 
 def _contact_table(cs: ContactState, rows: np.ndarray) -> np.ndarray:
     table = np.zeros(len(rows), dtype=CONTACT_DTYPE)
-    for out, leg in enumerate(rows):
-        pos, force = cs.foot_position[leg], cs.force[leg]
-        table[out] = (pos[0], pos[1], pos[2], leg, force[0], force[1], force[2],
-                      cs.contact[leg], cs.touchdown[leg], cs.liftoff[leg])
+    position, force = np.asarray(cs.foot_position)[rows], np.asarray(cs.force)[rows]
+    table['x'], table['y'], table['z'] = position[:, 0], position[:, 1], position[:, 2]
+    table['leg'] = rows
+    table['fx'], table['fy'], table['fz'] = force[:, 0], force[:, 1], force[:, 2]
+    table['contact'] = np.asarray(cs.contact)[rows]
+    table['touchdown'] = np.asarray(cs.touchdown)[rows]
+    table['liftoff'] = np.asarray(cs.liftoff)[rows]
     return table
 
 
