@@ -241,6 +241,7 @@ class GaitNode(Node):
         self.plan: FootholdPlan | None = None
         self.tracker: StepTracker | None = None
         self.last_tick_ns: int | None = None
+        self.tick_ns: int | None = None    # the control period, as seen in the stamps
         self.pending: tuple[int, ContactState, bool] | None = None   # (stamp, contacts, initial)
         self.unprocessed: deque[ContactState] = deque()
         self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
@@ -349,6 +350,14 @@ class GaitNode(Node):
                         f'{cs.stamp:.3f} s')
         if self.last_tick_ns is not None and ns == self.last_tick_ns:
             return                          # a republished state: already decided
+        if self.last_tick_ns is not None:
+            gap = ns - self.last_tick_ns
+            self.tick_ns = min(self.tick_ns or gap, gap)
+            if gap > 1.5 * self.tick_ns:    # the queue overflowed (this node was starved)
+                self._warn('ticks lost',
+                           f'contacts ticks lost between {self.last_tick_ns * 1e-9:.3f} s and '
+                           f'{cs.stamp:.3f} s: the touchdown rule may disagree with the '
+                           'controller until the next plan')
         self.last_tick_ns = ns
         if self.tracker is None:
             self.pending = (ns, cs, True)  # the first state seen: the initial plan
