@@ -31,7 +31,6 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
@@ -67,6 +66,7 @@ from replan_ros.qos import (
     LATCHED,
     SCHEDULE,
     SENSOR,
+    with_depth,
 )
 from replan_ros.stamped_buffer import RawStampedBuffer
 
@@ -76,7 +76,8 @@ _LEG_COLOURS = ((0.9, 0.2, 0.2), (0.2, 0.7, 0.2), (0.2, 0.4, 0.9), (0.9, 0.7, 0.
 _POLYGON_ORDER = (0, 1, 3, 2)
 _ODOM_QUEUE = 20         # newest odom samples queued until a re-plan reads them
 _CONTACTS_QUEUE = 500    # contacts ticks queued between two reads (2 s at 250 Hz): none lost
-_ODOM_WAIT = 0.02        # wall s a re-plan waits for the odom of its stamp before it retries
+_STATE_WAIT = 0.02       # wall s to wait for a due sample (odom of a re-plan, contacts of an
+                         # event) before going on; the sim republishes a tick it waits at
 
 
 class GaitNode(Node):
@@ -157,16 +158,12 @@ class GaitNode(Node):
         # the tracker, but in batches, when a contact event says a touchdown may have come or
         # every contacts_poll_period; odom only at a re-plan.
         self.state_input = OnDemandSubscriptions(self)
-        self.state_input.subscribe(
-            PointCloud2, 'contacts',
-            QoSProfile(depth=_CONTACTS_QUEUE, reliability=CONTACTS.reliability,
-                       durability=CONTACTS.durability), self._on_contacts, raw=False)
-        self.state_input.subscribe(
-            Odometry, 'odom', QoSProfile(depth=_ODOM_QUEUE, reliability=SENSOR.reliability,
-                                         durability=SENSOR.durability), self._on_odom)
+        self.state_input.subscribe(PointCloud2, 'contacts', with_depth(CONTACTS, _CONTACTS_QUEUE),
+                                   self._on_contacts, raw=False)
+        self.state_input.subscribe(Odometry, 'odom', with_depth(SENSOR, _ODOM_QUEUE),
+                                   self._on_odom)
         self.create_subscription(PointCloud2, 'contact_events', self._on_contact_events,
-                                 CONTACTS,
-                                 event_callbacks=INTERNAL_SUB_EVENTS)
+                                 CONTACTS, event_callbacks=INTERNAL_SUB_EVENTS)
         self.create_timer(float(p['contacts_poll_period']), self._poll,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -327,7 +324,7 @@ class GaitNode(Node):
         """A contact edge at t_k: read the contacts up to t_k now, not at the next poll."""
         ns = stamp_to_ns(msg.header.stamp)
         self.state_input.drain(lambda: round(self.latest_stamp * 1e9) >= ns,
-                               timeout=_ODOM_WAIT)
+                               timeout=_STATE_WAIT)
         self._process()
 
     def _poll(self) -> None:
@@ -377,7 +374,7 @@ class GaitNode(Node):
     def _replan(self) -> bool:
         """Compute and publish the plan of the pending tick; False while its odom is missing."""
         ns, cs, initial = self.pending
-        self.state_input.drain(lambda: ns in self.odom, timeout=_ODOM_WAIT)
+        self.state_input.drain(lambda: ns in self.odom, timeout=_STATE_WAIT)
         stamps = self.odom.stamps()
         base = None
         if ns in self.odom:

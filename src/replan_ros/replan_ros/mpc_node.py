@@ -33,7 +33,6 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
 from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
@@ -61,6 +60,7 @@ from replan_ros.qos import (
     INTERNAL_SUB_EVENTS,
     LATCHED,
     SENSOR,
+    with_depth,
 )
 from replan_ros.stamped_buffer import RawStampedBuffer
 
@@ -113,13 +113,11 @@ class MpcNode(Node):
         self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED,
                                  event_callbacks=INTERNAL_SUB_EVENTS)
         self.create_subscription(PointCloud2, 'contact_events', self._on_contact_events,
-                                 CONTACTS,
-                                 event_callbacks=INTERNAL_SUB_EVENTS)
+                                 CONTACTS, event_callbacks=INTERNAL_SUB_EVENTS)
         # One tick in ~190 is needed: read on demand, kept serialized until then.
         self.joints = RawStampedBuffer(JointStateMsg, joint_state_from_msg, self.state_buffer)
         self.bases = RawStampedBuffer(Odometry, base_state_from_odom, self.state_buffer)
-        state_qos = QoSProfile(depth=self.state_buffer, reliability=SENSOR.reliability,
-                               durability=SENSOR.durability)
+        state_qos = with_depth(SENSOR, self.state_buffer)
         self.state_input = OnDemandSubscriptions(self)
         self.state_input.subscribe(JointStateMsg, 'joint_states', state_qos, self.joints.add)
         self.state_input.subscribe(Odometry, 'odom', state_qos, self.bases.add)

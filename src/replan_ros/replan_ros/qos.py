@@ -31,6 +31,12 @@ LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                      reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
+def with_depth(profile: QoSProfile, depth: int) -> QoSProfile:
+    """``profile`` with another history depth (a reader queue sized for its consumer)."""
+    return QoSProfile(depth=depth, history=profile.history, reliability=profile.reliability,
+                      durability=profile.durability)
+
+
 CLOCK = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                    reliability=ReliabilityPolicy.RELIABLE,
                    durability=DurabilityPolicy.VOLATILE)

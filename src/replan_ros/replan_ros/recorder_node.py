@@ -14,8 +14,8 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
   arrival; ``publish_time`` per ``publish_time`` parameter: ``source``
   (the DDS source timestamp, wall clock: what rosbag2 writes), ``header`` (``header.stamp`` where
   the type has a header, else the receive time) or ``receive``.
-- Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s (a writer thread closes them
-  when nothing is recorded).
+- Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s (checked at every take, so also
+  when nothing is recorded). Everything runs in the executor's thread.
 - The run's configuration goes in mcap metadata records: ``replan_run`` (git revision, recorder
   parameters, command line, ...), ``replan_config`` (path -> content of each ``config_files``
   entry), ``replan_scenario`` (``scenario_file``), ``replan_user`` (``metadata_json``).
@@ -27,13 +27,11 @@ from __future__ import annotations
 
 import json
 import os
-import queue
 import re
 import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 from datetime import datetime
 from pathlib import Path
@@ -147,17 +145,13 @@ class RecorderNode(Node):
                                  chunk_interval=float(p['chunk_interval']),
                                  compression=p['compression'],
                                  library='replan_ros recorder_node (mcap-python)')
-        self._lock = threading.Lock()   # guards self._writer (writer thread vs. discovery)
         self._write_config(p)
 
         self._recorded: dict[str, _Topic] = {}
         self._skipped: set[str] = set()
         self._warned: set[str] = set()
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._write_errors = 0
         self._closed = False
-        self._thread = threading.Thread(target=self._write_loop, name='bag_writer', daemon=True)
-        self._thread.start()
 
         self._input = OnDemandSubscriptions(self)
         self._batch: list[tuple[int, int, _Topic, bytes, int]] = []
@@ -309,13 +303,12 @@ class RecorderNode(Node):
             durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
                         else DurabilityPolicy.VOLATILE))
         type_hash = str(publishers[0].topic_type_hash)
-        with self._lock:
-            channel_id = self._writer.add_channel(
-                topic, normalize_type_name(type_name), qos_profiles_yaml(profiles), type_hash,
-                definition=definition)
+        channel_id = self._writer.add_channel(
+            topic, normalize_type_name(type_name), qos_profiles_yaml(profiles), type_hash,
+            definition=definition)
         entry = _Topic(topic, type_name, channel_id, stamp_in_header)
         self._recorded[topic] = entry
-        # The channel exists before the first message can arrive.
+        # The channel exists before the first message can be taken.
         self._input.subscribe(msg_type, topic, qos, self._make_callback(entry), raw=True,
                               with_info=True)
         self.get_logger().info(
@@ -339,46 +332,22 @@ class RecorderNode(Node):
         if self._closed:
             return 0
         self._input.drain()
-        if not self._batch:
-            return 0
         self._batch.sort(key=lambda item: (item[0], item[1]))
         log_time = self.get_clock().now().nanoseconds
-        # Written here, not handed to the writer thread: a hand-off per message costs a GIL
-        # switch each, which measured as the recorder's largest cost at the graph's rates.
-        with self._lock:
-            for _, _, entry, data, source_time in self._batch:
-                if self._publish_time == 'source':
-                    publish_time = source_time or log_time
-                elif self._publish_time == 'header' and entry.stamp_in_header:
-                    publish_time = cdr_header_stamp_ns(data) or log_time
-                else:
-                    publish_time = log_time
-                self._write_one(entry, data, log_time, publish_time)
+        for _, _, entry, data, source_time in self._batch:
+            publish_time = None
+            if self._publish_time == 'source':
+                publish_time = source_time or None
+            elif self._publish_time == 'header' and entry.stamp_in_header:
+                publish_time = cdr_header_stamp_ns(data)
+            self._write_one(entry, data, log_time,
+                            log_time if publish_time is None else publish_time)
         count = len(self._batch)
         self._batch.clear()
+        self._writer.poll()                  # close a chunk older than chunk_interval
         return count
 
     # ------------------------------------------------------------------ writing
-
-    def _write_loop(self) -> None:
-        while True:
-            try:
-                item = self._queue.get(timeout=0.2)
-            except queue.Empty:
-                with self._lock:
-                    if not self._writer.closed:
-                        self._writer.poll()
-                continue
-            with self._lock:
-                # Drain what is queued under one lock: fewer lock round trips at high rates.
-                while item is not None:
-                    self._write_one(*item)
-                    try:
-                        item = self._queue.get_nowait()
-                    except queue.Empty:
-                        break
-            if item is None:
-                return
 
     def _write_one(self, entry: _Topic, data: bytes, log_time: int, publish_time: int) -> None:
         try:
@@ -387,10 +356,6 @@ class RecorderNode(Node):
         except Exception as err:  # one bad write must not stop the recording
             self._write_errors += 1
             self._warn_once('write', f'write failed: {err}')
-
-    def received_count(self) -> int:
-        """Messages received so far, over all recorded topics."""
-        return sum(t.received for t in self._recorded.values())
 
     def _counts(self) -> tuple[int, int]:
         received = sum(t.received for t in self._recorded.values())
@@ -426,10 +391,7 @@ class RecorderNode(Node):
         self.take()
         self._closed = True
         self._input.destroy()
-        self._queue.put(None)
-        self._thread.join(timeout=30.0)
-        with self._lock:
-            self._writer.close()
+        self._writer.close()
         received, written = self._counts()
         text = (f'closed {self.path}: {written} of {received} received messages written, '
                 f'{len(self._recorded)} topics, {self._writer.chunk_count} chunks')
