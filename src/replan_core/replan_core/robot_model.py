@@ -14,18 +14,10 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from replan_core.rotations import quaternion_to_matrix
 from replan_core.types import FOOT_FRAMES, JOINT_NAMES, LEGS, BaseState, JointState
 
 GRAVITY = 9.81  # m/s^2, magnitude; pinocchio's model.gravity is (0, 0, -9.81)
-
-
-def quaternion_to_matrix(quaternion: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) of a quaternion (x, y, z, w), normalised first."""
-    x, y, z, w = np.asarray(quaternion, dtype=float) / np.linalg.norm(quaternion)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 class RobotModel:

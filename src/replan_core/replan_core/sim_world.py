@@ -24,6 +24,7 @@ import numpy as np
 import pybullet
 from pybullet_utils import bullet_client
 
+from replan_core import rotations
 from replan_core.types import FOOT_FRAMES, JOINT_NAMES, BaseState, ContactState, JointState
 
 GRAVITY = 9.81                    # m/s^2
@@ -226,7 +227,7 @@ class SimWorld:
     # ------------------------------------------------------------------ sensing
     def base_state(self) -> BaseState:
         """Pose of base_link in the world and its twist (world frame) at the current tick."""
-        pos, quat, com = self._base_pose(with_com=True)
+        pos, quat, com = self._base_pose()
         v_com, omega = self._p.getBaseVelocity(self._robot)
         # Rigid-body velocity transfer v_origin = v_com + omega x (origin - com); plain floats:
         # numpy costs more than the arithmetic on 3-vectors, at every tick.
@@ -275,19 +276,18 @@ class SimWorld:
 
     # ------------------------------------------------------------------ internals
     # Pose conversions in numpy: pybullet.multiplyTransforms computes in single precision.
-    def _base_pose(self, with_com: bool = False):
-        """(position, quaternion) of base_link in the world; with ``with_com`` also the
-        position of the base's inertial frame, which pybullet reports."""
+    def _base_pose(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position and quaternion of base_link in the world, and the position of the base's
+        inertial frame (what pybullet reports)."""
         com_pos, com_quat = self._p.getBasePositionAndOrientation(self._robot)
         com_pos = np.array(com_pos)
-        quat = _quat_mul(com_quat, _quat_conj(self._local_quat))
+        quat = rotations.multiply(com_quat, rotations.conjugate(self._local_quat))
         quat /= math.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
-        pose = com_pos - _quat_rotate(quat, self._local_pos), quat
-        return (*pose, com_pos) if with_com else pose
+        return com_pos - np.array(rotations.rotate(quat, self._local_pos)), quat, com_pos
 
     def _set_base_pose(self, pos: np.ndarray, quat: np.ndarray) -> None:
-        com_pos = pos + _quat_rotate(quat, self._local_pos)
-        com_quat = _quat_mul(quat, self._local_quat)
+        com_pos = pos + np.array(rotations.rotate(quat, self._local_pos))
+        com_quat = rotations.multiply(quat, self._local_quat)
         self._p.resetBasePositionAndOrientation(self._robot, com_pos.tolist(),
                                                 (com_quat / np.linalg.norm(com_quat)).tolist())
 
@@ -365,26 +365,3 @@ class SimWorld:
         else:
             bodies.append(plane(0.0))
         return bodies
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of quaternions (x, y, z, w)."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return np.array([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz])
-
-
-def _quat_conj(q: np.ndarray) -> np.ndarray:
-    return np.array([-q[0], -q[1], -q[2], q[3]])
-
-
-def _quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vector v by the unit quaternion q (x, y, z, w): v + 2 u x (u x v + w v)."""
-    ux, uy, uz, w = q
-    vx, vy, vz = v
-    tx, ty, tz = uy * vz - uz * vy + w * vx, uz * vx - ux * vz + w * vy, ux * vy - uy * vx + w * vz
-    return np.array([vx + 2.0 * (uy * tz - uz * ty), vy + 2.0 * (uz * tx - ux * tz),
-                     vz + 2.0 * (ux * ty - uy * tx)])

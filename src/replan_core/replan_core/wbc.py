@@ -28,7 +28,8 @@ import pinocchio as pin
 import proxsuite
 
 from replan_core.contact import StepEvent, StepTracker
-from replan_core.robot_model import GRAVITY, RobotModel, quaternion_to_matrix
+from replan_core.robot_model import GRAVITY, RobotModel
+from replan_core.rotations import quaternion_to_matrix, yaw_of
 from replan_core.swing import swing_reference as swing_trajectory
 from replan_core.types import LEGS, BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
 
@@ -99,12 +100,6 @@ def skew(vector: np.ndarray) -> np.ndarray:
     """Cross-product matrix: skew(a) @ b == a x b."""
     x, y, z = vector
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
-def yaw_of(quaternion: np.ndarray) -> float:
-    """Yaw (rad) of a quaternion (x, y, z, w), ZYX convention."""
-    x, y, z, w = quaternion
-    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
 
 
 def haptic_reference(touchdown_position: np.ndarray, touchdown_time: float, t: float,

@@ -8,7 +8,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from replan_core.robot_model import RobotModel, quaternion_to_matrix
+from replan_core.robot_model import RobotModel
+from replan_core.rotations import quaternion_to_matrix
 from replan_core.types import JOINT_NAMES, BaseState, JointState
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -8,6 +8,7 @@ import pytest
 
 from replan_core.bench.wbc_bench import crawl_plan
 from replan_core.robot_model import RobotModel
+from replan_core.rotations import yaw_of
 from replan_core.sim_world import SimWorld
 from replan_core.swing import swing_reference as swing_trajectory
 from replan_core.types import BaseState, JointState, Step
@@ -19,7 +20,6 @@ from replan_core.wbc import (
     WholeBodyController,
     haptic_reference,
     swing_reference,
-    yaw_of,
 )
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -44,6 +44,7 @@ from replan_core.gait import (
     stance_phases,
 )
 from replan_core.robot_model import RobotModel
+from replan_core.rotations import yaw_of
 from replan_core.types import LEGS, WORLD_FRAME, ContactState, FootholdPlan
 from replan_ros import diagnostics
 from replan_ros.interfaces import (
@@ -55,7 +56,6 @@ from replan_ros.interfaces import (
     ns_to_stamp,
     sec_to_stamp,
     stamp_to_ns,
-    yaw_of,
 )
 from replan_ros.on_demand import OnDemandSubscriptions
 from replan_ros.qos import (

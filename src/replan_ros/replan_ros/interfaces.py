@@ -18,6 +18,7 @@ from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
+from replan_core import rotations
 from replan_core.types import (
     BASE_FRAME,
     JOINT_NAMES,
@@ -65,37 +66,6 @@ def duration_to_sec(d: Duration) -> float:
 
 def header(t: float, frame_id: str = WORLD_FRAME) -> Header:
     return Header(stamp=sec_to_stamp(t), frame_id=frame_id)
-
-
-# ---------------------------------------------------------------------------------------------
-# Rotations (quaternions x, y, z, w)
-
-
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def _rotate(q, v, inverse: bool = False) -> tuple[float, float, float]:
-    """v rotated by the unit quaternion q (x, y, z, w), or by its inverse. Plain floats: these run
-    for every state message, and numpy costs more than the arithmetic on 3-vectors."""
-    x, y, z, w = (float(c) for c in q)
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
-    if inverse:
-        x, y, z = -x, -y, -z
-    vx, vy, vz = (float(c) for c in v)
-    tx, ty, tz = y * vz - z * vy + w * vx, z * vx - x * vz + w * vy, x * vy - y * vx + w * vz
-    return (vx + 2.0 * (y * tz - z * ty), vy + 2.0 * (z * tx - x * tz),
-            vz + 2.0 * (x * ty - y * tx))
-
-
-def yaw_of(q: np.ndarray) -> float:
-    x, y, z, w = q
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -184,8 +154,9 @@ def odom_from_base_state(bs: BaseState) -> Odometry:
     orientation.x, orientation.y = float(q[0]), float(q[1])
     orientation.z, orientation.w = float(q[2]), float(q[3])
     linear, angular = msg.twist.twist.linear, msg.twist.twist.angular
-    linear.x, linear.y, linear.z = _rotate(q, bs.linear_velocity, inverse=True)
-    angular.x, angular.y, angular.z = _rotate(q, bs.angular_velocity, inverse=True)
+    to_base = rotations.conjugate(rotations.normalized(q))     # twist in base_link (REP-105)
+    linear.x, linear.y, linear.z = rotations.rotate(to_base, bs.linear_velocity)
+    angular.x, angular.y, angular.z = rotations.rotate(to_base, bs.angular_velocity)
     return msg
 
 
@@ -199,10 +170,11 @@ def base_state_from_odom(msg: Odometry) -> BaseState:
     if not (all(math.isfinite(v) for v in values)
             and abs(math.sqrt(sum(c * c for c in q)) - 1.0) < 0.1):
         raise ValueError('odom: non-finite pose or twist, or not a unit quaternion')
+    unit = rotations.normalized(q)
     return BaseState(stamp=stamp_to_sec(msg.header.stamp),
                      position=np.array([p.x, p.y, p.z]), quaternion=np.array(q),
-                     linear_velocity=np.array(_rotate(q, (lin.x, lin.y, lin.z))),
-                     angular_velocity=np.array(_rotate(q, (ang.x, ang.y, ang.z))))
+                     linear_velocity=np.array(rotations.rotate(unit, (lin.x, lin.y, lin.z))),
+                     angular_velocity=np.array(rotations.rotate(unit, (ang.x, ang.y, ang.z))))
 
 
 # ---------------------------------------------------------------------------------------------

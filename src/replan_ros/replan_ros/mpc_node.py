@@ -214,20 +214,25 @@ class MpcNode(Node):
             self.retry_timer.cancel()
             return
         ns, plan = self.pending
-        arrived = self.state_input.drain(lambda: ns in self.joints and ns in self.bases,
-                                          timeout=self.state_wait)
-        try:
-            joints, base = (self.joints.get(ns), self.bases.get(ns)) if arrived else (None, None)
-        except ValueError as err:       # that tick's state is unusable: wait for a re-send
-            self._warn('state', f'state at t={ns * 1e-9:.3f} s rejected: {err}')
-            arrived = False
-        if not arrived:
+        state = self._state_at(ns)
+        if state is None:                            # look again in retry_period
             if self.retry_timer.is_canceled():
                 self.retry_timer.reset()
             return
         self.pending = None
         self.retry_timer.cancel()
-        self._replan(ns, plan, base, joints)
+        self._replan(ns, plan, *state)
+
+    def _state_at(self, ns: int) -> tuple[BaseState, JointState] | None:
+        """The base and joint state stamped ``ns``, None while they are not (validly) here."""
+        if not self.state_input.drain(lambda: ns in self.joints and ns in self.bases,
+                                      timeout=self.state_wait):
+            return None
+        try:
+            return self.bases.get(ns), self.joints.get(ns)
+        except ValueError as err:       # that tick's state is unusable: wait for a re-send
+            self._warn('state', f'state at t={ns * 1e-9:.3f} s rejected: {err}')
+            return None
 
     def _replan(self, ns: int, plan: FootholdPlan, base: BaseState, joints: JointState) -> None:
         t = ns * 1e-9

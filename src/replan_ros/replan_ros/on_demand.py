@@ -4,12 +4,13 @@ The gait and mpc nodes need the state of one tick per re-plan (about one in 190)
 node's touchdown rule needs every contacts tick but not at once; the simulator publishes every
 tick. A subscription spun by the node's executor wakes the Python process for every sample and
 walks the executor's wait set each time; on a 2-core machine those wake-ups of the bystanders
-took the CPU from the lock-step chain sim -> wbc -> sim and slowed the whole graph by about
-40 % (README, "Performance"). Here the subscriptions belong to a helper node that no executor
-spins: Fast DDS keeps the newest ``depth`` samples of each in its reader queue (KEEP_LAST), and
-``drain`` takes them, oldest first, when the node needs them. This is rclcpp's
-``Subscription::take()`` pattern; rclpy offers it only through the subscription's handle (what
-its executor calls), so it is used here and nowhere else.
+took the CPU from the lock-step chain sim -> wbc -> sim: two of them took a sim/controller
+round trip from 0.48 to 1.30 ms, two that only queue the samples to 0.62 ms
+(scripts/bench_rclpy.sh; README, "Performance"). Here the subscriptions belong to a helper
+node that no executor spins: Fast DDS keeps the newest ``depth`` samples of each in its reader
+queue (KEEP_LAST), and ``drain`` takes them, oldest first, when the node needs them. This is
+rclcpp's ``Subscription::take()`` pattern; rclpy offers it only through the subscription's
+handle (what its executor calls), so it is used here and nowhere else.
 """
 
 from __future__ import annotations
@@ -42,7 +43,6 @@ class OnDemandSubscriptions:
                           context=owner.context, use_global_arguments=False,
                           start_parameter_services=False, enable_rosout=False)
         self._readers: list[tuple[Subscription, bool]] = []
-        self.taken = 0                  # samples taken so far, over all subscriptions
 
     def subscribe(self, msg_type: type, topic: str, qos: QoSProfile,
                   callback: Callable[..., None], raw: bool = True,
@@ -54,8 +54,7 @@ class OnDemandSubscriptions:
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
         self._readers.append((subscription, with_info))
 
-    def _take_all(self) -> int:
-        taken = 0
+    def _take_all(self) -> None:
         for subscription, with_info in self._readers:
             with subscription.handle:
                 while True:
@@ -63,19 +62,17 @@ class OnDemandSubscriptions:
                                                               subscription.raw)
                     if sample is None:
                         break
-                    taken += 1
                     if with_info:
                         subscription.callback(*sample)
                     else:
                         subscription.callback(sample[0])
-        return taken
 
     def drain(self, done: Callable[[], bool] = lambda: True, timeout: float = 0.0) -> bool:
         """Hand every queued sample to its callback; if ``done()`` is still false then, keep
         taking new samples for up to ``timeout`` wall seconds. Returns ``done()``."""
         deadline = time.monotonic() + timeout
         while True:
-            self.taken += self._take_all()
+            self._take_all()
             if done():
                 return True
             if time.monotonic() >= deadline:

@@ -36,8 +36,9 @@ from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.robot_model import RobotModel
+from replan_core.rotations import yaw_of
 from replan_core.types import ComPlan, FootholdPlan
-from replan_core.wbc import PlanFollower, StandHold, WbcParams, WholeBodyController, yaw_of
+from replan_core.wbc import PlanFollower, StandHold, WbcParams, WholeBodyController
 from replan_ros import diagnostics
 from replan_ros.interfaces import (
     base_state_from_odom,
@@ -197,21 +198,23 @@ class WbcNode(Node):
         self.get_logger().warning(text, throttle_duration_sec=2.0)
 
     # ------------------------------------------------------------------------------ inputs
-    def _on_joint_states(self, msg: JointStateMsg) -> None:
+    def _decoded(self, decode, msg, what: str):
+        """``decode(msg)``, or None (and a throttled warning) for a malformed message."""
         try:
-            state = joint_state_from_msg(msg)
+            return decode(msg)
         except ValueError as error:
-            self._warn(f'rejected joint_states: {error}')
-            return
-        self._store(self._joints, stamp_to_ns(msg.header.stamp), state)
+            self._warn(f'rejected {what}: {error}')
+            return None
+
+    def _on_joint_states(self, msg: JointStateMsg) -> None:
+        state = self._decoded(joint_state_from_msg, msg, 'joint_states')
+        if state is not None:
+            self._store(self._joints, stamp_to_ns(msg.header.stamp), state)
 
     def _on_odom(self, msg: Odometry) -> None:
-        try:
-            base = base_state_from_odom(msg)
-        except ValueError as error:
-            self._warn(f'rejected odom: {error}')
-            return
-        self._store(self._odom, stamp_to_ns(msg.header.stamp), base)
+        base = self._decoded(base_state_from_odom, msg, 'odom')
+        if base is not None:
+            self._store(self._odom, stamp_to_ns(msg.header.stamp), base)
 
     def _on_contacts(self, msg: PointCloud2) -> None:
         stamp = stamp_to_ns(msg.header.stamp)
@@ -219,42 +222,35 @@ class WbcNode(Node):
         # lost (best effort), the sim's republish of the tick brings it again.
         self.state_input.drain(lambda: stamp in self._joints and stamp in self._odom,
                                timeout=_STATE_WAIT)
-        try:
-            state = contacts_from_msg(msg)
-        except ValueError as error:
-            self._warn(f'rejected contacts: {error}')
-            return
-        self._store(self._contacts, stamp, state)
+        state = self._decoded(contacts_from_msg, msg, 'contacts')
+        if state is not None:
+            self._store(self._contacts, stamp, state)
 
     def _store(self, buffer: dict, stamp: int, value) -> None:
         buffer[stamp] = value
+        while len(buffer) > _KEEP_STATES:
+            del buffer[min(buffer)]
         if stamp in self._joints and stamp in self._odom and stamp in self._contacts:
             self._on_state(stamp)
-        # Keep only stamps that may still be answered (or answered again), at most a few.
-        floor = self._last_answered if self._last_answered is not None else -1
-        for buf in (self._joints, self._odom, self._contacts):
-            for old in [s for s in buf if s < floor]:
-                del buf[old]
-            while len(buf) > _KEEP_STATES:
-                del buf[min(buf)]
+
+    def _forget_states_before(self, floor: int) -> None:
+        """Drop the partial and answered states older than ``floor`` (they can no longer be
+        answered, nor answered again)."""
+        for buffer in (self._joints, self._odom, self._contacts):
+            for old in [s for s in buffer if s < floor]:
+                del buffer[old]
 
     def _on_footholds(self, msg: PointCloud2) -> None:
-        try:
-            plan = footholds_from_msg(msg)
-        except ValueError as error:
-            self._warn(f'rejected footholds: {error}')
-            return
-        self._keep(self._footholds, stamp_to_ns(msg.header.stamp), plan)
-        self._plans_arrived()
+        plan = self._decoded(footholds_from_msg, msg, 'footholds')
+        if plan is not None:
+            self._keep(self._footholds, stamp_to_ns(msg.header.stamp), plan)
+            self._plans_arrived()
 
     def _on_com_plan(self, msg: MultiDOFJointTrajectory) -> None:
-        try:
-            plan = com_plan_from_msg(msg)
-        except ValueError as error:
-            self._warn(f'rejected com_plan: {error}')
-            return
-        self._keep(self._com_plans, stamp_to_ns(msg.header.stamp), plan)
-        self._plans_arrived()
+        plan = self._decoded(com_plan_from_msg, msg, 'com_plan')
+        if plan is not None:
+            self._keep(self._com_plans, stamp_to_ns(msg.header.stamp), plan)
+            self._plans_arrived()
 
     @staticmethod
     def _keep(buffer: dict, stamp: int, value) -> None:
@@ -402,6 +398,7 @@ class WbcNode(Node):
         while len(self._commands) > _KEEP_COMMANDS:
             del self._commands[min(self._commands)]
         self._last_answered = stamp
+        self._forget_states_before(stamp)
         self._ticks += 1
         self._times.append(result.compute_time)
         self._com_errors.append(float(np.linalg.norm(result.com_error)))

@@ -5,6 +5,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2
 
+from replan_core.rotations import yaw_of
 from replan_core.types import (
     JOINT_NAMES,
     BaseState,
@@ -70,7 +71,7 @@ def test_odom_twist_is_in_base_frame_and_round_trips():
     back = itf.base_state_from_odom(_through_wire(msg))
     np.testing.assert_allclose(back.linear_velocity, bs.linear_velocity, atol=1e-12)
     np.testing.assert_allclose(back.angular_velocity, bs.angular_velocity, atol=1e-12)
-    assert itf.yaw_of(back.quaternion) == pytest.approx(yaw)
+    assert yaw_of(back.quaternion) == pytest.approx(yaw)
 
 
 def _contacts():
