@@ -45,6 +45,19 @@ class JointState:
 
 
 @dataclass
+class ImuReading:
+    """One IMU sample at the base (``base_link`` origin and axes), as a MEMS IMU reports it.
+
+    ``linear_acceleration`` is the specific force (acceleration minus gravity, body axes): a
+    robot at rest reads about +9.81 m/s^2 along its z axis. Noise and bias are included.
+    """
+
+    stamp: float                      # s, sim time
+    angular_velocity: np.ndarray      # (3,) rad/s, gyro, base frame
+    linear_acceleration: np.ndarray   # (3,) m/s^2, accelerometer (specific force), base frame
+
+
+@dataclass
 class ContactState:
     """Sensed contact of the four feet at one control tick (the simulator's contact sensing).
 
