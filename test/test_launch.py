@@ -68,6 +68,16 @@ def test_dead_node_is_reported_and_respawned_and_cmd_vel_steers(ros_domain, tmp_
         started = launch.wait_for(r'started mpc \(pid (\d+)\)', 60)
         assert started, launch.output
         assert launch.wait_for(r'started wbc', 60), launch.output
+        # The default (realistic) graph: no control node reads the simulator's truth.
+        assert probe.spin_until(lambda: probe.node.get_subscriptions_info_by_topic('/imu'),
+                                30), launch.output
+        probe.spin_for(1.0)
+        for topic in ('/ground_truth/odom', '/ground_truth/contacts'):
+            readers = {info.node_name for info in
+                       probe.node.get_subscriptions_info_by_topic(topic)}
+            assert not readers, (topic, readers)
+        assert any(info.node_name == 'wbc_on_demand'
+                   for info in probe.node.get_subscriptions_info_by_topic('/imu'))
         setpoints = probe.subscribe(TwistStamped, 'velocity_setpoint', SCHEDULE)
         steer = subprocess.run(
             [str(REPO_ROOT / 'scripts' / 'cmd_vel.sh'), '0.1', '0', '0', '--for', '3'],

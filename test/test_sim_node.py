@@ -11,13 +11,15 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, PointCloud2
+from sensor_msgs.msg import Imu, JointState, PointCloud2
 
 from replan_core.types import JOINT_NAMES
 from replan_ros import qos
 from replan_ros.diagnostics import values_of
 from replan_ros.interfaces import (
     contacts_from_msg,
+    imu_from_msg,
+    joint_state_from_msg,
     ns_to_stamp,
     stamp_to_ns,
     torque_cmd_to_msg,
@@ -33,8 +35,9 @@ class Driver:
     def __init__(self, probe) -> None:
         self.probe = probe
         self.joints = probe.subscribe(JointState, 'joint_states', qos.SENSOR)
-        self.odom = probe.subscribe(Odometry, 'odom', qos.SENSOR)
-        self.contacts = probe.subscribe(PointCloud2, 'contacts', qos.CONTACTS)
+        self.odom = probe.subscribe(Odometry, 'ground_truth/odom', qos.SENSOR)
+        self.contacts = probe.subscribe(PointCloud2, 'ground_truth/contacts', qos.CONTACTS)
+        self.imu = probe.subscribe(Imu, 'imu', qos.SENSOR)
         self.clock = probe.subscribe(Clock, '/clock', qos.CLOCK)
         self.diag = probe.subscribe(DiagnosticArray, '/diagnostics', qos.COMMAND)
         self.applied = probe.subscribe(WrenchStamped, 'applied_wrench', qos.SCHEDULE)
@@ -103,6 +106,11 @@ def test_publishes_state_and_waits_for_first_command(launcher, probe):
     assert 0.55 < odom.pose.pose.position.z < 0.62   # standing on flat ground
     contacts = contacts_from_msg(driver.contacts[-1])
     assert contacts.contact.all()
+    assert driver.imu, 'no imu'
+    imu = imu_from_msg(driver.imu[-1])
+    assert driver.imu[-1].header.frame_id == 'base_link'
+    np.testing.assert_allclose(imu.linear_acceleration, [0.0, 0.0, 9.81], atol=1e-3)  # ideal
+    np.testing.assert_allclose(imu.angular_velocity, 0.0, atol=1e-6)
     assert probe.spin_until(lambda: driver.sim_status() is not None, 5.0)
     status = driver.sim_status()
     assert status.level == DiagnosticStatus.OK
@@ -227,3 +235,31 @@ def test_free_run_mode_real_time(launcher, probe):
     status = driver.sim_status()
     assert values_of(status)['mode'] == 'free_run'
     assert 0.5 < float(values_of(status)['real_time_factor']) < 1.2
+
+
+def test_noisy_sensors_are_seeded_and_drawn_once_per_tick(launcher, probe):
+    """The realistic profile's sensors: noise on imu and joint_states, the truth untouched, a
+    republished tick identical (noise is drawn once per tick), and the seed decides the draw."""
+    noise = {'imu_gyro_noise_density': 1e-3, 'imu_accel_noise_density': 1e-2,
+             'imu_gyro_initial_bias': 1e-3, 'joint_position_noise': 1e-3,
+             'joint_velocity_noise': 1e-2, 'joint_torque_noise': 0.5}
+    start_sim(launcher, noise_seed=7, **noise)
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    assert probe.spin_until(lambda: len(driver.joints) >= 3 and len(driver.imu) >= 3, 5.0)
+    first, again = driver.joints[0], driver.joints[-1]
+    assert stamp_to_ns(first.header.stamp) == stamp_to_ns(again.header.stamp) == 0
+    assert list(first.position) == list(again.position)          # a republish: the same draw
+    imu = imu_from_msg(driver.imu[-1])
+    assert 0.0 < abs(imu.linear_acceleration[2] - 9.81) < 0.1      # noisy, but an accelerometer
+    truth_height = driver.odom[-1].pose.pose.position.z
+    joints = joint_state_from_msg(first)
+    launcher.stop_all()
+    # The same seed again: the same samples at t = 0.
+    start_sim(launcher, noise_seed=7, **noise)
+    driver2 = Driver(probe)
+    assert driver2.wait_ready(), launcher.logs()
+    np.testing.assert_array_equal(joint_state_from_msg(driver2.joints[-1]).position,
+                                  joints.position)
+    assert driver2.odom[-1].pose.pose.position.z == truth_height
+    assert driver2.imu[-1].angular_velocity_covariance[0] > 0.0

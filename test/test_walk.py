@@ -39,8 +39,10 @@ def run_scenario(name: str, out: Path, domain: int, extra_args=()) -> dict:
 
 
 def trajectory(out: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the robot did: the simulator's truth, not the estimate the controller used."""
+    topic = '/ground_truth/odom'
     odom = sorted((base_state_from_odom(m) for _, m in
-                   read_messages(out / 'bag', ('/odom',))['/odom']), key=lambda b: b.stamp)
+                   read_messages(out / 'bag', (topic,))[topic]), key=lambda b: b.stamp)
     times = np.array([b.stamp for b in odom])
     positions = np.array([b.position for b in odom])
     yaws = roll_pitch_yaw(np.array([b.quaternion for b in odom]))[:, 2]
@@ -62,6 +64,12 @@ def test_forward_crawl_keeps_the_commanded_speed(ros_domain, tmp_path):
     assert vx == pytest.approx(0.15, rel=0.10) and abs(vy) < 0.02
     assert metrics['replans'] >= 25                     # one per touchdown (0.75 s steps)
     assert metrics['min_zmp_margin_m'] is not None and metrics['min_zmp_margin_m'] > 0.0
+    # The default profile is the realistic robot: the walk above ran on estimated state.
+    assert metrics['profile'] == 'realistic'
+    estimator = metrics['estimator']
+    assert estimator['velocity_rmse_mps'] <= 0.05, estimator
+    assert estimator['xy_drift_fraction'] <= 0.05, estimator
+    assert metrics['cop_margin_p5_m'] is not None and metrics['touchdown_timing_error_s']
 
 
 def test_lateral_walk_and_turn_within_15_percent(ros_domain, tmp_path):
@@ -96,7 +104,8 @@ def test_demo_script_walks_and_says_where_the_results_are(ros_domain, tmp_path):
     metrics = json.loads((out / 'metrics.json').read_text())
     assert metrics['completed'] and not metrics['fell']
     assert {Path(p).name for p in metrics['plots']} == {
-        'top_view.png', 'velocity.png', 'trunk.png', 'solve_times.png'}
+        'top_view.png', 'velocity.png', 'trunk.png', 'solve_times.png', 'estimator.png',
+        'cop_margin.png'}
     assert list((out / 'bag').glob('*.mcap'))
     final_segment = metrics['velocity_tracking'][-1]
     assert final_segment['commanded'] == [0.0, 0.0, 0.0]

@@ -50,7 +50,7 @@ def test_wbc_alone_keeps_robot_standing(launcher, probe):
     launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml')
     launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
                    params={'plan_timeout': 0.5, 'diagnostics_period': 0.5})
-    odoms = probe.subscribe(Odometry, 'odom', SENSOR)
+    odoms = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
     commands = probe.subscribe(JointStateMsg, 'joint_torque_cmd', COMMAND)
     diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
     ok = probe.spin_until(lambda: odoms and stamp_to_sec(odoms[-1].header.stamp) >= 3.0,
@@ -84,11 +84,13 @@ class FakeSimAndPlanners:
         node = probe.node
         self.probe = probe
         self.joints_pub = node.create_publisher(JointStateMsg, 'joint_states', SENSOR)
-        self.odom_pub = node.create_publisher(Odometry, 'odom', SENSOR)
-        self.contacts_pub = node.create_publisher(PointCloud2, 'contacts', CONTACTS)
+        self.odom_pub = node.create_publisher(Odometry, 'ground_truth/odom', SENSOR)
+        self.contacts_pub = node.create_publisher(PointCloud2, 'ground_truth/contacts', CONTACTS)
         self.footholds_pub = node.create_publisher(PointCloud2, 'footholds', LATCHED)
         self.com_pub = node.create_publisher(MultiDOFJointTrajectory, 'com_plan', LATCHED)
         self.commands = probe.subscribe(JointStateMsg, 'joint_torque_cmd', COMMAND)
+        self.estimates = probe.subscribe(Odometry, 'odom', SENSOR)
+        self.contacts = probe.subscribe(PointCloud2, 'contacts', CONTACTS)
 
     def connected(self) -> bool:
         return all(pub.get_subscription_count() > 0 for pub in (
@@ -102,12 +104,12 @@ class FakeSimAndPlanners:
         flags = np.array(contact, dtype=bool)
         contacts = ContactState(t, FEET.copy(), np.zeros((4, 3)), flags, np.zeros(4, bool),
                                 np.zeros(4, bool))
-        if 'joints' in parts:
-            self.joints_pub.publish(joint_state_to_msg(joints))
         if 'odom' in parts:
             self.odom_pub.publish(odom_from_base_state(base))
         if 'contacts' in parts:
             self.contacts_pub.publish(contacts_to_msg(contacts))
+        if 'joints' in parts:                       # last, as the sim: the wbc wakes on it
+            self.joints_pub.publish(joint_state_to_msg(joints))
 
     def plans(self, t, steps):
         com = np.array([0.04, 0.015, 0.555])
@@ -135,16 +137,19 @@ def test_exact_stamp_sync_and_replan_wait(launcher, probe):
     sim.plans(0.0, [step])
     sim.state(0.0)
     assert probe.spin_until(lambda: sim.answered(0.0), timeout=10), launcher.logs()
-    # Incomplete triple (no odom) at 0.004: not answered, never extrapolated.
+    # The wbc passes the ideal profile's truth on as the graph's odom and contacts.
+    assert probe.spin_until(lambda: sim.estimates and sim.contacts, timeout=10)
+    assert stamp_to_ns(sim.estimates[-1].header.stamp) == 0
+    # Incomplete tick (no odom) at 0.004: not answered, never extrapolated.
     sim.state(0.004, parts=('joints', 'contacts'))
     probe.spin_for(0.5)
     assert not sim.answered(0.004)
-    # The missing odom comes with the sim's republish of the tick (contacts last, as the sim
-    # publishes them): the controller wakes on contacts and takes the rest then.
+    # The missing odom comes with the sim's republish of the tick (joint_states last, as the
+    # sim publishes them): the controller wakes on joint_states and takes the rest then.
     sim.state(0.004, parts=('odom',))
     probe.spin_for(0.3)
     assert not sim.answered(0.004)
-    sim.state(0.004, parts=('odom', 'contacts'))
+    sim.state(0.004, parts=('odom', 'joints'))
     assert probe.spin_until(lambda: sim.answered(0.004), timeout=10), launcher.logs()
     # Duplicate of an answered stamp: the same command again.
     sim.state(0.004)
@@ -166,3 +171,54 @@ def test_exact_stamp_sync_and_replan_wait(launcher, probe):
     assert not sim.answered(0.2)
     sim.plans(0.2, [])
     assert probe.spin_until(lambda: sim.answered(0.2), timeout=10), launcher.logs()
+
+
+def test_plan_latency_tracks_the_old_plan_then_waits(launcher, probe):
+    """plan_latency 0.02 s (5 ticks): the re-plan tick and the four after it are answered at
+    once on the old plan; the fifth waits for the plans stamped at the touchdown."""
+    launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
+                   params={'plan_timeout': 30.0, 'plan_latency': 0.018})   # -> 5 ticks
+    sim = FakeSimAndPlanners(probe)
+    assert probe.spin_until(sim.connected, timeout=30), launcher.logs()
+    probe.spin_for(0.3)
+    step = Step(leg=0, liftoff_time=0.1, touchdown_time=0.3, target=FEET[0] + [0.05, 0, 0],
+                step_height=0.05, haptic=True, replan=True, yaw=0.0)
+    sim.plans(0.0, [step])
+    for k in range(0, 55):
+        t = round(k * 0.004, 6)
+        sim.state(t, contact=(t < 0.1 or t >= 0.2, True, True, True))
+        assert probe.spin_until(lambda t=t: sim.answered(t), timeout=10), (t, launcher.logs())
+    sim.state(0.22)
+    probe.spin_for(1.0)
+    assert not sim.answered(0.22), 'the plans of 0.2 take effect at 0.22: the tick waits'
+    sim.plans(0.2, [])
+    assert probe.spin_until(lambda: sim.answered(0.22), timeout=10), launcher.logs()
+
+
+def test_estimator_mode_reads_no_ground_truth(launcher, probe):
+    """With state and contact estimation on, the wbc subscribes to imu and joint_states only:
+    the simulator's truth is for metrics and bags."""
+    launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml')
+    launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
+                   params={'state_estimation': True, 'contact_estimation': True,
+                           'plan_timeout': 0.5})
+    estimates = probe.subscribe(Odometry, 'odom', SENSOR)
+    truth = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
+    ok = probe.spin_until(lambda: estimates and stamp_to_sec(estimates[-1].header.stamp) >= 1.0,
+                          timeout=90)
+    assert ok, launcher.logs()
+    node = probe.node
+    for topic in ('/ground_truth/odom', '/ground_truth/contacts'):
+        readers = {i.node_name for i in node.get_subscriptions_info_by_topic(topic)}
+        assert not any(name.startswith('wbc') for name in readers), (topic, readers)
+    readers = {i.node_name for i in node.get_subscriptions_info_by_topic('/imu')}
+    assert 'wbc_on_demand' in readers
+    # Standing on its estimate: the estimate agrees with the truth at the same stamp.
+    by_stamp = {stamp_to_ns(m.header.stamp): m for m in truth}
+    pairs = [(m, by_stamp[stamp_to_ns(m.header.stamp)]) for m in estimates
+             if stamp_to_ns(m.header.stamp) in by_stamp]
+    assert pairs
+    est, true = pairs[-1]
+    assert abs(est.pose.pose.position.z - true.pose.pose.position.z) < 0.02
+    assert math.hypot(est.pose.pose.position.x - true.pose.pose.position.x,
+                      est.pose.pose.position.y - true.pose.pose.position.y) < 0.02

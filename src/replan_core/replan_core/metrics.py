@@ -117,3 +117,144 @@ def interval_stats(times: np.ndarray, skip: int = 0) -> dict | None:
     return {'median': float(np.median(intervals)), 'mean': float(np.mean(intervals)),
             'min': float(np.min(intervals)), 'max': float(np.max(intervals)),
             'count': len(intervals)}
+
+
+# ------------------------------------------------------------------------------------------
+# Measured balance, estimator and touchdown metrics (the realistic robot, docs/realism.md)
+
+
+def _convex_hull(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull of (n, 2) points (monotone chain; n is at most 4 here)."""
+    pts = sorted(map(tuple, points))
+    if len(pts) <= 2:
+        return np.array(pts)
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    length2 = float(ab @ ab)
+    s = 0.0 if length2 == 0.0 else min(max(float((p - a) @ ab) / length2, 0.0), 1.0)
+    return float(np.linalg.norm(p - (a + s * ab)))
+
+
+def polygon_margin(point: np.ndarray, vertices: np.ndarray) -> float:
+    """Signed distance (m) of a point to the convex hull of ``vertices`` (n, 2): positive
+    inside (distance to the nearest edge), negative outside; a segment or a single point has
+    no inside (0 on it, negative off it)."""
+    hull = _convex_hull(np.asarray(vertices, dtype=float))
+    p = np.asarray(point, dtype=float)
+    if len(hull) == 0:
+        return -np.inf
+    if len(hull) == 1:
+        return -float(np.linalg.norm(p - hull[0]))
+    if len(hull) == 2:
+        return -_segment_distance(p, hull[0], hull[1])
+    inside = True
+    distance = np.inf
+    for a, b in zip(hull, np.roll(hull, -1, axis=0), strict=True):
+        edge = b - a
+        if edge[0] * (p[1] - a[1]) - edge[1] * (p[0] - a[0]) < 0.0:
+            inside = False
+        distance = min(distance, _segment_distance(p, a, b))
+    return float(distance if inside else -distance)
+
+
+def cop_margins(feet: np.ndarray, forces: np.ndarray, min_normal_force: float = 1.0
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Measured centre of pressure and its margin in the polygon of the feet in contact.
+
+    feet, forces: (n, 4, 3) true foot positions and ground reaction forces (world); a foot is in
+    contact when its normal (z) force exceeds ``min_normal_force`` N. The CoP is the
+    normal-force-weighted mean of the contact feet (flat-ground approximation). Returns the CoP
+    (n, 2) and the margin (n,) m (negative = outside; NaN when no foot carries load).
+    """
+    n = len(feet)
+    cop = np.full((n, 2), np.nan)
+    margin = np.full(n, np.nan)
+    for k in range(n):
+        fz = forces[k, :, 2]
+        loaded = fz > min_normal_force
+        if not np.any(loaded):
+            continue
+        xy = feet[k, loaded, :2]
+        cop[k] = fz[loaded] @ xy / fz[loaded].sum()
+        margin[k] = polygon_margin(cop[k], xy)
+    return cop, margin
+
+
+def estimator_errors(times: np.ndarray, estimated: np.ndarray, true: np.ndarray,
+                     estimated_velocity: np.ndarray, true_velocity: np.ndarray) -> dict:
+    """Errors of an estimated base trajectory against the truth at the same stamps.
+
+    estimated, true: (n, 3) positions (m); *_velocity: (n, 3) world linear velocities (m/s).
+    """
+    if len(times) == 0:
+        return {}
+    xy = np.linalg.norm(estimated[:, :2] - true[:, :2], axis=1)
+    velocity = np.linalg.norm(estimated_velocity - true_velocity, axis=1)
+    walked = float(np.sum(np.linalg.norm(np.diff(true[:, :2], axis=0), axis=1)))
+    return {'samples': len(times), 'xy_error_end_m': float(xy[-1]),
+            'xy_error_max_m': float(xy.max()),
+            'xy_drift_fraction': float(xy[-1] / walked) if walked > 0.05 else None,
+            'z_error_max_m': float(np.abs(estimated[:, 2] - true[:, 2]).max()),
+            'velocity_rmse_mps': float(np.sqrt(np.mean(velocity ** 2))),
+            'path_length_m': walked}
+
+
+def touchdown_timing(touchdowns: list[tuple[float, int]],
+                     planned: list[tuple[float, int, float, float]]
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Actual minus planned touchdown time (s) of each executed step, and the actual times.
+
+    touchdowns: (time, leg) of each true touchdown edge (a stance foot whose load flickers
+    around the threshold has edges too). planned: (plan stamp, leg, planned lift-off, planned
+    touchdown) of each step of each published plan. A step was executed if it lifted off
+    before the next plan was made; its actual touchdown is the first edge of its leg after half
+    its planned swing and before its planned touchdown plus the planned swing (a step with no
+    such edge is left out).
+    """
+    by_leg: dict[int, list[float]] = {}
+    for t, leg in touchdowns:
+        by_leg.setdefault(leg, []).append(t)
+    for times in by_leg.values():
+        times.sort()
+    stamps = sorted({p[0] for p in planned})
+    next_plan = {a: b for a, b in zip(stamps, [*stamps[1:], np.inf], strict=True)}
+    errors, actual = [], []
+    for stamp, leg, liftoff, touchdown in planned:
+        if liftoff >= next_plan[stamp] - 1e-9:
+            continue                       # superseded by the next plan before it started
+        swing = touchdown - liftoff
+        for t in by_leg.get(leg, []):
+            if liftoff + 0.5 * swing < t <= touchdown + swing:
+                errors.append(t - touchdown)
+                actual.append(t)
+                break
+    return np.array(errors), np.array(actual)
+
+
+def peaks_around(times: np.ndarray, values: np.ndarray, events: np.ndarray,
+                 before: float = 0.1, after: float = 0.3) -> np.ndarray:
+    """Peak-to-peak excursion of ``values`` in [event - before, event + after] per event."""
+    out = []
+    for t in events:
+        inside = (times >= t - before) & (times <= t + after)
+        if np.count_nonzero(inside) >= 2:
+            window = values[inside]
+            out.append(float(window.max() - window.min()))
+    return np.array(out)

@@ -13,12 +13,21 @@ Conventions:
   contact points; its contact flag is debounced: the normal force must stay above (below)
   ``contact_threshold`` for ``debounce_ticks`` consecutive ticks before the flag rises (falls).
 - Feet touching the ground at spawn start with the contact flag set (no touchdown event).
+
+Realism, each element off by default (then the world is the ideal one, bit for bit):
+- ``actuator``: the commanded torque passes a transport delay, a first-order lag and the
+  torque limits per physics step; joint viscous and Coulomb friction oppose the motion.
+- ``contact_stiffness`` / ``contact_damping``: compliant (rubber) feet instead of rigid contact.
+- ``imu_truth``: the exact angular velocity and specific force at base_link, for an IMU model
+  (``replan_core.sensors``).
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 import pybullet
@@ -45,6 +54,46 @@ _TERRAIN_DEFAULTS = {
 _SPAWN_CONTACT_DISTANCE = 0.002   # m, a foot this close to the ground at spawn is in contact
 
 
+@dataclass(frozen=True)
+class ActuatorParams:
+    """Joint actuators between the torque command and the joint; the defaults are ideal.
+
+    Per physics step the command (held over the control tick and clipped to the limits) is
+    delayed by ``delay``, then low-passed with ``time_constant``: that is the actuator torque,
+    reported as ``joint_state().effort``. Joint friction acts on top of it.
+    """
+
+    time_constant: float = 0.0        # s, first-order lag of the torque loop; 0 = none
+    delay: float = 0.0                # s, transport delay, rounded to whole physics steps
+    viscous_damping: float = 0.0      # N m s/rad, joint viscous friction
+    coulomb_friction: float = 0.0     # N m, joint dry friction (smooth near qd = 0)
+    torque_limit_scale: float = 1.0   # actuator limits = this x the URDF effort limits
+
+    def __post_init__(self) -> None:
+        values = (self.time_constant, self.delay, self.viscous_damping, self.coulomb_friction)
+        if not all(math.isfinite(v) and v >= 0.0 for v in values):
+            raise ValueError(f'actuator parameters must be finite and >= 0: {self}')
+        if not (math.isfinite(self.torque_limit_scale) and self.torque_limit_scale > 0.0):
+            raise ValueError(f'torque_limit_scale must be > 0, got {self.torque_limit_scale}')
+
+
+# Suggested values for HyQ (the defaults above are ideal):
+# - time_constant 3 ms: a torque loop of ~50 Hz bandwidth, 1 / (2 pi 50 Hz), the order of the
+#   hydraulic torque control of HyQ (Boaventura et al., ICRA 2012; figure from memory);
+# - delay 2 ms: two 1 kHz cycles between the command and the valve (bus and valve dead time,
+#   an estimate);
+# - viscous_damping 0.1 N m s/rad: hyq_description's joint damping;
+# - coulomb_friction 1 N m: cylinder seal friction of some tens of N on a ~0.04 m lever arm
+#   (an estimate).
+REALISTIC_ACTUATOR = ActuatorParams(time_constant=0.003, delay=0.002, viscous_damping=0.1,
+                                    coulomb_friction=1.0)
+# Rubber feet: Hertz contact of HyQ's 0.02175 m foot sphere, rubber E ~ 5 MPa (nu 0.5), under a
+# quarter of the weight (213 N): 3 mm compression, tangent stiffness 1.5 F / delta ~ 1e5 N/m;
+# damping 2 sqrt(k m) for the ~0.9 kg lower leg (critical: a landing foot does not bounce).
+REALISTIC_CONTACT_STIFFNESS = 1.0e5     # N/m
+REALISTIC_CONTACT_DAMPING = 600.0       # N s/m
+
+
 class SimWorld:
     """A PyBullet world with one torque-controlled quadruped (DIRECT mode, deterministic)."""
 
@@ -54,12 +103,17 @@ class SimWorld:
                  initial_base_height: float | None = None,
                  terrain: str = 'flat', terrain_params: dict | None = None,
                  contact_threshold: float = 30.0, debounce_ticks: int = 2,
-                 friction: float = 0.8, gui: bool = False, seed: int = 0) -> None:
+                 friction: float = 0.8, gui: bool = False, seed: int = 0,
+                 actuator: ActuatorParams | None = None,
+                 contact_stiffness: float = 0.0, contact_damping: float = 0.0) -> None:
         """Build the world and spawn the robot at rest, base at x = y = 0, level.
 
         initial_joint_positions: (12,) rad in JOINT_NAMES order (None: HyQ standing pose).
         initial_base_height: m, base_link z (None: feet just touching the ground below them).
         terrain_params: sizes overriding ``_TERRAIN_DEFAULTS`` (m).
+        actuator: delay, lag, friction and limits of the joints (None: ideal actuators).
+        contact_stiffness: N/m, of the foot contacts; 0 = PyBullet's rigid contact.
+        contact_damping: N s/m, of the foot contacts (only with a contact_stiffness).
         """
         substeps = control_period / physics_dt
         if physics_dt <= 0 or substeps < 1 or abs(substeps - round(substeps)) > 1e-9:
@@ -69,6 +123,13 @@ class SimWorld:
         unknown = set(terrain_params or {}) - set(_TERRAIN_DEFAULTS)
         if unknown:
             raise ValueError(f'unknown terrain parameters {sorted(unknown)}')
+        if not (math.isfinite(contact_stiffness) and math.isfinite(contact_damping)
+                and contact_stiffness >= 0.0 and contact_damping >= 0.0):
+            raise ValueError('contact_stiffness and contact_damping must be finite and >= 0')
+        if contact_damping > 0.0 and contact_stiffness == 0.0:
+            raise ValueError('contact_damping needs a contact_stiffness > 0')
+        act = ActuatorParams() if actuator is None else actuator
+        self._actuator = act
         self._physics_dt = physics_dt
         self._control_period = control_period
         self._substeps = round(substeps)
@@ -104,11 +165,13 @@ class SimWorld:
         self._joints = [joints[n] for n in JOINT_NAMES]
         self._feet = [links[n] for n in FOOT_FRAMES]
         self._foot_index = {link: k for k, link in enumerate(self._feet)}
-        self._effort_limit = np.array(
+        self._effort_limit = act.torque_limit_scale * np.array(
             [p.getJointInfo(self._robot, j)[10] for j in self._joints])
         # Base inertial frame in the base_link frame (PyBullet poses the base by this frame).
         local_pos, local_quat = p.getDynamicsInfo(self._robot, -1)[3:5]
         self._local_pos, self._local_quat = np.array(local_pos), np.array(local_quat)
+        self._local_pos_tuple = tuple(float(c) for c in local_pos)
+        self._local_quat_tuple = tuple(float(c) for c in local_quat)
 
         # Only the commanded torques move the robot: no default velocity motors, no joint
         # damping or friction, no artificial link damping (PyBullet's default is 0.04).
@@ -117,11 +180,34 @@ class SimWorld:
         for link in range(-1, p.getNumJoints(self._robot)):
             p.changeDynamics(self._robot, link, linearDamping=0.0, angularDamping=0.0,
                              jointDamping=0.0, restitution=0.0)
+        if act.viscous_damping > 0.0:
+            # PyBullet adds -jointDamping * qd to the joint torque before each step (explicit):
+            # stable while b dt / I < 2; b = 10 N m s/rad on the lightest joint (the knee, an
+            # effective 0.022 kg m^2) gives 0.45 at 1 kHz. The realistic b is 0.1.
+            for j in self._joints:
+                p.changeDynamics(self._robot, j, jointDamping=act.viscous_damping)
         # Bullet multiplies the two bodies' coefficients: ground 1.0, robot = friction.
         for body in self._terrain_bodies:
             p.changeDynamics(body, -1, lateralFriction=1.0, restitution=0.0)
         for link in range(-1, p.getNumJoints(self._robot)):
             p.changeDynamics(self._robot, link, lateralFriction=friction)
+        if contact_stiffness > 0.0:
+            # Bullet turns k and c into the contact constraint's ERP = dt k / (dt k + c) and
+            # CFM = 1 / (dt k + c): an implicit spring-damper, stable for any k, c at 1 kHz. It
+            # needs both values in the same call. The ground keeps Bullet's default (near
+            # infinite stiffness), so the combined contact is the foot's.
+            for foot in self._feet:
+                p.changeDynamics(self._robot, foot, contactStiffness=contact_stiffness,
+                                 contactDamping=contact_damping)
+
+        # Actuator dynamics per physics step: a delay line of whole steps (the command at spawn
+        # is 0 N m) and the exact discretisation of the lag for a command held over one step.
+        self._delay_steps = round(act.delay / physics_dt)
+        self._delay_line = deque(np.zeros(len(JOINT_NAMES)) for _ in range(self._delay_steps))
+        self._lag_alpha = (1.0 - math.exp(-physics_dt / act.time_constant)
+                           if act.time_constant > 0.0 else 1.0)
+        self._lagged = np.zeros(len(JOINT_NAMES))
+        self._actuator_dynamics = self._delay_steps > 0 or act.time_constant > 0.0
 
         q0 = STANDING_POSE if initial_joint_positions is None else np.asarray(
             initial_joint_positions, dtype=float).reshape(len(JOINT_NAMES))
@@ -132,6 +218,21 @@ class SimWorld:
         self._set_base_pose(np.array([0.0, 0.0, initial_base_height]),
                             np.array([0.0, 0.0, 0.0, 1.0]))
         p.resetBaseVelocity(self._robot, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+        # Coulomb friction as the smooth saturation -tau_c clip(qd / v_eps, -1, 1), applied
+        # explicitly per physics step from that step's joint velocities. Below v_eps it is a
+        # viscous damping tau_c / v_eps, stable in explicit time stepping while
+        # (tau_c / v_eps) dt / I < 2 for the lightest joint inertia I: we take the v_eps that
+        # gives 0.5 (no overshoot, margin for posture changes and the viscous part), with I
+        # from the mass matrix at the initial pose (HyQ's knee, 0.022 kg m^2: v_eps =
+        # 0.09 rad/s for 1 N m). The price: a joint loaded below tau_c creeps at
+        # load / tau_c x v_eps instead of sticking. Bullet's own velocity motor (target 0,
+        # force tau_c) would stick exactly, but its constraint in the LCP costs ~240 us per
+        # 4 ms tick here (+80 %), against ~45 us for this.
+        self._coulomb = act.coulomb_friction
+        self._coulomb_inv_velocity = 0.0        # 1 / v_eps, s/rad
+        if self._coulomb > 0.0:
+            self._coulomb_inv_velocity = 1.0 / (
+                2.0 * self._coulomb * physics_dt * self._max_inverse_joint_inertia())
 
         self._applied = np.zeros(len(JOINT_NAMES))
         self._wrench_force = np.zeros(3)
@@ -143,6 +244,8 @@ class SimWorld:
         self._pending = np.zeros(4, dtype=int)       # ticks the raw flag has differed
         self._touchdown = np.zeros(4, dtype=bool)
         self._liftoff = np.zeros(4, dtype=bool)
+        # Velocity of the base_link origin (world, m/s) at the previous tick, for imu_truth.
+        self._previous_velocity = self._origin_motion()[0]
 
     # ------------------------------------------------------------------ properties
     @property
@@ -161,12 +264,25 @@ class SimWorld:
 
     @property
     def effort_limit(self) -> np.ndarray:
-        """(12,) N m, the URDF torque limits in JOINT_NAMES order."""
+        """(12,) N m, the actuator torque limits (URDF limits x torque_limit_scale)."""
         return self._effort_limit.copy()
+
+    @property
+    def actuator(self) -> ActuatorParams:
+        return self._actuator
+
+    @property
+    def coulomb_velocity_scale(self) -> float:
+        """rad/s, v_eps of the smooth Coulomb friction (inf when it is off)."""
+        return 1.0 / self._coulomb_inv_velocity if self._coulomb_inv_velocity else math.inf
 
     # ------------------------------------------------------------------ stepping
     def step(self, torques: np.ndarray) -> None:
-        """Apply joint torques (12,) N m, clipped to the limits, for one control period."""
+        """Command joint torques (12,) N m, clipped to the limits, for one control period.
+
+        With actuator dynamics, the command is clipped before the lag, so the lag cannot wind
+        up and its output (a convex combination of clipped values) stays within the limits.
+        """
         tau = np.asarray(torques, dtype=float)
         if tau.shape != (len(JOINT_NAMES),):
             raise ValueError(f'expected {len(JOINT_NAMES)} torques, got shape {tau.shape}')
@@ -179,10 +295,28 @@ class SimWorld:
         force_sum = np.zeros((4, 3))
         normal_sum = np.zeros(4)
         push = bool(np.any(self._wrench_force) or np.any(self._wrench_torque))
+        self._previous_velocity = self._origin_motion()[0]
         for _ in range(self._substeps):
+            if self._actuator_dynamics:
+                actual = tau
+                if self._delay_steps:
+                    self._delay_line.append(tau)
+                    actual = self._delay_line.popleft()
+                if self._lag_alpha < 1.0:
+                    self._lagged = self._lagged + self._lag_alpha * (actual - self._lagged)
+                    actual = self._lagged
+                # The effort reported is the actuator torque of the tick's last physics step.
+                self._applied = actual
+                forces = actual.tolist()
+            step_forces = forces
+            if self._coulomb:
+                # Joint friction on top of the actuator torque (not part of the effort).
+                tau_c, inv_v = self._coulomb, self._coulomb_inv_velocity
+                step_forces = [f - tau_c * max(-1.0, min(1.0, s[1] * inv_v)) for f, s in
+                               zip(forces, p.getJointStates(robot, self._joints), strict=True)]
             # Torques and external forces act for one stepSimulation only: set them every step.
             p.setJointMotorControlArray(robot, self._joints, pybullet.TORQUE_CONTROL,
-                                        forces=forces)
+                                        forces=step_forces)
             if push:
                 origin = self._base_pose()[0]
                 p.applyExternalForce(robot, -1, self._wrench_force.tolist(), origin.tolist(),
@@ -238,8 +372,24 @@ class SimWorld:
         return BaseState(stamp=self.time, position=pos, quaternion=quat,
                          linear_velocity=v_origin, angular_velocity=np.array(omega))
 
+    def imu_truth(self) -> tuple[np.ndarray, np.ndarray]:
+        """What a perfect IMU at the base_link origin, with base_link axes, measures now.
+
+        Returns the angular velocity (3,) rad/s and the specific force R^T (a - g) (3,) m/s^2
+        (+9.81 on z at rest), where a is the mean acceleration of the origin over the last tick
+        (velocity difference over the control period; 0 before the first tick).
+        """
+        (vx, vy, vz), (wx, wy, wz), quat = self._origin_motion()
+        px, py, pz = self._previous_velocity
+        inv_dt = 1.0 / self._control_period
+        specific_force = ((vx - px) * inv_dt, (vy - py) * inv_dt, (vz - pz) * inv_dt + GRAVITY)
+        to_body = rotations.conjugate(quat)
+        return (np.array(rotations.rotate(to_body, (wx, wy, wz))),
+                np.array(rotations.rotate(to_body, specific_force)))
+
     def joint_state(self) -> JointState:
-        """Joint positions, velocities and the torques actually applied (after clipping)."""
+        """Joint positions, velocities and the actuator torques (after delay, lag and clipping;
+        at the end of the tick), which joint friction does not include."""
         states = self._p.getJointStates(self._robot, self._joints)
         return JointState(stamp=self.time,
                           position=np.array([s[0] for s in states]),
@@ -275,6 +425,37 @@ class SimWorld:
             self._p = None
 
     # ------------------------------------------------------------------ internals
+    def _max_inverse_joint_inertia(self) -> float:
+        """Largest diagonal entry of the inverse mass matrix over the joints (1/(kg m^2)), at
+        the current pose with a free base: the lightest joint's effective inertia."""
+        p, robot = self._p, self._robot
+        movable = [i for i in range(p.getNumJoints(robot))
+                   if p.getJointInfo(robot, i)[2] != pybullet.JOINT_FIXED]
+        q = [s[0] for s in p.getJointStates(robot, movable)]
+        mass_matrix = np.array(p.calculateMassMatrix(robot, q))
+        dofs = [6 + movable.index(j) for j in self._joints]      # after the base's 6
+        return float(np.max(np.diag(np.linalg.inv(mass_matrix))[dofs]))
+
+    def _origin_motion(self) -> tuple[tuple[float, float, float], tuple[float, float, float],
+                                      tuple[float, float, float, float]]:
+        """Velocity of the base_link origin and angular velocity (world, m/s, rad/s), and the
+        base_link quaternion. Plain floats: it runs at every tick."""
+        p = self._p
+        com_quat = p.getBasePositionAndOrientation(self._robot)[1]
+        v, omega = p.getBaseVelocity(self._robot)
+        lx, ly, lz, lw = self._local_quat_tuple
+        cx, cy, cz, cw = com_quat
+        # base_link orientation = com_quat * conjugate(local_quat)
+        quat = (-cw * lx + cx * lw - cy * lz + cz * ly,
+                -cw * ly + cx * lz + cy * lw - cz * lx,
+                -cw * lz - cx * ly + cy * lx + cz * lw,
+                cw * lw + cx * lx + cy * ly + cz * lz)
+        # origin - com = -R local_pos; v_origin = v_com + omega x (origin - com)
+        rx, ry, rz = rotations.rotate(quat, self._local_pos_tuple)
+        wx, wy, wz = omega
+        return ((v[0] - (wy * rz - wz * ry), v[1] - (wz * rx - wx * rz),
+                 v[2] - (wx * ry - wy * rx)), (wx, wy, wz), quat)
+
     # Pose conversions in numpy: pybullet.multiplyTransforms computes in single precision.
     def _base_pose(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position and quaternion of base_link in the world, and the position of the base's

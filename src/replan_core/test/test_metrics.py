@@ -71,3 +71,53 @@ def test_interval_stats_skips_the_start():
     assert stats['count'] == 3
     assert stats['median'] == pytest.approx(0.7) and stats['max'] == pytest.approx(0.8)
     assert interval_stats(np.array([1.0]), skip=0) is None
+
+
+def test_polygon_margin_inside_outside_and_degenerate():
+    from replan_core.metrics import polygon_margin
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert polygon_margin([0.5, 0.5], square) == pytest.approx(0.5)
+    assert polygon_margin([0.9, 0.5], square[[2, 0, 3, 1]]) == pytest.approx(0.1)  # any order
+    assert polygon_margin([1.5, 0.5], square) == pytest.approx(-0.5)
+    assert polygon_margin([0.5, 0.5], square[:2]) == pytest.approx(-0.5)    # a segment
+    assert polygon_margin([0.5, 0.0], square[:2]) == pytest.approx(0.0)
+
+
+def test_cop_margin_follows_the_loaded_feet():
+    from replan_core.metrics import cop_margins
+    feet = np.array([[[0.4, 0.3, 0], [0.4, -0.3, 0], [-0.4, 0.3, 0], [-0.4, -0.3, 0]]])
+    forces = np.zeros((1, 4, 3))
+    forces[0, :, 2] = [200.0, 200.0, 200.0, 200.0]
+    cop, margin = cop_margins(feet, forces)
+    np.testing.assert_allclose(cop[0], [0.0, 0.0], atol=1e-12)
+    assert margin[0] == pytest.approx(0.3)
+    forces[0, 3, 2] = 0.0                       # rh in swing: the triangle lf rf lh
+    cop, margin = cop_margins(feet, forces)
+    assert cop[0, 0] == pytest.approx(0.4 / 3) and margin[0] > 0
+    forces[0, :, 2] = [0.0, 300.0, 300.0, 0.0]  # the diagonal only: no inside
+    _, margin = cop_margins(feet, forces)
+    assert margin[0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_touchdown_timing_matches_executed_steps_only():
+    from replan_core.metrics import touchdown_timing
+    planned = [(0.0, 2, 0.25, 0.75), (0.0, 0, 1.0, 1.5),     # lf superseded at 0.76
+               (0.76, 0, 1.01, 1.51)]
+    touchdowns = [(0.76, 2), (0.5, 1), (1.1, 0), (1.55, 0), (1.6, 2)]   # 0.5 rf, 1.6 lh: flicker
+    errors, actual = touchdown_timing(touchdowns, planned)
+    np.testing.assert_allclose(errors, [0.01, 0.04])
+    np.testing.assert_allclose(actual, [0.76, 1.55])
+
+
+def test_estimator_errors_and_peaks():
+    from replan_core.metrics import estimator_errors, peaks_around
+    t = np.linspace(0.0, 10.0, 101)
+    true = np.stack([0.1 * t, 0 * t, 0.6 + 0 * t], axis=1)
+    est = true + np.array([0.0, 0.01, 0.0]) * t[:, None] / 10.0
+    vel = np.tile([0.1, 0.0, 0.0], (101, 1))
+    errors = estimator_errors(t, est, true, vel + 0.01, vel)
+    assert errors['xy_error_end_m'] == pytest.approx(0.01)
+    assert errors['xy_drift_fraction'] == pytest.approx(0.01)
+    assert errors['velocity_rmse_mps'] == pytest.approx(0.01 * np.sqrt(3))
+    pitch = np.where(np.abs(t - 5.0) < 0.15, 0.02, 0.0)
+    np.testing.assert_allclose(peaks_around(t, pitch, np.array([5.0, 8.0])), [0.02, 0.0])

@@ -7,7 +7,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from replan_core.sim_world import STANDING_POSE, SimWorld
+from replan_core.sim_world import STANDING_POSE, ActuatorParams, SimWorld
 from replan_core.types import FOOT_FRAMES, JOINT_NAMES
 
 URDF = os.environ.get(
@@ -246,3 +246,186 @@ def test_bad_configuration():
         SimWorld(URDF, terrain='lava')
     with pytest.raises(ValueError):
         SimWorld(URDF, control_period=0.0045)
+
+
+# ---------------------------------------------------------------------- realism options
+def record(world, model, ticks, noise_seed=7):
+    """States of ``ticks`` ticks under the standing torques plus seeded noise."""
+    noise = np.random.default_rng(noise_seed).normal(0.0, 20.0, size=(ticks, 12))
+    rows = []
+    for k in range(ticks):
+        world.step(standing_torques(world, model) + noise[k])
+        b, j, c = world.base_state(), world.joint_state(), world.contact_state()
+        rows.append(np.concatenate([b.position, b.quaternion, b.linear_velocity,
+                                    b.angular_velocity, j.position, j.velocity, j.effort,
+                                    c.force.ravel(), c.contact]))
+    return np.array(rows)
+
+
+def test_realism_defaults_change_nothing(world_factory, model):
+    """Every realism option at its default gives the ideal world, bit for bit."""
+    plain = record(world_factory(initial_base_height=STAND_HEIGHT + 0.02), model, 150)
+    explicit = record(world_factory(initial_base_height=STAND_HEIGHT + 0.02,
+                                    actuator=ActuatorParams(), contact_stiffness=0.0,
+                                    contact_damping=0.0), model, 150)
+    assert np.array_equal(plain, explicit)
+
+
+def test_actuator_lag_reaches_63_percent_after_time_constant(world_factory):
+    T, dt = 0.005, 0.001
+    w = world_factory(initial_base_height=5.0, physics_dt=dt, control_period=dt,
+                      actuator=ActuatorParams(time_constant=T))
+    effort = []
+    for _ in range(20):
+        w.step(np.full(12, 10.0))
+        effort.append(w.joint_state().effort[0])
+    first = int(np.argmax(np.array(effort) >= 0.632 * 10.0)) + 1     # physics steps
+    assert first == round(T / dt)
+    np.testing.assert_allclose(effort[first - 1], 10.0 * (1.0 - np.exp(-1.0)), rtol=1e-12)
+    assert np.all(np.diff(effort) > 0.0) and effort[-1] < 10.0
+
+
+def test_actuator_effort_is_the_value_at_the_end_of_the_tick(world_factory):
+    T = 0.01
+    w = world_factory(initial_base_height=5.0, actuator=ActuatorParams(time_constant=T))
+    w.step(np.full(12, 10.0))
+    np.testing.assert_allclose(w.joint_state().effort, 10.0 * (1.0 - np.exp(-0.004 / T)),
+                               rtol=1e-12)
+
+
+def test_actuator_delay(world_factory):
+    dt = 0.001
+    w = world_factory(initial_base_height=5.0, physics_dt=dt, control_period=dt,
+                      actuator=ActuatorParams(delay=0.003))
+    effort = []
+    for _ in range(6):
+        w.step(np.full(12, 10.0))
+        effort.append(w.joint_state().effort[0])
+    assert effort == [0.0, 0.0, 0.0, 10.0, 10.0, 10.0]
+
+
+def test_actuator_limits_scaled_and_no_windup(world_factory):
+    w = world_factory(initial_base_height=5.0,
+                      actuator=ActuatorParams(time_constant=0.003, delay=0.002,
+                                              torque_limit_scale=0.5))
+    np.testing.assert_array_equal(w.effort_limit, 75.0)
+    for _ in range(20):
+        w.step(np.full(12, 400.0))
+        assert np.all(w.joint_state().effort <= 75.0)
+    np.testing.assert_allclose(w.joint_state().effort, 75.0, rtol=1e-6)
+    w.step(np.zeros(12))              # clipped before the lag: it falls at once, no wind-up
+    w.step(np.zeros(12))
+    assert np.all(w.joint_state().effort < 75.0 * np.exp(-0.004 / 0.003))
+
+
+def knee_coast(world_factory, actuator, ticks=100):
+    """Robot in the air: spin the knees up (2 N m for 5 ticks), then command 0 N m.
+    Returns the front-left knee velocity (rad/s) at each coasting tick."""
+    w = world_factory(initial_base_height=5.0, actuator=actuator)
+    kick = np.zeros(12)
+    kick[[2, 5]] = -2.0            # front knees flex with negative angles
+    for _ in range(5):
+        w.step(kick)
+    v = []
+    for _ in range(ticks):
+        w.step(np.zeros(12))
+        v.append(w.joint_state().velocity[2])
+    return np.array(v)
+
+
+def test_joint_friction(world_factory):
+    free = knee_coast(world_factory, ActuatorParams())
+    viscous = knee_coast(world_factory, ActuatorParams(viscous_damping=0.5))
+    coulomb = knee_coast(world_factory, ActuatorParams(coulomb_friction=1.0))
+    v0 = free[0]
+    assert v0 < -0.5 and np.all(free < 0.5 * v0)         # no friction: it keeps turning
+    # Viscous: an exponential decay, monotonic, never reversing.
+    assert np.all(np.diff(np.abs(viscous)) < 0.0) and np.all(viscous <= 0.0)
+    assert abs(viscous[-1]) < 0.01 * abs(v0)
+    # Coulomb: a constant deceleration tau_c / I (knee, I ~ 0.022 kg m^2) down to v_eps, then
+    # a fast decay to rest, never reversing.
+    slowing = np.diff(coulomb[:4])
+    np.testing.assert_allclose(slowing, slowing[0], rtol=0.1)
+    assert slowing[0] == pytest.approx(1.0 / 0.022 * 0.004, rel=0.2)
+    assert np.all(coulomb <= 0.0) and np.all(np.abs(coulomb[50:]) < 1e-4)
+
+
+def test_imu_truth_at_rest_and_in_free_fall(world_factory, model):
+    w = world_factory()
+    omega, f = w.imu_truth()                  # spawned at rest, level
+    np.testing.assert_allclose(omega, 0.0, atol=1e-12)
+    np.testing.assert_allclose(f, [0.0, 0.0, G], atol=1e-12)
+    for _ in range(900):                      # 3.6 s standing: settled, tilted by ~0.7 deg
+        w.step(standing_torques(w, model))
+    v_start = w.base_state().linear_velocity
+    measured, rotations = [], []
+    for _ in range(100):
+        w.step(standing_torques(w, model))
+        omega, f = w.imu_truth()
+        b = w.base_state()
+        R = pin.Quaternion(b.quaternion[3], *b.quaternion[:3]).toRotationMatrix()
+        np.testing.assert_allclose(omega, 0.0, atol=1e-3)
+        np.testing.assert_allclose(f, R.T @ [0.0, 0.0, G], atol=2e-2)   # contact jitter
+        measured.append(f)
+        rotations.append(R)
+    # The velocity differences telescope over the 0.4 s: gravity plus the slow creep left
+    # (the standing PD still drifts by ~1 mm/s).
+    creep = (w.base_state().linear_velocity - v_start) / (100 * w.control_period)
+    expected = np.mean([R.T @ (creep + np.array([0.0, 0.0, G])) for R in rotations], axis=0)
+    np.testing.assert_allclose(np.mean(measured, axis=0), expected, atol=1e-4)
+    assert np.linalg.norm(np.mean(measured, axis=0)) == pytest.approx(G, abs=3e-3)
+    air = world_factory(initial_base_height=5.0)
+    for _ in range(10):
+        air.step(np.zeros(12))
+    np.testing.assert_allclose(air.imu_truth()[1], 0.0, atol=1e-9)   # free fall reads 0
+
+
+def test_imu_truth_push_and_rotation(world_factory, model):
+    mass = pin.computeTotalMass(model[0])
+    w = world_factory(initial_base_height=5.0)
+    force = np.array([400.0, -250.0, 0.0])
+    w.set_external_wrench(force, np.array([0.0, 0.0, 30.0]))
+    for _ in range(25):
+        w.step(np.zeros(12))
+    omega, f = w.imu_truth()
+    b = w.base_state()
+    R = pin.Quaternion(b.quaternion[3], *b.quaternion[:3]).toRotationMatrix()
+    np.testing.assert_allclose(omega, R.T @ b.angular_velocity, atol=1e-12)
+    assert omega[2] > 0.1                     # yawing left under the +z torque
+    # Pushed at the base origin with limp legs: the origin accelerates somewhat more than the
+    # whole robot's CoM (F / M); the sign and size must be right.
+    f_world = R @ f
+    np.testing.assert_allclose(f_world[:2], force[:2] / mass, rtol=0.3)
+
+
+def test_compliant_feet_sink_and_stay_stable(world_factory, model):
+    k, c = 1e5, 600.0
+    rigid = world_factory()
+    soft = world_factory(contact_stiffness=k, contact_damping=c)
+    z = {}
+    for name, w in (('rigid', rigid), ('soft', soft)):
+        heights, vz = [], []
+        for _ in range(500):                  # 2 s
+            w.step(standing_torques(w, model))
+            b = w.base_state()
+            heights.append(b.position[2])
+            vz.append(b.linear_velocity[2])
+        assert np.max(np.abs(vz[-100:])) < 1e-3, name          # settled, no oscillation
+        assert w.contact_state().contact.all()
+        z[name] = heights[-1]
+    weight = pin.computeTotalMass(model[0]) * G
+    sink = z['rigid'] - z['soft']
+    assert sink == pytest.approx(weight / 4 / k, rel=0.3)      # about 2 mm
+    feet = soft.contact_state().foot_position[:, 2]
+    assert np.all(feet < FOOT_RADIUS - 1e-3) and np.all(feet > FOOT_RADIUS - 4e-3)
+
+
+def test_bad_realism_configuration():
+    with pytest.raises(ValueError):
+        ActuatorParams(time_constant=-0.001)
+    with pytest.raises(ValueError):
+        ActuatorParams(torque_limit_scale=0.0)
+    with pytest.raises(ValueError):
+        SimWorld(URDF, contact_damping=100.0)            # damping without stiffness
+    with pytest.raises(ValueError):
+        SimWorld(URDF, contact_stiffness=-1.0)

@@ -13,8 +13,8 @@ import numpy as np
 from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import Point, PoseStamped, Quaternion, Transform, Twist, Vector3
 from nav_msgs.msg import Odometry, Path
+from sensor_msgs.msg import Imu, PointCloud2, PointField
 from sensor_msgs.msg import JointState as JointStateMsg
-from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
@@ -27,6 +27,7 @@ from replan_core.types import (
     ComPlan,
     ContactState,
     FootholdPlan,
+    ImuReading,
     JointState,
     Step,
 )
@@ -175,6 +176,39 @@ def base_state_from_odom(msg: Odometry) -> BaseState:
                      position=np.array([p.x, p.y, p.z]), quaternion=np.array(q),
                      linear_velocity=np.array(rotations.rotate(unit, (lin.x, lin.y, lin.z))),
                      angular_velocity=np.array(rotations.rotate(unit, (ang.x, ang.y, ang.z))))
+
+
+# ---------------------------------------------------------------------------------------------
+# IMU <-> sensor_msgs/Imu (base_link axes; no orientation: REP-145's covariance[0] = -1)
+
+
+def imu_to_msg(reading: ImuReading, gyro_variance: float = 0.0,
+               accel_variance: float = 0.0) -> Imu:
+    """The IMU sample in ``base_link``; the variances (per axis, of one sample) fill the
+    diagonal covariances; the orientation is marked as not provided."""
+    msg = Imu()
+    msg.header = header(reading.stamp, BASE_FRAME)
+    msg.orientation_covariance[0] = -1.0
+    w, a = reading.angular_velocity, reading.linear_acceleration
+    msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = (
+        float(w[0]), float(w[1]), float(w[2]))
+    msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = (
+        float(a[0]), float(a[1]), float(a[2]))
+    for i in (0, 4, 8):
+        msg.angular_velocity_covariance[i] = gyro_variance
+        msg.linear_acceleration_covariance[i] = accel_variance
+    return msg
+
+
+def imu_from_msg(msg: Imu) -> ImuReading:
+    """ImuReading in the frame of the message (base_link); ValueError on a non-finite value."""
+    w, a = msg.angular_velocity, msg.linear_acceleration
+    values = (w.x, w.y, w.z, a.x, a.y, a.z)
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError('imu: non-finite angular velocity or acceleration')
+    return ImuReading(stamp=stamp_to_sec(msg.header.stamp),
+                      angular_velocity=np.array(values[:3]),
+                      linear_acceleration=np.array(values[3:]))
 
 
 # ---------------------------------------------------------------------------------------------

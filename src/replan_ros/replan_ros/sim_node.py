@@ -1,12 +1,25 @@
 """Simulator node `sim`: the PyBullet world behind a robot-driver interface; it owns time.
 
+It publishes what a robot's sensors measure: `imu` (gyro and accelerometer with noise and bias)
+and `joint_states` (encoders and joint torque sensors with noise), and, for metrics and bags
+only, the truth: `ground_truth/odom` and `ground_truth/contacts` (the simulator's exact pose,
+twist and ground reaction forces). The state estimator lives in the controller's process
+(wbc_node), which publishes the estimated `odom` and `contacts` the planners use.
+
 Lock-step (docs/ARCHITECTURE.md, "Time and lock-step"): at tick t_k it publishes /clock,
-joint_states, odom, contacts (and contact_events on edges), all stamped t_k, then waits for the
-joint_torque_cmd stamped t_k, applies it for one control period and publishes t_{k+1}. Without
-that command it republishes the state of t_k every `republish_period`; after `command_timeout`
-wall seconds without one (the controller is dead) it free-runs in real time with joint damping
-so the robot sits down, reports ERROR on /diagnostics, and returns to lock-step as soon as the
-controller answers again. Before the first command the sim does not advance.
+ground_truth/odom, ground_truth/contacts, imu and joint_states (last: the controller wakes on
+it), all stamped t_k, then waits for the joint_torque_cmd stamped t_k, applies it for one
+control period and publishes t_{k+1}. Without that command it republishes the same samples of
+t_k every `republish_period` (the noise is drawn once per tick, so a republish is identical);
+after `command_timeout` wall seconds without one (the controller is dead) it free-runs in real
+time with joint damping so the robot sits down, reports ERROR on /diagnostics, and returns to
+lock-step as soon as the controller answers again. Before the first command the sim does not
+advance.
+
+The realistic robot (config/profiles/realistic.yaml) is made of separate parameters, each off
+in config/sim.yaml (the ideal world): actuator lag, delay, joint friction and torque limits;
+IMU and joint sensor noise (seeded by `noise_seed`); a payload and leg mass errors that the
+controller's model does not know; compliant feet.
 """
 
 from __future__ import annotations
@@ -27,14 +40,16 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState, PointCloud2
+from sensor_msgs.msg import Imu, JointState, PointCloud2
 
-from replan_core.sim_world import STANDING_POSE, TERRAINS, SimWorld
+from replan_core.robot_variant import perturbed_urdf
+from replan_core.sensors import ImuNoiseParams, ImuSensor, JointSensor, JointSensorParams
+from replan_core.sim_world import STANDING_POSE, TERRAINS, ActuatorParams, SimWorld
 from replan_core.types import JOINT_NAMES, WORLD_FRAME
 from replan_ros import diagnostics, qos
 from replan_ros.interfaces import (
-    contact_events_to_msg,
     contacts_to_msg,
+    imu_to_msg,
     joint_state_to_msg,
     ns_to_stamp,
     odom_from_base_state,
@@ -76,13 +91,39 @@ class SimNode(Node):
                 f'standing_joint_positions needs {len(JOINT_NAMES)} finite values; '
                 'using HyQ standing pose')
             standing = STANDING_POSE.copy()
+        model_urdf = urdf
+        urdf = self._robot_urdf(urdf, p)
+        actuator = ActuatorParams(
+            time_constant=p['actuator_time_constant'], delay=p['actuator_delay'],
+            viscous_damping=p['joint_viscous_damping'],
+            coulomb_friction=p['joint_coulomb_friction'],
+            torque_limit_scale=p['torque_limit_scale'])
         self.world = SimWorld(
             urdf, physics_dt=p['physics_dt'], control_period=p['control_period'],
+            actuator=actuator, contact_stiffness=p['contact_stiffness'],
+            contact_damping=p['contact_damping'],
             initial_joint_positions=standing,
             initial_base_height=p['initial_base_height'] or None,
             terrain=p['terrain'], terrain_params=terrain_params,
             contact_threshold=p['contact_threshold'], debounce_ticks=p['debounce_ticks'],
             friction=p['friction'], gui=p['gui'], seed=p['seed'])
+        dt = p['control_period']
+        imu_noise = ImuNoiseParams(
+            gyro_noise_density=p['imu_gyro_noise_density'],
+            gyro_bias_random_walk=p['imu_gyro_bias_random_walk'],
+            gyro_initial_bias=p['imu_gyro_initial_bias'],
+            accel_noise_density=p['imu_accel_noise_density'],
+            accel_bias_random_walk=p['imu_accel_bias_random_walk'],
+            accel_initial_bias=p['imu_accel_initial_bias'])
+        self.imu_sensor = ImuSensor(imu_noise, dt, p['noise_seed'])
+        self.joint_sensor = JointSensor(JointSensorParams(
+            encoder_counts_per_rev=p['encoder_counts_per_rev'],
+            position_noise=p['joint_position_noise'], velocity_noise=p['joint_velocity_noise'],
+            torque_noise=p['joint_torque_noise']), dt, p['noise_seed'])
+        # Variances of one sample, for the Imu message's covariances.
+        self._gyro_variance = imu_noise.gyro_noise_density ** 2 / dt
+        self._accel_variance = imu_noise.accel_noise_density ** 2 / dt
+        self._tick_messages: tuple = ()     # the samples of the current tick, drawn once
         self.lock_step: bool = p['lock_step']
         self.republish_period: float = p['republish_period']
         self.command_timeout: float = p['command_timeout']
@@ -91,14 +132,15 @@ class SimNode(Node):
 
         self.clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK,
                                                event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.truth_odom_pub = self.create_publisher(Odometry, 'ground_truth/odom', qos.SENSOR,
+                                                    event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.truth_contacts_pub = self.create_publisher(
+            PointCloud2, 'ground_truth/contacts', qos.CONTACTS,
+            event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.imu_pub = self.create_publisher(Imu, 'imu', qos.SENSOR,
+                                             event_callbacks=qos.INTERNAL_PUB_EVENTS)
         self.joint_pub = self.create_publisher(JointState, 'joint_states', qos.SENSOR,
                                                event_callbacks=qos.INTERNAL_PUB_EVENTS)
-        self.odom_pub = self.create_publisher(Odometry, 'odom', qos.SENSOR,
-                                              event_callbacks=qos.INTERNAL_PUB_EVENTS)
-        self.contacts_pub = self.create_publisher(PointCloud2, 'contacts', qos.CONTACTS,
-                                                  event_callbacks=qos.INTERNAL_PUB_EVENTS)
-        self.events_pub = self.create_publisher(PointCloud2, 'contact_events', qos.CONTACTS,
-                                                event_callbacks=qos.INTERNAL_PUB_EVENTS)
         self.applied_pub = self.create_publisher(WrenchStamped, 'applied_wrench', qos.SCHEDULE,
                                                  event_callbacks=qos.INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.COMMAND,
@@ -126,12 +168,22 @@ class SimNode(Node):
         self.free_timer.cancel()
         self.create_timer(_WATCHDOG_PERIOD, self._on_watchdog)
         self.create_timer(p['diagnostics_period'], self._on_diagnostics)
+        self._sense()
         self._publish_state(with_clock=True)
         stepping = 'lock-step' if self.lock_step else 'free-run'
+        variant = '' if urdf == model_urdf else f' (the controller\'s model: {model_urdf})'
         self.get_logger().info(
-            f'sim: {urdf} on {p["terrain"]} terrain, {stepping}, tick {p["control_period"]} s, '
-            f'physics {p["physics_dt"]} s; '
+            f'sim: {urdf}{variant} on {p["terrain"]} terrain, {stepping}, tick '
+            f'{p["control_period"]} s, physics {p["physics_dt"]} s; '
             'waiting for the first joint_torque_cmd')
+
+    def _robot_urdf(self, urdf: str, p: dict) -> str:
+        """The simulated robot: the model, or a copy with a payload and leg mass errors."""
+        offset = np.array(p['payload_offset'], dtype=float)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f'sim: payload_offset needs 3 finite values (m), got {offset}')
+        return perturbed_urdf(urdf, payload_mass=p['payload_mass'], payload_offset=offset,
+                              leg_mass_error=p['leg_mass_error'], seed=p['noise_seed'])
 
     # ------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> dict:
@@ -155,6 +207,27 @@ class SimNode(Node):
             ('terrain_rough_resolution', 0.05, 'rough: cell size, m'),
             ('seed', 0, 'rough: heightfield seed'),
             ('friction', 0.8, 'foot/ground Coulomb friction coefficient'),
+            ('contact_stiffness', 0.0, 'foot contact stiffness, N/m; 0 = rigid (PyBullet)'),
+            ('contact_damping', 0.0, 'foot contact damping, N s/m (with contact_stiffness)'),
+            ('actuator_time_constant', 0.0, 'first-order lag of the torque loop, s; 0 = none'),
+            ('actuator_delay', 0.0, 'transport delay of the torque command, s; 0 = none'),
+            ('joint_viscous_damping', 0.0, 'joint viscous friction, N m s/rad'),
+            ('joint_coulomb_friction', 0.0, 'joint Coulomb friction, N m'),
+            ('torque_limit_scale', 1.0, 'actuator torque limits, times the URDF effort limits'),
+            ('imu_gyro_noise_density', 0.0, 'gyro white noise, rad/s/sqrt(Hz)'),
+            ('imu_gyro_bias_random_walk', 0.0, 'gyro bias random walk, rad/s^2/sqrt(Hz)'),
+            ('imu_gyro_initial_bias', 0.0, 'gyro bias at start, std per axis, rad/s'),
+            ('imu_accel_noise_density', 0.0, 'accelerometer white noise, m/s^2/sqrt(Hz)'),
+            ('imu_accel_bias_random_walk', 0.0, 'accelerometer bias random walk, m/s^3/sqrt(Hz)'),
+            ('imu_accel_initial_bias', 0.0, 'accelerometer bias at start, std per axis, m/s^2'),
+            ('encoder_counts_per_rev', 0, 'joint encoder resolution, counts/rev; 0 = exact'),
+            ('joint_position_noise', 0.0, 'joint position noise, rad (std)'),
+            ('joint_velocity_noise', 0.0, 'joint velocity noise, rad/s (std)'),
+            ('joint_torque_noise', 0.0, 'joint torque sensor noise, N m (std)'),
+            ('payload_mass', 0.0, 'payload fixed to the trunk, unknown to the controller, kg'),
+            ('payload_offset', [0.0, 0.0, 0.0], 'payload position in base_link, m'),
+            ('leg_mass_error', 0.0, 'leg link masses off by up to this fraction (seeded)'),
+            ('noise_seed', 0, 'seed of the sensor noise and the leg mass errors'),
             ('contact_threshold', 30.0, 'normal force for contact, N'),
             ('debounce_ticks', 2, 'ticks the force must stay above/below the threshold'),
             ('lock_step', True, 'advance one tick per joint_torque_cmd of the current stamp'),
@@ -184,20 +257,28 @@ class SimNode(Node):
         """Current sim time (the state stamp), ns."""
         return sec_to_ns(self.world.time)
 
-    def _publish_state(self, with_clock: bool = False, with_events: bool = True) -> None:
-        """State of the current tick; /clock on its grid (clock_period) or when forced."""
+    def _sense(self) -> None:
+        """Measure the current tick once: its messages, republished as they are if needed."""
         w = self.world
-        stamp = ns_to_stamp(self.now_ns)
+        truth_contacts = w.contact_state()
+        omega_body, specific_force = w.imu_truth()
+        imu = self.imu_sensor.measure(w.time, omega_body, specific_force)
+        self._tick_messages = (
+            odom_from_base_state(w.base_state()), contacts_to_msg(truth_contacts),
+            imu_to_msg(imu, self._gyro_variance, self._accel_variance),
+            joint_state_to_msg(self.joint_sensor.measure(w.joint_state())))
+
+    def _publish_state(self, with_clock: bool = False) -> None:
+        """State of the current tick; /clock on its grid (clock_period) or when forced.
+        joint_states go last: the controller wakes on them."""
+        w = self.world
         if with_clock or w.tick % self._clock_every == 0:
-            self.clock_pub.publish(Clock(clock=stamp))
-        self.joint_pub.publish(joint_state_to_msg(w.joint_state()))
-        self.odom_pub.publish(odom_from_base_state(w.base_state()))
-        contacts = w.contact_state()
-        self.contacts_pub.publish(contacts_to_msg(contacts))
-        if with_events:
-            events = contact_events_to_msg(contacts)
-            if events is not None:
-                self.events_pub.publish(events)
+            self.clock_pub.publish(Clock(clock=ns_to_stamp(self.now_ns)))
+        truth_odom, truth_contacts, imu, joints = self._tick_messages
+        self.truth_odom_pub.publish(truth_odom)
+        self.truth_contacts_pub.publish(truth_contacts)
+        self.imu_pub.publish(imu)
+        self.joint_pub.publish(joints)
         self.last_publish_wall = time.monotonic()
 
     def _advance(self, torques: np.ndarray) -> None:
@@ -212,6 +293,7 @@ class SimNode(Node):
         self._rtf_samples.append((now, self.world.time))
         while len(self._rtf_samples) > 2 and now - self._rtf_samples[1][0] >= 1.0:
             self._rtf_samples.popleft()
+        self._sense()
         self._publish_state()
 
     def _set_mode(self, mode: str) -> None:
@@ -262,7 +344,7 @@ class SimNode(Node):
             # for its command of the current stamp (it gets command_timeout to send it).
             self.last_command_wall = time.monotonic()
             self._set_mode(LOCK_STEP)
-            self._publish_state(with_clock=True, with_events=False)
+            self._publish_state(with_clock=True)
             return
         self._log_throttled(
             'debug', 'stale', f'ignored joint_torque_cmd stamped {stamp_ns * 1e-9:.3f} s '
@@ -317,8 +399,8 @@ class SimNode(Node):
         waiting = self.mode in (WAITING, LOCK_STEP)
         if waiting and now - self.last_publish_wall >= self.republish_period:
             # Lost messages heal: the state of t_k again, with /clock (same time, so late
-            # joiners learn it while the sim waits) but without repeating contact events.
-            self._publish_state(with_clock=True, with_events=False)
+            # joiners learn it while the sim waits).
+            self._publish_state(with_clock=True)
 
     def _on_free_run_timer(self) -> None:
         if self.mode not in (FREE_RUN, DAMPING):

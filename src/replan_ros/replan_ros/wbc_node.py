@@ -1,15 +1,24 @@
-"""Whole-body controller node `wbc`: the controller side of the lock-step and re-plan protocol.
+"""Whole-body controller node `wbc`: state estimation and the controller side of the lock-step
+and re-plan protocol.
 
-docs/ARCHITECTURE.md, "Time and lock-step" and "Re-plan protocol":
-- states are used only as exact-stamp triples (`joint_states`, `odom`, `contacts` of one stamp);
-  each triple is answered by one `joint_torque_cmd` stamped with it; a duplicate of a stamp
-  already answered gets the same command again; older stamps are ignored; nothing is ever
-  extrapolated;
+docs/ARCHITECTURE.md, "Time and lock-step", "State estimation" and "Re-plan protocol":
+- it wakes on the simulator's `joint_states` (published last in a tick) and takes the tick's
+  `imu` from its queue; the state estimator (`replan_core.estimator`, in this process so that
+  estimation adds no DDS hop to the tick) turns them into the base pose and twist and the foot
+  contacts (forces estimated from the joint torques and the model), which it publishes as
+  `odom`, `contacts` and `contact_events` for the gait and mpc nodes before it answers. With
+  `state_estimation` / `contact_estimation` false (the ideal profile) the simulator's
+  `ground_truth/odom` / `ground_truth/contacts` of the tick take their place;
+- each tick is answered by one `joint_torque_cmd` stamped with it; a republished tick gets the
+  same estimate and command again (the estimator runs once per tick); older stamps are ignored;
+  nothing is ever extrapolated;
 - `contact.StepTracker` (through `wbc.PlanFollower`), fed with the plan and the contacts of
-  every tick, decides swing/stance; when a `replan` step touches down at t_k the tick t_k is
-  answered only once `footholds` and `com_plan` stamped t_k have arrived, or after
-  `plan_timeout` wall seconds (then with the old plans, WARN). Waiting is event-driven: the
-  plan callbacks answer, a one-shot wall-clock timer handles the timeout;
+  every tick, decides swing/stance; when a `replan` step touches down at t_k, the plans stamped
+  t_k take effect at t_k + `plan_latency` (rounded up to ticks; the old plans are tracked
+  meanwhile, with no new lift-off), and that tick is answered only once `footholds` and
+  `com_plan` stamped t_k have arrived, or after `plan_timeout` wall seconds (then with the old
+  plans, WARN). Waiting is event-driven: the plan callbacks answer, a one-shot wall-clock timer
+  handles the timeout;
 - at the first tick it waits for the first plans the same way (timeout: stand);
 - no plan, a plan older than `plan_max_age` (sim s) or past its horizon, or stale inputs (a gap
   of more than `stale_ticks` control periods between answered ticks, e.g. after the sim
@@ -19,6 +28,8 @@ docs/ARCHITECTURE.md, "Time and lock-step" and "Re-plan protocol":
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
 from collections import deque
 from pathlib import Path
@@ -31,22 +42,27 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from sensor_msgs.msg import Imu, PointCloud2
 from sensor_msgs.msg import JointState as JointStateMsg
-from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
+from replan_core.estimator import EstimatorParams, StateEstimator
 from replan_core.robot_model import RobotModel
 from replan_core.rotations import yaw_of
-from replan_core.types import ComPlan, FootholdPlan
+from replan_core.types import ComPlan, ContactState, FootholdPlan
 from replan_core.wbc import PlanFollower, StandHold, WbcParams, WholeBodyController
 from replan_ros import diagnostics
 from replan_ros.interfaces import (
     base_state_from_odom,
     com_plan_from_msg,
+    contact_events_to_msg,
     contacts_from_msg,
+    contacts_to_msg,
     footholds_from_msg,
+    imu_from_msg,
     joint_state_from_msg,
     ns_to_stamp,
+    odom_from_base_state,
     sec_to_ns,
     stamp_to_ns,
     torque_cmd_to_msg,
@@ -64,8 +80,8 @@ from replan_ros.qos import (
 _NS = 1_000_000_000
 _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead of the ticks)
 _KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
-_KEEP_STATES = 50        # partial state triples kept per topic while waiting for the rest
-_STATE_WAIT = 0.01       # wall s to wait for the joint_states / odom of a contacts tick
+_KEEP_STATES = 50        # ticks of inputs kept per topic while waiting for the rest
+_STATE_WAIT = 0.01       # wall s to wait for the imu / ground truth of a joint_states tick
 
 
 class WbcNode(Node):
@@ -113,6 +129,21 @@ class WbcNode(Node):
                       'N m/rad, joint PD of the safe stand after a numerical failure')
         self._declare('fallback_kd', defaults.fallback_kd, 'N m s/rad, same, damping')
         self._declare('diagnostics_period', 1.0, 'wall s between /diagnostics messages')
+        self._declare('state_estimation', False,
+                      'true: base pose and twist from the state estimator (imu + leg '
+                      'kinematics); false: the simulator\'s ground_truth/odom (ideal)')
+        self._declare('contact_estimation', False,
+                      'true: foot contacts from forces estimated from the joint torques; '
+                      'false: the simulator\'s ground_truth/contacts (ideal)')
+        self._declare('plan_latency', 0.0,
+                      'sim s from a re-plan trigger until its plans take effect (rounded up to '
+                      'control ticks; the old plans are tracked meanwhile): the solve time')
+        estimator_defaults = EstimatorParams()
+        for item in dataclasses.fields(EstimatorParams):
+            value = getattr(estimator_defaults, item.name)
+            self._declare(f'estimator.{item.name}',
+                          value.tolist() if hasattr(value, 'tolist') else value,
+                          f'state estimator: {item.name} (replan_core.estimator.EstimatorParams)')
 
         p = {name: self.get_parameter(name).value for name in self._parameter_names}
         params = WbcParams(
@@ -135,16 +166,36 @@ class WbcNode(Node):
         self.stale_gap_ns = sec_to_ns(int(p['stale_ticks']) / float(p['control_rate']))
         self.haptic_velocity = params.haptic_velocity
         self.touchdown_depth = params.touchdown_depth
+        self.state_estimation = bool(p['state_estimation'])
+        self.contact_estimation = bool(p['contact_estimation'])
+        period_ns = sec_to_ns(1.0 / float(p['control_rate']))
+        latency = float(p['plan_latency'])
+        if not (math.isfinite(latency) and 0.0 <= latency < 1.0):
+            raise ValueError(f'wbc: plan_latency must be within [0, 1) s, got {latency}')
+        self.latency_ns = math.ceil(sec_to_ns(latency) / period_ns - 1e-9) * period_ns
 
         urdf = p['urdf_path'] or os.environ.get('REPLAN_URDF') or str(
             Path(__file__).resolve().parents[3] / 'urdf' / 'hyq.urdf')
         self.robot = RobotModel(urdf)
         self.wbc = WholeBodyController(self.robot, params)
+        self.estimator: StateEstimator | None = None
+        if self.state_estimation or self.contact_estimation:
+            fields = {item.name: p[f'estimator.{item.name}']
+                      for item in dataclasses.fields(EstimatorParams)}
+            self.estimator = StateEstimator(RobotModel(urdf), EstimatorParams(**fields),
+                                            dt=period_ns / _NS)
 
-        # Exact-stamp sync buffers: stamp (ns) -> core state.
+        # Inputs of a tick taken from their queues: stamp (ns) -> (message, core state).
+        self._imu: dict[int, object] = {}
+        self._truth_odom: dict[int, tuple] = {}
+        self._truth_contacts: dict[int, tuple] = {}
+        # The state of each processed tick: stamp (ns) -> core state.
         self._joints: dict[int, object] = {}
         self._odom: dict[int, object] = {}
-        self._contacts: dict[int, object] = {}
+        self._contacts: dict[int, ContactState] = {}
+        self._state_msgs: dict[int, tuple] = {}       # stamp -> (odom, contacts) published
+        self._last_estimated: int | None = None
+        self._pending: tuple[int, int] | None = None  # (plan stamp, tick it takes effect)
         self._footholds: dict[int, FootholdPlan] = {}
         self._com_plans: dict[int, ComPlan] = {}
         self._commands: dict[int, JointStateMsg] = {}
@@ -172,23 +223,41 @@ class WbcNode(Node):
                                              event_callbacks=INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
                                               event_callbacks=INTERNAL_PUB_EVENTS)
-        # One wake-up per tick: the sim publishes contacts last, so when they arrive the
-        # joint_states and odom of the tick are queued, and are taken then (on_demand.py).
-        self.create_subscription(PointCloud2, 'contacts', self._on_contacts, CONTACTS,
+        self.odom_pub = self.create_publisher(Odometry, 'odom', SENSOR,
+                                              event_callbacks=INTERNAL_PUB_EVENTS)
+        self.contacts_pub = self.create_publisher(PointCloud2, 'contacts', CONTACTS,
+                                                  event_callbacks=INTERNAL_PUB_EVENTS)
+        self.events_pub = self.create_publisher(PointCloud2, 'contact_events', CONTACTS,
+                                                event_callbacks=INTERNAL_PUB_EVENTS)
+        # One wake-up per tick: the sim publishes joint_states last, so when they arrive the
+        # other samples of the tick are queued, and are taken then (on_demand.py).
+        self.create_subscription(JointStateMsg, 'joint_states', self._on_joint_states, SENSOR,
                                  event_callbacks=INTERNAL_SUB_EVENTS)
         self.state_input = OnDemandSubscriptions(self)
-        self.state_input.subscribe(JointStateMsg, 'joint_states', SENSOR,
-                                   self._on_joint_states, raw=False)
-        self.state_input.subscribe(Odometry, 'odom', SENSOR, self._on_odom, raw=False)
+        self._needed: list[dict] = []
+        if self.estimator is not None:
+            self.state_input.subscribe(Imu, 'imu', SENSOR, self._on_imu, raw=False)
+            self._needed.append(self._imu)
+        if not self.state_estimation:
+            self.state_input.subscribe(Odometry, 'ground_truth/odom', SENSOR,
+                                       self._on_truth_odom, raw=False)
+            self._needed.append(self._truth_odom)
+        if not self.contact_estimation:
+            self.state_input.subscribe(PointCloud2, 'ground_truth/contacts', CONTACTS,
+                                       self._on_truth_contacts, raw=False)
+            self._needed.append(self._truth_contacts)
         self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED,
                                  event_callbacks=INTERNAL_SUB_EVENTS)
         self.create_subscription(MultiDOFJointTrajectory, 'com_plan', self._on_com_plan, LATCHED,
                                  event_callbacks=INTERNAL_SUB_EVENTS)
         self.create_timer(float(p['diagnostics_period']), self._publish_diagnostics,
                           clock=self._wall)
+        base_source = 'the estimator' if self.state_estimation else 'ground truth'
+        contact_source = 'joint torques' if self.contact_estimation else 'ground truth'
+        sources = f'base state from {base_source}, contacts from {contact_source}'
         self.get_logger().info(
-            f'wbc ready: {urdf}, mass {self.robot.total_mass:.2f} kg, plan_timeout '
-            f'{self.plan_timeout} s')
+            f'wbc ready: {urdf}, mass {self.robot.total_mass:.2f} kg, {sources}, plan latency '
+            f'{self.latency_ns / _NS:.3f} s, plan_timeout {self.plan_timeout} s')
 
     def _declare(self, name: str, default, description: str) -> None:
         self.declare_parameter(name, default, ParameterDescriptor(description=description))
@@ -206,37 +275,89 @@ class WbcNode(Node):
             self._warn(f'rejected {what}: {error}')
             return None
 
-    def _on_joint_states(self, msg: JointStateMsg) -> None:
-        state = self._decoded(joint_state_from_msg, msg, 'joint_states')
-        if state is not None:
-            self._store(self._joints, stamp_to_ns(msg.header.stamp), state)
+    def _on_imu(self, msg: Imu) -> None:
+        reading = self._decoded(imu_from_msg, msg, 'imu')
+        if reading is not None:
+            self._keep_input(self._imu, stamp_to_ns(msg.header.stamp), reading)
 
-    def _on_odom(self, msg: Odometry) -> None:
-        base = self._decoded(base_state_from_odom, msg, 'odom')
+    def _on_truth_odom(self, msg: Odometry) -> None:
+        base = self._decoded(base_state_from_odom, msg, 'ground_truth/odom')
         if base is not None:
-            self._store(self._odom, stamp_to_ns(msg.header.stamp), base)
+            self._keep_input(self._truth_odom, stamp_to_ns(msg.header.stamp), (msg, base))
 
-    def _on_contacts(self, msg: PointCloud2) -> None:
-        stamp = stamp_to_ns(msg.header.stamp)
-        # The tick's other two messages were published before this one; should one have been
-        # lost (best effort), the sim's republish of the tick brings it again.
-        self.state_input.drain(lambda: stamp in self._joints and stamp in self._odom,
-                               timeout=_STATE_WAIT)
-        state = self._decoded(contacts_from_msg, msg, 'contacts')
-        if state is not None:
-            self._store(self._contacts, stamp, state)
+    def _on_truth_contacts(self, msg: PointCloud2) -> None:
+        contacts = self._decoded(contacts_from_msg, msg, 'ground_truth/contacts')
+        if contacts is not None:
+            self._keep_input(self._truth_contacts, stamp_to_ns(msg.header.stamp),
+                             (msg, contacts))
 
-    def _store(self, buffer: dict, stamp: int, value) -> None:
+    @staticmethod
+    def _keep_input(buffer: dict, stamp: int, value) -> None:
         buffer[stamp] = value
         while len(buffer) > _KEEP_STATES:
             del buffer[min(buffer)]
-        if stamp in self._joints and stamp in self._odom and stamp in self._contacts:
+
+    def _on_joint_states(self, msg: JointStateMsg) -> None:
+        stamp = stamp_to_ns(msg.header.stamp)
+        if stamp in self._state_msgs:
+            # The sim republished a tick we have estimated: the same state and command again
+            # (a lost odom, contacts or command heals; the estimator never runs twice).
+            odom_msg, contacts_msg = self._state_msgs[stamp]
+            self.odom_pub.publish(odom_msg)
+            self.contacts_pub.publish(contacts_msg)
             self._on_state(stamp)
+            return
+        if self._last_estimated is not None and stamp <= self._last_estimated:
+            return                                   # an old stamp: nothing to answer
+        joints = self._decoded(joint_state_from_msg, msg, 'joint_states')
+        if joints is None:
+            return
+        # The tick's other samples were published before joint_states; should one have been
+        # lost (best effort), the sim's republish of the tick brings it again.
+        self.state_input.drain(lambda: all(stamp in buffer for buffer in self._needed),
+                               timeout=_STATE_WAIT)
+        if not all(stamp in buffer for buffer in self._needed):
+            self._warn(f'tick {stamp / _NS:.3f} s: imu or ground truth missing, waiting for '
+                       'the republish')
+            return
+        base, contacts, odom_msg, contacts_msg = self._estimate(stamp, joints)
+        self.odom_pub.publish(odom_msg)
+        self.contacts_pub.publish(contacts_msg)
+        events = contact_events_to_msg(contacts)
+        if events is not None:
+            self.events_pub.publish(events)
+        self._last_estimated = stamp
+        self._state_msgs[stamp] = (odom_msg, contacts_msg)
+        self._joints[stamp], self._odom[stamp], self._contacts[stamp] = joints, base, contacts
+        self._on_state(stamp)
+
+    def _estimate(self, stamp: int, joints) -> tuple:
+        """Base state and contacts of the tick (estimated or true) and their messages."""
+        estimate = None
+        if self.estimator is not None:
+            estimate = self.estimator.update(self._imu[stamp], joints)
+        if self.state_estimation:
+            base = estimate[0]
+            odom_msg = odom_from_base_state(base)
+            odom_msg.header.stamp = ns_to_stamp(stamp)
+        else:
+            odom_msg, base = self._truth_odom[stamp]
+        if not self.contact_estimation:
+            contacts_msg, contacts = self._truth_contacts[stamp]
+            return base, contacts, odom_msg, contacts_msg
+        contacts = estimate[1]
+        if not self.state_estimation:      # the estimated forces at the true feet
+            contacts = dataclasses.replace(contacts,
+                                           foot_position=self.robot.foot_positions(base, joints))
+        contacts_msg = contacts_to_msg(contacts)
+        contacts_msg.header.stamp = ns_to_stamp(stamp)
+        return base, contacts, odom_msg, contacts_msg
 
     def _forget_states_before(self, floor: int) -> None:
-        """Drop the partial and answered states older than ``floor`` (they can no longer be
-        answered, nor answered again)."""
-        for buffer in (self._joints, self._odom, self._contacts):
+        """Drop the inputs and states older than ``floor`` (they can no longer be answered,
+        nor answered again)."""
+        for buffer in (self._joints, self._odom, self._contacts, self._state_msgs, self._imu,
+                       self._truth_odom, self._truth_contacts):
             for old in [s for s in buffer if s < floor]:
                 del buffer[old]
 
@@ -270,12 +391,13 @@ class WbcNode(Node):
         if self._waiting_first:
             ready = [s for s in pairs if s <= self._waiting]
         else:
-            ready = [s for s in pairs if s == self._waiting]
+            ready = [s for s in pairs if self._pending is not None and s == self._pending[0]]
         if not ready:
             return
         stamp = self._waiting
         self._end_wait()
-        self._adopt(ready[-1], stamp)
+        self._pending = None
+        self._adopt(ready[-1], stamp, announced=not self._waiting_first)
         self._answer(stamp)
 
     # ------------------------------------------------------------------------------ ticks
@@ -306,15 +428,24 @@ class WbcNode(Node):
                                      'since the last answered tick')
         # A newer plan pair than the active one (e.g. not announced by a touchdown we saw):
         # adopt it; this is also how a stand ends.
+        # While a re-plan is pending its plans are not adopted before their time.
         newer = [s for s in self._pair_stamps()
                  if s <= stamp and (self._plan_stamp is None or s > self._plan_stamp)]
-        if newer and (self._stand is not None or self._follower is not None):
+        if newer and self._pending is None and (self._stand is not None
+                                                or self._follower is not None):
             self._adopt(newer[-1], stamp)
         if self._follower is not None and self._stand is None:
-            self._follower.update(t, contacts)
-            if self._follower.replan_due:
-                if stamp in self._footholds and stamp in self._com_plans:
-                    self._adopt(stamp, stamp)
+            if self._pending is None:
+                # Frozen while a re-plan is pending: the old plan's next lift-off waits for
+                # the new plan (whose first lift-off is a four-feet phase after its trigger).
+                self._follower.update(t, contacts)
+                if self._follower.replan_due:
+                    self._pending = (stamp, stamp + self.latency_ns)
+            if self._pending is not None and stamp >= self._pending[1]:
+                plan_stamp = self._pending[0]
+                if plan_stamp in self._footholds and plan_stamp in self._com_plans:
+                    self._pending = None
+                    self._adopt(plan_stamp, stamp, announced=True)
                 else:
                     self._wait(stamp, first=False)
                     return
@@ -346,20 +477,28 @@ class WbcNode(Node):
                 f'at t = {stamp / _NS:.3f}: standing')
             self._enter_stand(stamp, 'no plan yet (plan_timeout)')
         else:
+            self._pending = None
             self.get_logger().warning(
                 f're-plan due at t = {stamp / _NS:.3f} s: footholds/com_plan not there after '
                 f'{self.plan_timeout} s, going on with the old plans')
         self._answer(stamp)
 
-    def _adopt(self, plan_stamp: int, stamp: int) -> None:
-        """Make the pair stamped ``plan_stamp`` active at tick ``stamp``."""
+    def _adopt(self, plan_stamp: int, stamp: int, announced: bool = False) -> None:
+        """Make the pair stamped ``plan_stamp`` active at tick ``stamp`` (``announced``: the
+        re-plan our tracker expected, after the plan latency)."""
         footholds, com_plan = self._footholds[plan_stamp], self._com_plans[plan_stamp]
         self._follower = PlanFollower(footholds, com_plan, self.haptic_velocity,
                                       self.touchdown_depth)
-        if stamp > plan_stamp:       # started late (first tick, or an unannounced plan)
+        if stamp > plan_stamp:       # late: the plan latency, the first tick, or unannounced
             self._follower.update(stamp / _NS, self._contacts[stamp])
-            self.get_logger().info(f'adopted plans stamped {plan_stamp / _NS:.3f} s at tick '
-                                   f'{stamp / _NS:.3f} s')
+            if not announced:
+                self.get_logger().info(f'adopted plans stamped {plan_stamp / _NS:.3f} s at '
+                                       f'tick {stamp / _NS:.3f} s')
+            first_liftoff = min((step.liftoff_time for step in footholds.steps), default=None)
+            if announced and first_liftoff is not None and first_liftoff < stamp / _NS - 1e-9:
+                self._warn(f'plan latency {self.latency_ns / _NS:.3f} s is longer than the '
+                           'four-feet phase: the first swing of the plan stamped '
+                           f'{plan_stamp / _NS:.3f} s starts late')
         self._plan_stamp = plan_stamp
         if self._stand is not None:
             self.get_logger().info(f'plans stamped {plan_stamp / _NS:.3f} s: leaving the stand')
@@ -372,6 +511,7 @@ class WbcNode(Node):
                                 self.haptic_velocity)
         self._stand_reason = reason
         self._follower = None
+        self._pending = None
         self.get_logger().warning(f'standing at t = {stamp / _NS:.3f} s: {reason}')
 
     def _answer(self, stamp: int) -> None:
@@ -436,6 +576,10 @@ class WbcNode(Node):
                 'last_tick': self._last_answered / _NS,
                 'ticks': self._ticks,
                 'plan_timeouts': self._plan_timeouts,
+                'state_estimation': self.state_estimation,
+                'contact_estimation': self.contact_estimation,
+                'plan_latency_s': self.latency_ns / _NS,
+                'plan_pending': self._pending is not None,
                 'fallbacks': self._fallbacks,
                 'waiting_for_plans': self._waiting is not None,
             }

@@ -36,9 +36,11 @@ from replan_ros.on_demand import helper_name
 NODES = ('sim', 'gait', 'mpc', 'wbc')
 # Published by sim, gait and mpc as soon as they are up; with a recorder in the graph the wbc,
 # whose first command lets the sim advance, starts only once the recorder listens to all of them.
-RECORDED_BEFORE_START = ('/clock', '/joint_states', '/odom', '/contacts', '/contact_events',
-                         '/applied_wrench', '/footholds', '/velocity_setpoint', '/com_plan',
-                         '/zmp_plan')
+RECORDED_BEFORE_START = ('/clock', '/joint_states', '/imu', '/ground_truth/odom',
+                         '/ground_truth/contacts', '/applied_wrench', '/footholds',
+                         '/velocity_setpoint', '/com_plan', '/zmp_plan')
+PROFILES = ('realistic', 'ideal')
+DEFAULT_PROFILE = 'realistic'
 RECORDER_WAIT = 20.0    # s, wall
 DELIVERY_WAIT = 30.0    # s, wall: scheduled inputs acknowledged by the nodes that use them
 STOP_TIMEOUT = 10.0     # s, SIGINT -> SIGKILL
@@ -47,6 +49,20 @@ RESPAWN_DELAY = 1.0     # s, wall
 
 def _executable(name: str) -> str:
     return str(Path(get_package_prefix('replan_ros')) / 'lib' / 'replan_ros' / name)
+
+
+def profile_file(config_dir: Path, profile: str) -> Path:
+    """The parameter file of a profile: a name in ``config/profiles/`` or a path."""
+    path = Path(profile)
+    if path.suffix in ('.yaml', '.yml'):
+        if not path.is_file():
+            raise ValueError(f'profile file {path} does not exist')
+        return path
+    path = config_dir / 'profiles' / f'{profile}.yaml'
+    if not path.is_file():
+        known = sorted(p.stem for p in (config_dir / 'profiles').glob('*.yaml'))
+        raise ValueError(f'unknown profile {profile!r} (known: {", ".join(known)})')
+    return path
 
 
 def _stamp() -> str:
@@ -93,6 +109,7 @@ class Graph:
     """The node graph of one run: start, supervise, stop."""
 
     def __init__(self, run_dir: Path, *, config_dir: Path, param_files: list[Path] = (),
+                 profile: str | None = DEFAULT_PROFILE,
                  record_dir: Path | None = None, gui: bool = False, respawn: bool = True,
                  extra_params: dict[str, dict[str, str]] | None = None,
                  env: dict[str, str] | None = None, log=print) -> None:
@@ -105,6 +122,11 @@ class Graph:
         self.log = log
         self.nodes: list[ManagedNode] = []
         extra_params = extra_params or {}
+        # The node files are the ideal world; the profile's settings come on top of them and
+        # the user's files last (None: the files already hold one, as in a re-run).
+        self.profile = profile
+        if profile is not None:
+            param_files = [profile_file(config_dir, profile), *param_files]
         names = (['recorder'] if record_dir is not None else []) + list(NODES)
         for name in names:
             cmd = [_executable(f'{name}_node'), '--ros-args', '-r', f'__node:={name}',
@@ -344,6 +366,9 @@ def main(argv=None) -> int:
                         help='record an mcap bag into DIR')
     parser.add_argument('--params', metavar='FILE', type=Path, nargs='+', default=[],
                         help='extra parameter YAML files (sections per node name)')
+    parser.add_argument('--profile', default=DEFAULT_PROFILE, metavar='NAME',
+                        help=f'world profile: {" | ".join(PROFILES)} (config/profiles/NAME.yaml) '
+                             f'or a YAML file; default {DEFAULT_PROFILE}')
     parser.add_argument('--duration', metavar='SIM_SECONDS', type=float,
                         help='stop after this much sim time')
     parser.add_argument('--no-respawn', action='store_true',
@@ -357,9 +382,15 @@ def main(argv=None) -> int:
             parser.error(f'parameter file {path} does not exist')
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     run_dir = args.run_dir or default_run_dir(root)
+    try:
+        profile_file(args.config_dir, args.profile)
+    except ValueError as err:
+        parser.error(str(err))
     graph = Graph(run_dir, config_dir=args.config_dir, param_files=args.params,
-                  record_dir=args.record, gui=args.gui, respawn=not args.no_respawn)
-    print(f'[launch] run folder {run_dir} (domain {os.environ.get("ROS_DOMAIN_ID", "0")})')
+                  profile=args.profile, record_dir=args.record, gui=args.gui,
+                  respawn=not args.no_respawn)
+    print(f'[launch] run folder {run_dir} (domain {os.environ.get("ROS_DOMAIN_ID", "0")}), '
+          f'profile {args.profile}')
     return run_graph(graph, args.duration)
 
 

@@ -35,7 +35,9 @@ from replan_ros.interfaces import stamp_to_ns
 from replan_ros.tools.launch_graph import NODES
 
 INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped}
-ODOM_TOPIC = '/odom'
+# The simulator's truth; bags recorded before the state estimator have it on /odom.
+ODOM_TOPIC = '/ground_truth/odom'
+LEGACY_ODOM_TOPIC = '/odom'
 
 
 class RerunError(ValueError):
@@ -75,7 +77,7 @@ def odom_positions(messages) -> dict[int, np.ndarray]:
 def load_run(bag: str | Path) -> RecordedRun:
     """Inputs, configuration and trajectory of a recorded bag."""
     run = RecordedRun()
-    odom: list[Odometry] = []
+    odom: dict[str, list[Odometry]] = {ODOM_TOPIC: [], LEGACY_ODOM_TOPIC: []}
     with open(bag, 'rb') as stream:
         reader = make_reader(stream)
         for record in reader.iter_metadata():
@@ -85,16 +87,16 @@ def load_run(bag: str | Path) -> RecordedRun:
                 run.run_info = dict(record.metadata)
             elif record.name == 'replan_scenario':
                 run.scenario = dict(record.metadata)
-        topics = [*INPUT_TOPICS, ODOM_TOPIC]
+        topics = [*INPUT_TOPICS, *odom]
         for _schema, channel, message in reader.iter_messages(topics=topics,
                                                               log_time_order=True):
-            if channel.topic == ODOM_TOPIC:
-                odom.append(deserialize_message(message.data, Odometry))
+            if channel.topic in odom:
+                odom[channel.topic].append(deserialize_message(message.data, Odometry))
             elif channel.topic == '/velocity_setpoint':
                 run.setpoints.append(deserialize_message(message.data, TwistStamped))
             else:
                 run.wrenches.append(deserialize_message(message.data, WrenchStamped))
-    run.odom = odom_positions(odom)
+    run.odom = odom_positions(odom[ODOM_TOPIC] or odom[LEGACY_ODOM_TOPIC])
     try:
         run.config_files = list(json.loads(run.run_info.get('config_files', '[]')))
     except ValueError:
@@ -217,8 +219,9 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
         (out_dir / 'scenario.yaml').write_text(run.scenario['content'])
         extra_params = {'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}}
     bag_dir = out_dir / 'bag'
-    graph = Graph(out_dir, config_dir=new_config, param_files=param_files, record_dir=bag_dir,
-                  gui=gui, respawn=False, extra_params=extra_params, log=log)
+    # The recorded parameter files include the run's profile: none is added again.
+    graph = Graph(out_dir, config_dir=new_config, param_files=param_files, profile=None,
+                  record_dir=bag_dir, gui=gui, respawn=False, extra_params=extra_params, log=log)
 
     def send_inputs(node) -> list:
         deliveries = ScheduledInputs(setpoints, wrenches).publish(node)

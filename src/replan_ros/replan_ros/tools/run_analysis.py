@@ -16,18 +16,30 @@ from rclpy.serialization import deserialize_message
 from replan_core.metrics import (
     FallLimits,
     command_segments,
+    cop_margins,
     detect_fall,
     distance_travelled,
+    estimator_errors,
     interval_stats,
+    peaks_around,
     roll_pitch_yaw,
+    touchdown_timing,
     tracking_errors,
 )
 from replan_ros.bag_io import iter_raw
-from replan_ros.interfaces import base_state_from_odom, footholds_from_msg, stamp_to_sec
+from replan_ros.interfaces import (
+    base_state_from_odom,
+    contacts_from_msg,
+    footholds_from_msg,
+    stamp_to_sec,
+)
 from replan_ros.introspection import message_class
 
-TOPICS = ('/clock', '/odom', '/footholds', '/zmp_plan', '/com_plan', '/diagnostics',
-          '/velocity_setpoint', '/applied_wrench')
+# The simulator's truth is what the robot did; /odom is what the robot believed (the
+# estimate), compared with the truth. Bags from before the estimator hold the truth on /odom.
+TRUTH_TOPIC = '/ground_truth/odom'
+TOPICS = ('/clock', TRUTH_TOPIC, '/odom', '/ground_truth/contacts', '/footholds', '/zmp_plan',
+          '/com_plan', '/diagnostics', '/velocity_setpoint', '/applied_wrench')
 
 
 def bag_files(bag: Path) -> list[Path]:
@@ -80,9 +92,12 @@ def _first(values: dict[str, list[float]], *keys: str) -> list[float]:
 def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0,
                 dead_nodes=(), wall_time_total: float | None = None) -> dict:
     data = read_messages(bag)
-    metrics: dict = {'scenario': scenario.name, 'launch_exit_code': launch_exit_code,
+    metrics: dict = {'scenario': scenario.name,
+                     'profile': getattr(scenario, 'profile', None),
+                     'launch_exit_code': launch_exit_code,
                      'dead_nodes': list(dead_nodes), 'bag': str(bag)}
-    odom = [base_state_from_odom(m) for _, m in data.get('/odom', [])]
+    truth_topic = TRUTH_TOPIC if data.get(TRUTH_TOPIC) else '/odom'
+    odom = _first_per_stamp(base_state_from_odom(m) for _, m in data.get(truth_topic, []))
     clock = data.get('/clock', [])
     if not odom or len(clock) < 2:
         metrics.update(completed=False, fell=None,
@@ -139,11 +154,125 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
         max_roll_rad=float(np.abs(rpy[:, 0]).max()), max_pitch_rad=float(np.abs(rpy[:, 1]).max()),
         pushes=[{'t': t, 'force': list(f), 'duration': d} for t, f, d in scenario.push_events],
         read_errors=[e for _, e in data.get('_errors', [])])
+    estimate = (_estimate_against_truth(data, odom) if truth_topic == TRUTH_TOPIC else None)
+    metrics['estimator'] = estimate[0] if estimate else None
+    balance = _measured_balance(data, times, rpy)
+    metrics.update(balance[0])
     try:
         metrics['plots'] = plot_run(data, times, pos, rpy, segments, solve, out_dir)
+        metrics['plots'] += plot_realism(times, pos, estimate, balance[1], out_dir)
     except Exception as err:  # plots are a convenience; the metrics must survive them
         metrics['plot_error'] = str(err)
     return metrics
+
+
+def _first_per_stamp(states) -> list:
+    """Base states sorted by stamp, one per stamp (the sim republishes a tick while it waits)."""
+    seen: dict[float, object] = {}
+    for state in states:
+        seen.setdefault(state.stamp, state)
+    return [seen[t] for t in sorted(seen)]
+
+
+def _estimate_against_truth(data, truth: list) -> tuple[dict, dict] | None:
+    """Estimator errors (/odom against the truth at common stamps) and the series to plot."""
+    estimated = {b.stamp: b for b in _first_per_stamp(
+        base_state_from_odom(m) for _, m in data.get('/odom', []))}
+    pairs = [(estimated[b.stamp], b) for b in truth if b.stamp in estimated]
+    if len(pairs) < 2:
+        return None
+    times = np.array([t.stamp for _, t in pairs])
+    est = np.array([e.position for e, _ in pairs])
+    true = np.array([t.position for _, t in pairs])
+    errors = estimator_errors(times, est, true, np.array([e.linear_velocity for e, _ in pairs]),
+                              np.array([t.linear_velocity for _, t in pairs]))
+    yaw_error = (roll_pitch_yaw(np.array([e.quaternion for e, _ in pairs]))
+                 - roll_pitch_yaw(np.array([t.quaternion for _, t in pairs])))
+    yaw_error = (yaw_error + np.pi) % (2 * np.pi) - np.pi
+    errors['attitude_error_max_deg'] = [float(v) for v in np.degrees(np.abs(yaw_error).max(0))]
+    return errors, {'times': times, 'estimated': est, 'true': true}
+
+
+def _measured_balance(data, times: np.ndarray, rpy: np.ndarray) -> tuple[dict, dict]:
+    """Measured CoP margin (true forces, feet in contact), touchdown timing and the attitude
+    excursions around touchdowns, from /ground_truth/contacts and /footholds."""
+    contacts = {}
+    for _, msg in data.get('/ground_truth/contacts', []):
+        try:
+            state = contacts_from_msg(msg)
+        except ValueError:
+            continue
+        contacts.setdefault(state.stamp, state)
+    if not contacts:
+        return {}, {}
+    stamps = np.array(sorted(contacts))
+    feet = np.array([contacts[t].foot_position for t in stamps])
+    forces = np.array([contacts[t].force for t in stamps])
+    _, margin = cop_margins(feet, forces)
+    valid = margin[np.isfinite(margin)]
+    touchdowns = [(float(t), int(leg)) for t in stamps
+                  for leg in np.flatnonzero(contacts[t].touchdown)]
+    planned = []
+    for _, msg in data.get('/footholds', []):
+        try:
+            plan = footholds_from_msg(msg)
+        except ValueError:
+            continue
+        planned += [(plan.start_time, s.leg, s.liftoff_time, s.touchdown_time)
+                    for s in plan.steps]
+    timing, events = touchdown_timing(touchdowns, planned)
+    roll_peaks = peaks_around(times, rpy[:, 0], events)
+    pitch_peaks = peaks_around(times, rpy[:, 1], events)
+    out = {
+        'cop_margin_min_m': _round(valid.min(), 4) if len(valid) else None,
+        'cop_margin_p5_m': _round(np.percentile(valid, 5), 4) if len(valid) else None,
+        'cop_margin_median_m': _round(np.median(valid), 4) if len(valid) else None,
+        'cop_outside_fraction': _round(np.mean(valid < 0), 4) if len(valid) else None,
+        'touchdowns': len(events),
+        'touchdown_timing_error_s': ({
+            'mean': _round(timing.mean(), 4), 'median_abs': _round(np.median(np.abs(timing)), 4),
+            'p95_abs': _round(np.percentile(np.abs(timing), 95), 4), 'count': len(timing)}
+            if len(timing) else None),
+        'touchdown_roll_peak_deg': _peak_stats(roll_peaks),
+        'touchdown_pitch_peak_deg': _peak_stats(pitch_peaks),
+    }
+    return out, {'times': stamps, 'margin': margin}
+
+
+def _peak_stats(peaks: np.ndarray) -> dict | None:
+    if len(peaks) == 0:
+        return None
+    degrees = np.degrees(peaks)
+    return {'mean': _round(degrees.mean()), 'max': _round(degrees.max()), 'count': len(peaks)}
+
+
+def plot_realism(times, pos, estimate, balance: dict, out_dir: Path) -> list[str]:
+    """estimator.png (estimate against truth) and cop_margin.png (measured margin)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    written = []
+    if estimate is not None:
+        _, series = estimate
+        fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+        error = series['estimated'] - series['true']
+        for i, label in enumerate(['x', 'y', 'z']):
+            axes[i].plot(series['times'], error[:, i] * 100, lw=0.8)
+            axes[i].set_ylabel(f'{label} error [cm]')
+        axes[0].set_title('Base position: estimate (/odom) minus truth (/ground_truth/odom)')
+        axes[-1].set_xlabel('sim time [s]')
+        written.append(_save(fig, out_dir / 'estimator.png'))
+    if balance:
+        fig, ax = plt.subplots(figsize=(9, 4))
+        ax.plot(balance['times'], balance['margin'] * 100, lw=0.6)
+        ax.axhline(0.0, color='tab:red', lw=0.8)
+        ax.set_xlabel('sim time [s]')
+        ax.set_ylabel('CoP margin [cm]')
+        ax.set_title('Measured centre of pressure in the polygon of the feet in contact '
+                     '(< 0: outside)')
+        written.append(_save(fig, out_dir / 'cop_margin.png'))
+    return written
 
 
 def _mean(values) -> float | None:

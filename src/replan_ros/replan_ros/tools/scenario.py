@@ -6,6 +6,7 @@ A scenario file (see config/scenarios/ and the README):
 
     name: forward                       # optional, for the summary
     duration: 20.0                      # s of sim time
+    profile: realistic                  # optional: realistic (default) | ideal | a YAML file
     terrain: flat                       # flat | step_up | step_down | rough, or a mapping
                                         #   {type: step_up, <sim terrain parameters>}
     params:                             # parameter overrides per node (as in config/<node>.yaml)
@@ -33,10 +34,17 @@ import yaml
 from geometry_msgs.msg import TwistStamped, WrenchStamped
 
 from replan_ros.interfaces import sec_to_stamp
-from replan_ros.tools.launch_graph import Graph, ScheduledInputs, run_graph
+from replan_ros.tools.launch_graph import (
+    DEFAULT_PROFILE,
+    Graph,
+    ScheduledInputs,
+    profile_file,
+    run_graph,
+)
 
 NODE_NAMES = ('sim', 'gait', 'mpc', 'wbc', 'recorder')
-TOP_KEYS = {'name', 'description', 'duration', 'terrain', 'params', 'events', 'fall_limits'}
+TOP_KEYS = {'name', 'description', 'duration', 'profile', 'terrain', 'params', 'events',
+            'fall_limits'}
 
 
 class ScenarioError(ValueError):
@@ -53,6 +61,7 @@ class Scenario:
     push_events: list[tuple[float, tuple[float, float, float], float]] = field(
         default_factory=list)
     fall_limits: dict = field(default_factory=dict)
+    profile: str = DEFAULT_PROFILE
     source_text: str = ''
 
 
@@ -92,9 +101,12 @@ def parse_scenario(text: str, source: str = '<scenario>') -> Scenario:
     bad_nodes = set(params) - set(NODE_NAMES)
     if bad_nodes:
         raise ScenarioError(f'{source}: params for unknown nodes {sorted(bad_nodes)}')
+    profile = doc.get('profile', DEFAULT_PROFILE)
+    if not isinstance(profile, str) or not profile:
+        raise ScenarioError(f'{source}: profile must be a profile name or a YAML file')
     scenario = Scenario(name=str(doc.get('name', Path(source).stem)), duration=float(duration),
                         terrain=terrain, params=params, fall_limits=doc.get('fall_limits') or {},
-                        source_text=text)
+                        profile=profile, source_text=text)
     for i, event in enumerate(doc.get('events') or []):
         where = f'{source}: events[{i}]'
         if not isinstance(event, dict) or 't' not in event:
@@ -173,7 +185,7 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
     params_file.write_text(yaml.safe_dump(params_document(scenario), sort_keys=False))
     config_dir = config_dir or Path(os.environ.get('REPLAN_CONFIG', 'config'))
     bag_dir = out_dir / 'bag'
-    graph = Graph(out_dir, config_dir=config_dir,
+    graph = Graph(out_dir, config_dir=config_dir, profile=scenario.profile,
                   param_files=[params_file, *extra_param_files], record_dir=bag_dir,
                   gui=gui, respawn=False,
                   extra_params={'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}},
@@ -206,15 +218,22 @@ def main(argv=None) -> int:
     parser.add_argument('--gui', action='store_true')
     parser.add_argument('--params', type=Path, nargs='+', default=[],
                         help='extra parameter files, applied after the scenario\'s')
+    parser.add_argument('--profile', metavar='NAME',
+                        help='world profile (realistic | ideal | a YAML file), instead of the '
+                             'scenario\'s profile: key (default realistic)')
     args = parser.parse_args(argv)
     try:
         scenario = load_scenario(args.scenario)
-    except ScenarioError as err:
+        if args.profile:
+            scenario.profile = args.profile
+        profile_file(Path(os.environ.get('REPLAN_CONFIG', 'config')), scenario.profile)
+    except (ScenarioError, ValueError) as err:
         print(f'scenario: {err}', file=sys.stderr)
         return 2
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'{scenario.name}-{time.strftime("%Y%m%d-%H%M%S")}'
-    print(f'[scenario] {scenario.name}: {scenario.duration} s of sim time, output in {out}')
+    print(f'[scenario] {scenario.name}: {scenario.duration} s of sim time, profile '
+          f'{scenario.profile}, output in {out}')
     metrics = run_scenario(scenario, out, gui=args.gui, extra_param_files=args.params)
     print(summary(metrics, out))
     return 0 if metrics.get('completed') else 1
@@ -228,8 +247,14 @@ def summary(metrics: dict, out: Path) -> str:
              f'  distance {metrics.get("distance_m", 0):.2f} m, re-plans {metrics.get("replans")}, '
              f'MPC solve median {metrics.get("mpc_solve_ms_median")} ms, '
              f'p99 {metrics.get("mpc_solve_ms_p99")} ms, '
-             f'min ZMP margin {metrics.get("min_zmp_margin_m")} m, '
-             f'peak memory {metrics.get("peak_memory_total_mb")} MB']
+             f'planned ZMP margin min {metrics.get("min_zmp_margin_m")} m, '
+             f'peak memory {metrics.get("peak_memory_total_mb")} MB',
+             f'  profile {metrics.get("profile")}: measured CoP margin min '
+             f'{metrics.get("cop_margin_min_m")} m, 5th percentile '
+             f'{metrics.get("cop_margin_p5_m")} m'
+             + (f'; estimator: xy error at the end {estimate["xy_error_end_m"]:.3f} m, '
+                f'velocity RMSE {estimate["velocity_rmse_mps"]:.3f} m/s'
+                if (estimate := metrics.get('estimator')) else '')]
     for seg in metrics.get('velocity_tracking', []):
         if seg.get('achieved') is None:
             continue

@@ -1,0 +1,463 @@
+"""State estimator of the "realistic robot": base pose/twist and foot contacts from IMU + joints.
+
+No ground truth: every control tick (250 Hz) the controller calls ``StateEstimator.update`` with
+one IMU sample and the joint states (encoder positions/velocities and the measured joint
+torques), and gets the estimated ``BaseState`` and ``ContactState``. Three parts, as on HyQ and
+Mini Cheetah:
+
+- contact forces from joint torques and the model (HyQ had no foot sensors): the whole-body
+  controller commands ``tau_leg = h_leg - J_leg^T f``; inverting it with the measured torque
+  gives the ground reaction force ``f`` on each foot; its world-z component, debounced like the
+  simulator's contact sensing, gives the contact flags and the haptic touchdown/lift-off edges;
+- attitude: gyro integration with a slow (Mahony) correction of roll and pitch towards the
+  accelerometer's gravity direction and a slowly estimated gyro bias; yaw is not observable and
+  drifts with the uncorrected gyro bias, as on a real robot;
+- position and velocity: a linear Kalman filter on ``[p_base, v_base, p_foot x 4]`` (world),
+  driven by the accelerometer and corrected by leg kinematics (Bloesch et al., RSS 2012; Bledt
+  et al., IROS 2018): relative foot positions for every foot, base velocity from stance legs.
+
+The kinematics are computed once per tick with pinocchio at the base pose
+``(0, estimated orientation)``: foot positions and Jacobians then come out in world axes relative
+to the base origin, and ``nonLinearEffects`` sees the right gravity direction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from replan_core import rotations
+from replan_core.robot_model import GRAVITY, RobotModel
+from replan_core.types import LEGS, BaseState, ContactState, ImuReading, JointState
+
+N_LEGS = len(LEGS)
+N_STATE = 6 + 3 * N_LEGS        # p_base, v_base, p_foot x 4
+# Relative foot positions (12) and the base velocity (3): the four legs' velocity measurements
+# share one H row block and have independent noises, so their weighted mean is an exactly
+# equivalent single measurement (a 15- instead of a 24-row update).
+N_MEAS = 3 * N_LEGS + 3
+_G_WORLD = np.array([0.0, 0.0, -GRAVITY])   # m/s^2
+
+
+@dataclass
+class EstimatorParams:
+    """Tuning of the state estimator (the node fills it from its parameter file)."""
+
+    # contact estimation (from joint torques and the model)
+    contact_force_threshold: float = 40.0  # N, estimated normal force for contact
+    contact_debounce_ticks: int = 2        # ticks the estimate must stay above/below
+    jacobian_damping: float = 0.02         # m, damped least squares of J^-T near a stretched knee
+    foot_radius: float = 0.02175           # m, foot frame (sphere centre) above ground at spawn
+    # attitude filter (Mahony): roll/pitch follow the accelerometer with a time constant 1/gain
+    attitude_gain: float = 0.5             # 1/s, roll/pitch correction (time constant 2 s)
+    gyro_bias_gain: float = 0.02           # 1/s^2, integral gain of the gyro bias estimate
+    gyro_bias_limit: float = 0.05          # rad/s, largest gyro bias the estimate may take
+    accel_gate: float = 2.0                # m/s^2, no tilt correction when ||f| - g| exceeds it
+    # Kalman filter noises (white-noise densities are per sqrt(s): variance grows with dt)
+    accel_noise: float = 0.3               # m/s^2/sqrt(Hz), accelerometer in the velocity
+    base_position_noise: float = 0.001     # m/sqrt(s), extra random walk of the base position
+    foot_stance_noise: float = 0.005       # m/sqrt(s), a stance foot's random walk (slip, roll)
+    foot_swing_noise: float = 5.0          # m/sqrt(s), a foot not in contact is free
+    foot_position_noise: float = 0.003     # m, kinematic foot position (encoders, model)
+    foot_velocity_noise: float = 0.03      # m/s, base velocity from one stance leg
+    swing_velocity_noise: float = 10.0     # m/s, same from a swing leg (ignored in effect)
+    initial_position_noise: float = 0.01   # m, standard deviation of the initial base position
+    initial_velocity_noise: float = 0.05   # m/s, same for the initial (zero) velocity
+
+
+class StateEstimator:
+    """Base state and foot contacts from ``ImuReading`` + ``JointState``, one call per tick.
+
+    ``rejected_samples`` counts the ticks with a non-finite IMU or joint sample (the estimate
+    then only predicts); ``initialized`` is False until a valid joint sample arrived.
+    """
+
+    def __init__(self, model: RobotModel, params: EstimatorParams, dt: float = 0.004,
+                 initial_xy: tuple[float, float] | np.ndarray = (0.0, 0.0),
+                 initial_yaw: float = 0.0) -> None:
+        """dt: s, nominal control period; initial_xy: m, world x, y of base_link at spawn;
+        initial_yaw: rad (yaw is not observable: it is taken as given)."""
+        self.params = params
+        p = self.params
+        initial_xy = np.asarray(initial_xy, dtype=float)
+        if initial_xy.shape != (2,) or not np.all(np.isfinite(initial_xy)):
+            raise ValueError(f'initial_xy must be 2 finite numbers, got {initial_xy!r}')
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f'dt must be a positive time step (s), got {dt!r}')
+        if not math.isfinite(initial_yaw):
+            raise ValueError('initial_yaw must be finite')
+        if p.contact_debounce_ticks < 1:
+            raise ValueError('contact_debounce_ticks must be at least 1')
+        if len(model.foot_frame_ids) != N_LEGS or model.leg_v_index.shape != (N_LEGS, 3):
+            raise ValueError('the robot model must have 4 legs of 3 joints')
+        self.model = model
+        self.dt = float(dt)
+        self._initial_xy = initial_xy
+        self._initial_yaw = float(initial_yaw)
+        self._pin_model = model.model
+        self._pin_data = model.model.createData()    # ours: the controller owns model.data
+        self._q = pin.neutral(model.model)           # base position stays at 0 (see module doc)
+        self._v = np.zeros(model.model.nv)
+        self._q_index = model.q_index
+        self._v_index = model.v_index
+        self._model_leg_v = np.asarray(model.leg_v_index, dtype=int)   # (4, 3) v columns
+        # Fancy index picking each leg's 3x3 block out of the (4, 3, nv) foot Jacobians.
+        self._leg_pick = (np.arange(N_LEGS)[:, None, None], np.arange(3)[None, :, None],
+                          self._model_leg_v[:, None, :])
+        self._feet = tuple(model.foot_frame_ids)
+        self._damping2 = p.jacobian_damping ** 2
+
+        # Constant Kalman matrices: the measurement model does not depend on the state.
+        self._H = np.zeros((N_MEAS, N_STATE))
+        for i in range(N_LEGS):
+            rows, foot = slice(3 * i, 3 * i + 3), slice(6 + 3 * i, 9 + 3 * i)
+            self._H[rows, 0:3] = -np.eye(3)
+            self._H[rows, foot] = np.eye(3)
+        self._H[12:15, 3:6] = np.eye(3)
+        self._eye = np.eye(N_STATE)
+        self._eye3_damped = self._damping2 * np.eye(3)
+        self._tau_full = np.zeros(model.model.nv)
+        self._jac_qd = np.zeros((N_LEGS, 3))     # m/s, world axes, foot velocity from joints
+        self._z = np.zeros(N_MEAS)
+        self._r_diag = np.zeros(N_MEAS)
+        base_q = np.zeros(6)
+        base_q[0:3] = p.base_position_noise ** 2 * dt
+        base_q[3:6] = p.accel_noise ** 2 * dt
+        self._q_diag = np.zeros(N_STATE)
+        self._q_diag[:6] = base_q
+        self._q_stance = p.foot_stance_noise ** 2 * dt
+        self._q_swing = p.foot_swing_noise ** 2 * dt
+        self._r_pos = np.full(3 * N_LEGS, p.foot_position_noise ** 2)
+        self._r_stance_vel = p.foot_velocity_noise ** 2
+        self._r_swing_vel = p.swing_velocity_noise ** 2
+
+        # Attitude filter state.
+        self._quat = np.array([0.0, 0.0, 0.0, 1.0])  # x, y, z, w: base to world
+        self._rot = np.eye(3)
+        self.gyro_bias = np.zeros(3)                 # rad/s, estimated, base axes
+        self._last_gyro = np.zeros(3)                # rad/s, last finite sample
+        self._last_accel = np.array([0.0, 0.0, GRAVITY])   # m/s^2, last finite sample
+        self._attitude_ready = False
+
+        # Kalman filter state.
+        self._x = np.zeros(N_STATE)
+        self._x[0:2] = initial_xy
+        self._P = np.eye(N_STATE)
+
+        # Contact estimation state.
+        self._force = np.zeros((N_LEGS, 3))          # N, world, last estimate
+        self._foot_rel = np.zeros((N_LEGS, 3))       # m, world axes, foot - base (kinematics)
+        self._contact = np.zeros(N_LEGS, dtype=bool)
+        self._raw = np.zeros(N_LEGS, dtype=bool)
+        self._pending = np.zeros(N_LEGS, dtype=int)
+        self._touchdown = np.zeros(N_LEGS, dtype=bool)
+        self._liftoff = np.zeros(N_LEGS, dtype=bool)
+
+        self.initialized = False
+        self.rejected_samples = 0                   # ticks with a non-finite input
+        self.last_rejection = ''                    # what the last rejected tick lacked
+        self._last_stamp: float | None = None
+        self._last_result: tuple[BaseState, ContactState] | None = None
+
+    # ------------------------------------------------------------------ public API
+    @property
+    def covariance(self) -> np.ndarray:
+        """(18, 18) Kalman covariance of [p_base, v_base, p_foot x 4] (m, m/s), a copy."""
+        return self._P.copy()
+
+    @property
+    def foot_states(self) -> np.ndarray:
+        """(4, 3) m, world: the filter's foot positions (anchors of stance legs), a copy."""
+        return self._x[6:].reshape(N_LEGS, 3).copy()
+
+    def update(self, imu: ImuReading, joints: JointState) -> tuple[BaseState, ContactState]:
+        """Fuse one IMU sample and the joint states of the same tick; never raises on bad data.
+
+        A repeated stamp returns the previous result unchanged (the lock-step republishes).
+        """
+        stamp = float(imu.stamp)
+        if self._last_result is not None and stamp == self._last_stamp:
+            return _copy_result(self._last_result)
+        dt = self.dt
+        if self._last_stamp is not None and math.isfinite(stamp):
+            elapsed = stamp - self._last_stamp
+            if 0.0 < elapsed <= 25.0 * self.dt:      # a missed tick: predict over it
+                dt = elapsed
+
+        gyro, accel = _vector(imu.angular_velocity, 3), _vector(imu.linear_acceleration, 3)
+        imu_ok = gyro is not None and accel is not None
+        q_meas = _vector(joints.position, 12)
+        qd_meas = _vector(joints.velocity, 12)
+        tau_meas = _vector(joints.effort, 12)
+        joints_ok = q_meas is not None and qd_meas is not None and tau_meas is not None
+        if not (imu_ok and joints_ok):
+            self.rejected_samples += 1
+            self.last_rejection = 'imu' if not imu_ok else 'joints'
+            if not (imu_ok or joints_ok):
+                self.last_rejection = 'imu and joints'
+        if not imu_ok:
+            gyro, accel = self._last_gyro, self._last_accel   # hold: predict only
+        else:
+            self._last_gyro, self._last_accel = gyro, accel
+
+        saved = self._snapshot()
+        try:
+            omega_body = self._update_attitude(gyro, accel, dt, correct=imu_ok)
+            if joints_ok:
+                self._kinematics_and_contacts(q_meas, qd_meas, tau_meas, omega_body)
+            else:
+                self._touchdown = np.zeros(N_LEGS, dtype=bool)
+                self._liftoff = np.zeros(N_LEGS, dtype=bool)
+            if not self.initialized:
+                if joints_ok:
+                    self._initialize_filter()
+            else:
+                self._predict(accel, dt)
+                if joints_ok:
+                    self._correct(qd_meas, omega_body)
+            # One sum: any NaN or inf in the state or the outputs makes it non-finite.
+            finite = math.isfinite(float(
+                self._x.sum() + self._P.sum() + self._quat.sum() + self.gyro_bias.sum()
+                + self._force.sum() + self._foot_rel.sum()))
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError, RuntimeError):
+            finite = False
+        if not finite:                              # keep the previous estimate, report it
+            self._restore(saved)
+            self.rejected_samples += 1
+            self.last_rejection = 'numerical'
+            omega_body = self._last_gyro - self.gyro_bias
+            if not np.all(np.isfinite(omega_body)):
+                omega_body = np.zeros(3)
+
+        result = self._result(stamp if math.isfinite(stamp) else (self._last_stamp or 0.0),
+                              omega_body)
+        self._last_stamp = result[0].stamp
+        self._last_result = result
+        return _copy_result(result)
+
+    # Arrays an update replaces by new ones (kept by reference) and ones it changes in place.
+    _REPLACED = ('_quat', '_rot', 'gyro_bias', '_force', '_foot_rel', '_jac_qd', '_contact',
+                 '_raw', '_pending', '_touchdown', '_liftoff')
+    _IN_PLACE = ('_x', '_P')
+
+    def _snapshot(self) -> tuple:
+        return (tuple(getattr(self, name) for name in self._REPLACED),
+                tuple(getattr(self, name).copy() for name in self._IN_PLACE),
+                self.initialized, self._attitude_ready)
+
+    def _restore(self, saved: tuple) -> None:
+        replaced, copied, self.initialized, self._attitude_ready = saved
+        for name, value in zip(self._REPLACED + self._IN_PLACE, replaced + copied, strict=True):
+            setattr(self, name, value)
+        self._touchdown = np.zeros(N_LEGS, dtype=bool)   # an edge is reported once only
+        self._liftoff = np.zeros(N_LEGS, dtype=bool)
+
+    # ------------------------------------------------------------------ attitude
+    def _update_attitude(self, gyro: np.ndarray, accel: np.ndarray, dt: float,
+                         correct: bool) -> np.ndarray:
+        """Propagate the orientation; returns the bias-corrected body rate (rad/s)."""
+        p = self.params
+        if not self._attitude_ready:
+            self._quat = _level_quaternion(accel, self._initial_yaw)
+            self._rot = rotations.quaternion_to_matrix(self._quat)
+            self._attitude_ready = True
+            return gyro - self.gyro_bias
+        omega = gyro - self.gyro_bias
+        # Plain floats: on 3-vectors numpy's call overhead costs more than the arithmetic.
+        rx, ry, rz = (float(c) for c in omega)
+        ax, ay, az = (float(c) for c in accel)
+        norm = math.sqrt(ax * ax + ay * ay + az * az)
+        # Only a specific force close to g points along gravity: impacts and pushes would tilt
+        # the estimate, the gyro alone is better over them.
+        if correct and abs(norm - GRAVITY) < p.accel_gate:
+            ux, uy, uz = (float(c) for c in self._rot[2])   # R^T e_z: world up in base axes
+            ax, ay, az = ax / norm, ay / norm, az / norm
+            # accel x up: orthogonal to the vertical, it corrects roll and pitch, never yaw.
+            ex, ey, ez = ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux
+            kp, ki, limit = p.attitude_gain, p.gyro_bias_gain * dt, p.gyro_bias_limit
+            rx, ry, rz = rx + kp * ex, ry + kp * ey, rz + kp * ez
+            bx, by, bz = self.gyro_bias
+            self.gyro_bias = np.array([min(max(bx - ki * ex, -limit), limit),
+                                       min(max(by - ki * ey, -limit), limit),
+                                       min(max(bz - ki * ez, -limit), limit)])
+        rate = math.sqrt(rx * rx + ry * ry + rz * rz)
+        if rate * dt > 1e-12:
+            scale = math.sin(0.5 * rate * dt) / rate      # exp of the rotation vector rate * dt
+            delta = (rx * scale, ry * scale, rz * scale, math.cos(0.5 * rate * dt))
+            self._quat = np.array(rotations.normalized(rotations.multiply(self._quat, delta)))
+            self._rot = rotations.quaternion_to_matrix(self._quat)
+        return omega
+
+    # ------------------------------------------------------------------ kinematics, contacts
+    def _kinematics_and_contacts(self, q_meas: np.ndarray, qd_meas: np.ndarray,
+                                 tau_meas: np.ndarray, omega_body: np.ndarray) -> None:
+        """One pinocchio pass: foot positions, Jacobians, forces, debounced contact flags."""
+        model, data = self._pin_model, self._pin_data
+        q, v = self._q, self._v
+        q[3:7] = self._quat
+        q[self._q_index] = q_meas
+        # Base twist in the LOCAL frame (pinocchio's free-flyer convention) for the Coriolis
+        # terms of h; the base position is irrelevant to h.
+        v[0:3] = self._rot.T @ self._x[3:6]
+        v[3:6] = omega_body
+        v[self._v_index] = qd_meas
+        pin.computeJointJacobians(model, data, q)
+        nle = pin.nonLinearEffects(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        oMf = data.oMf
+        self._foot_rel = np.array([oMf[f].translation for f in self._feet])
+        lwa = pin.LOCAL_WORLD_ALIGNED
+        # (12, nv): the translational rows of the four foot Jacobians, world axes.
+        jac_all = np.vstack([pin.getFrameJacobian(model, data, f, lwa)[:3] for f in self._feet])
+        # A foot's Jacobian is zero on the other legs' joints: one product gives every J_i qd_i.
+        self._jac_qd = (jac_all[:, 6:] @ v[6:]).reshape(N_LEGS, 3)
+        jac = jac_all.reshape(N_LEGS, 3, -1)[self._leg_pick]          # (4, 3, 3) J_leg
+        tau_full = self._tau_full
+        tau_full[self._v_index] = tau_meas
+        rhs = (nle - tau_full)[self._model_leg_v][..., None]         # (4, 3, 1) = J^T f
+        # f = J^-T (h - tau), damped: J (J^T J + lambda^2 I)^-1 keeps a stretched leg finite.
+        jac_t = jac.transpose(0, 2, 1)
+        self._force = (jac @ np.linalg.solve(jac_t @ jac + self._eye3_damped, rhs))[..., 0]
+        raw = self._force[:, 2] > self.params.contact_force_threshold
+        self._raw = raw
+        if not self.initialized:
+            # Spawned standing: no edge. Before the first command no torque acts and no foot
+            # shows a force; the robot is on its feet all the same.
+            self._contact = raw.copy() if raw.any() else np.ones(N_LEGS, dtype=bool)
+            self._pending = np.zeros(N_LEGS, dtype=int)
+            self._touchdown = np.zeros(N_LEGS, dtype=bool)
+            self._liftoff = np.zeros(N_LEGS, dtype=bool)
+            return
+        # The simulator's debounce (SimWorld._update_contact_flags), on the estimated force.
+        differs = raw != self._contact
+        self._pending = np.where(differs, self._pending + 1, 0)
+        flip = self._pending >= self.params.contact_debounce_ticks
+        self._touchdown = flip & raw
+        self._liftoff = flip & ~raw
+        self._contact = np.where(flip, raw, self._contact)
+        self._pending[flip] = 0
+
+    # ------------------------------------------------------------------ Kalman filter
+    def _initialize_filter(self) -> None:
+        """Base over the stance feet, those resting on z = 0 (the spawn); at rest."""
+        p = self.params
+        stance = self._contact
+        height = float(np.mean(p.foot_radius - self._foot_rel[stance, 2]))
+        x = self._x
+        x[0:2] = self._initial_xy
+        x[2] = height
+        x[3:6] = 0.0
+        x[6:] = (x[0:3] + self._foot_rel).ravel()
+        diag = np.concatenate([np.full(3, p.initial_position_noise ** 2),
+                               np.full(3, p.initial_velocity_noise ** 2),
+                               np.full(3 * N_LEGS, p.foot_position_noise ** 2)])
+        self._P = np.diag(diag)
+        # The feet are known through the base: correlate them so the filter does not trust
+        # the initial feet more than the initial base.
+        for i in range(N_LEGS):
+            self._reset_foot(i)
+        self.initialized = True
+
+    def _reset_foot(self, leg: int) -> None:
+        """Foot state := base + kinematics, with the covariance that assignment implies."""
+        sl = slice(6 + 3 * leg, 9 + 3 * leg)
+        self._x[sl] = self._x[0:3] + self._foot_rel[leg]
+        P = self._P
+        P[sl, :] = P[0:3, :]
+        P[:, sl] = P[:, 0:3]
+        P[sl, sl] = P[0:3, 0:3] + np.eye(3) * self.params.foot_position_noise ** 2
+
+    def _predict(self, accel: np.ndarray, dt: float) -> None:
+        """Constant-acceleration step of the base with the IMU; feet random walks."""
+        a_world = self._rot @ accel + _G_WORLD
+        x, P = self._x, self._P
+        x[0:3] += x[3:6] * dt + a_world * (0.5 * dt * dt)
+        x[3:6] += a_world * dt
+        # P := F P F^T with F = I + dt * (dp/dv): a row then a column operation.
+        P[0:3, :] += dt * P[3:6, :]
+        P[:, 0:3] += dt * P[:, 3:6]
+        q_diag = self._q_diag
+        q_diag[6:] = np.repeat(np.where(self._stance_for_filter(), self._q_stance,
+                                        self._q_swing), 3)
+        P.ravel()[::N_STATE + 1] += q_diag * (dt / self.dt)     # the diagonal, as a view
+
+    def _stance_for_filter(self) -> np.ndarray:
+        # A foot whose force already fell under the threshold is free even before the
+        # debounced flag falls: anchoring the base to a lifting foot drags it along.
+        return self._contact & self._raw
+
+    def _correct(self, qd_meas: np.ndarray, omega_body: np.ndarray) -> None:
+        """Kinematic update: relative foot positions (all feet), base velocity (stance legs)."""
+        for leg in np.flatnonzero(self._touchdown):
+            self._reset_foot(int(leg))
+        stance = self._stance_for_filter()
+        wx, wy, wz = self._rot @ omega_body
+        # Foot velocity = v_base + omega x r + J qd = 0 on the ground: r @ skew(w)^T = w x r.
+        skew_t = np.array([[0.0, wz, -wy], [-wz, 0.0, wx], [wy, -wx, 0.0]])
+        v_legs = -(self._jac_qd + self._foot_rel @ skew_t)       # (4, 3) m/s, one per leg
+        weight = 1.0 / np.where(stance, self._r_stance_vel, self._r_swing_vel)
+        z, r_diag = self._z, self._r_diag
+        z[:12] = self._foot_rel.ravel()
+        z[12:] = weight @ v_legs / weight.sum()                     # information-weighted mean
+        r_diag[:12] = self._r_pos
+        r_diag[12:] = 1.0 / weight.sum()
+        H, P, x = self._H, self._P, self._x
+        innovation = z - H @ x
+        PHt = P @ H.T
+        S = H @ PHt
+        S.ravel()[::N_MEAS + 1] += r_diag
+        K = np.linalg.solve(S, PHt.T).T            # S symmetric: (S^-1 H P)^T = P H^T S^-1
+        x += K @ innovation
+        # Joseph form: stays symmetric positive definite even with the 1e6 ratio of noises.
+        A = self._eye - K @ H
+        P_new = A @ P @ A.T + (K * r_diag) @ K.T
+        self._P = 0.5 * (P_new + P_new.T)
+
+    # ------------------------------------------------------------------ output
+    def _result(self, stamp: float, omega_body: np.ndarray) -> tuple[BaseState, ContactState]:
+        position = self._x[0:3].copy()
+        base = BaseState(stamp=stamp, position=position, quaternion=self._quat.copy(),
+                         linear_velocity=self._x[3:6].copy(),
+                         angular_velocity=self._rot @ omega_body)
+        contact = ContactState(stamp=stamp, foot_position=position + self._foot_rel,
+                               force=self._force.copy(), contact=self._contact.copy(),
+                               touchdown=self._touchdown.copy(), liftoff=self._liftoff.copy())
+        return base, contact
+
+
+def _vector(values, size: int) -> np.ndarray | None:
+    """``values`` as a float array of ``size`` if it has that shape and is finite, else None."""
+    try:
+        array = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    # One sum: NaN or inf anywhere makes it non-finite (cheaper than isfinite().all()).
+    if array.shape != (size,) or not math.isfinite(float(array.sum())):
+        return None
+    return array
+
+
+def _level_quaternion(accel: np.ndarray, yaw: float) -> np.ndarray:
+    """Orientation (x, y, z, w) with roll/pitch from a specific force at rest, and ``yaw``."""
+    ax, ay, az = accel
+    roll = math.atan2(ay, az)
+    pitch = math.atan2(-ax, math.hypot(ay, az))
+    half = [(math.sin(a / 2.0), math.cos(a / 2.0)) for a in (roll, pitch, yaw)]
+    q_roll = (half[0][0], 0.0, 0.0, half[0][1])
+    q_pitch = (0.0, half[1][0], 0.0, half[1][1])
+    q_yaw = (0.0, 0.0, half[2][0], half[2][1])
+    # ZYX: R = Rz(yaw) Ry(pitch) Rx(roll).
+    return np.array(rotations.normalized(
+        rotations.multiply(q_yaw, rotations.multiply(q_pitch, q_roll))))
+
+
+def _copy_result(result: tuple[BaseState, ContactState]) -> tuple[BaseState, ContactState]:
+    base, contact = result
+    return (BaseState(base.stamp, base.position.copy(), base.quaternion.copy(),
+                      base.linear_velocity.copy(), base.angular_velocity.copy()),
+            ContactState(contact.stamp, contact.foot_position.copy(), contact.force.copy(),
+                         contact.contact.copy(), contact.touchdown.copy(),
+                         contact.liftoff.copy()))
