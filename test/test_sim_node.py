@@ -46,7 +46,7 @@ class Driver:
     def wait_ready(self, timeout: float = 30.0) -> bool:
         return self.probe.spin_until(
             lambda: self.cmd_pub.get_subscription_count() > 0 and self.joints and self.odom
-            and self.contacts, timeout)
+            and self.contacts and self.imu, timeout)
 
     def latest_ns(self) -> int:
         return max(stamp_to_ns(m.header.stamp) for m in self.joints)
@@ -240,7 +240,7 @@ def test_free_run_mode_real_time(launcher, probe):
 def test_noisy_sensors_are_seeded_and_drawn_once_per_tick(launcher, probe):
     """The realistic profile's sensors: noise on imu and joint_states, the truth untouched, a
     republished tick identical (noise is drawn once per tick), and the seed decides the draw."""
-    noise = {'imu_gyro_noise_density': 1e-3, 'imu_accel_noise_density': 1e-2,
+    noise = {'imu_gyro_noise_density': 1e-3, 'imu_accel_noise_density': 1e-3,
              'imu_gyro_initial_bias': 1e-3, 'joint_position_noise': 1e-3,
              'joint_velocity_noise': 1e-2, 'joint_torque_noise': 0.5}
     start_sim(launcher, noise_seed=7, **noise)
