@@ -4,6 +4,11 @@
 # Usage: scripts/bench_wbc.sh [--cycles N] [--urdf PATH]
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+usage() { sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'; }
+# Help needs no set-up (the tool's own --help, with every option, needs the venv).
+if [ ! -f "$ROOT/install/setup.bash" ]; then
+    case " $* " in *" -h "*|*" --help "*) usage; exit 0 ;; esac
+fi
 # shellcheck disable=SC1091
 source "$ROOT/scripts/env.sh"
 python -m replan_core.bench.wbc_bench "$@" 2>&1 | grep -v -e "^argv" -e "build time"

@@ -1,9 +1,15 @@
 #!/usr/bin/env bash
-# Publish a velocity set-point on /cmd_vel: scripts/cmd_vel.sh VX VY WZ [--for SECONDS]
+# Publish a velocity set-point on /cmd_vel.
+# Usage: scripts/cmd_vel.sh VX VY WZ [--for SECONDS] [--rate HZ]
 # VX, VY in m/s (body frame), WZ in rad/s. Without --for it publishes until Ctrl-C.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-[ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
+usage() { sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'; }
+if [ ! -f "$ROOT/install/setup.bash" ]; then
+    # Help needs no set-up and must not start one (the tool's own --help needs the venv).
+    case " $* " in *" -h "*|*" --help "*) usage; exit 0 ;; esac
+    "$ROOT/scripts/setup.sh"
+fi
 # shellcheck disable=SC1091
 source "$ROOT/scripts/env.sh"
 exec python -m replan_ros.tools.cmd_vel "$@"

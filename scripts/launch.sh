@@ -1,11 +1,16 @@
 #!/usr/bin/env bash
 # Start sim, gait, mpc, wbc (and the recorder with --record DIR), supervise, stop cleanly.
-#   scripts/launch.sh [--gui] [--record DIR] [--params FILE ...] [--duration SIM_SECONDS]
-#                     [--no-respawn] [--run-dir DIR]
+# Usage: scripts/launch.sh [--gui] [--record DIR] [--params FILE ...] [--duration SIM_SECONDS]
+#                          [--no-respawn] [--run-dir DIR] [--profile NAME]
 # Ctrl-C stops every node (SIGINT, then SIGKILL after 10 s). Logs: <run folder>/logs/<node>.log
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-[ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
+usage() { sed -n '2,5p' "$0" | sed 's/^# \{0,1\}//'; }
+if [ ! -f "$ROOT/install/setup.bash" ]; then
+    # Help needs no set-up and must not start one (the tool's own --help needs the venv).
+    case " $* " in *" -h "*|*" --help "*) usage; exit 0 ;; esac
+    "$ROOT/scripts/setup.sh"
+fi
 # shellcheck disable=SC1091
 source "$ROOT/scripts/env.sh"
 exec python -m replan_ros.tools.launch_graph "$@"

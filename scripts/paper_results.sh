@@ -1,9 +1,18 @@
 #!/usr/bin/env bash
 # Reproduce the paper's comparisons (section VI) and print one table:
 # forward (replan window 1, haptic on) vs replan window 2 vs haptic off, and a lateral push
-# with vs without foothold correction. Usage: scripts/paper_results.sh [OUT_DIR]
+# with vs without foothold correction.
+# Usage: scripts/paper_results.sh [OUT_DIR]   (default runs/paper-<time>)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+usage() { sed -n '2,5p' "$0" | sed 's/^# \{0,1\}//'; }
+# Options first, before any set-up: an option is never taken for the output folder.
+for arg in "$@"; do
+    case "$arg" in
+        -h|--help) usage; exit 0 ;;
+        -*) echo "paper_results.sh: unknown option $arg" >&2; usage >&2; exit 2 ;;
+    esac
+done
 [ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
 # shellcheck disable=SC1091
 source "$ROOT/scripts/env.sh"

@@ -2,9 +2,13 @@
 # Where the CPU goes in the running graph: starts scripts/launch.sh (extra arguments are passed
 # on, e.g. --record DIR), lets it settle, then over a window of wall time prints each node's
 # share of one core (from /proc) and the control ticks per second (from /clock).
-#   scripts/profile_graph.sh [--window SECONDS] [LAUNCH_ARGS ...]
+# Usage: scripts/profile_graph.sh [--window SECONDS] [LAUNCH_ARGS ...]   (scripts/launch.sh -h)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+usage() { sed -n '2,5p' "$0" | sed 's/^# \{0,1\}//'; }
+for arg in "$@"; do
+    case "$arg" in -h|--help) usage; exit 0 ;; esac
+done
 [ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
 # shellcheck disable=SC1091
 source "$ROOT/scripts/env.sh"
@@ -14,13 +18,26 @@ run_dir="$(mktemp -d)"
 "$ROOT/scripts/launch.sh" --duration 600 --run-dir "$run_dir" "$@" > "$run_dir/launch.log" 2>&1 &
 launch_pid=$!
 trap 'kill -INT "$launch_pid" 2>/dev/null; wait "$launch_pid" 2>/dev/null || true' EXIT
-sleep 12                                     # start-up and the first steps
+# Start-up and the first steps. The launcher checks LAUNCH_ARGS itself: if it ends meanwhile
+# (an unknown option: its usage, exit 2), say so now rather than after the wait.
+for _ in $(seq 24); do
+    if ! kill -0 "$launch_pid" 2>/dev/null; then
+        status=0
+        wait "$launch_pid" || status=$?
+        trap - EXIT
+        cat "$run_dir/launch.log" >&2
+        if [ "$status" -eq 2 ]; then usage >&2; rm -rf "$run_dir"; exit 2; fi
+        echo "profile_graph: launch.sh ended during start-up, exit $status (see $run_dir)" >&2
+        exit 1
+    fi
+    sleep 0.5
+done
 declare -A before
 pids=$(pgrep -f "lib/replan_ros/[a-z_]+_node" || true)
 [ -n "$pids" ] || { echo "profile_graph: no node is running (see $run_dir)" >&2; exit 1; }
 for pid in $pids; do before[$pid]=$(awk '{print $14 + $15}' "/proc/$pid/stat"); done
-clock_rate=$(python -m replan_ros.tools.topic_probe hz /clock --window "$window" \
-             | sed -n 's/.*: \([0-9.]*\) Hz.*/\1/p')
+clock_rate=$(python -m replan_ros.tools.topic hz /clock --duration "$window" \
+             | sed -n 's/^average rate: \([0-9.]*\)$/\1/p' | tail -n 1)
 for pid in $pids; do
     [ -r "/proc/$pid/stat" ] || continue
     after=$(awk '{print $14 + $15}' "/proc/$pid/stat")

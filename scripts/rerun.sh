@@ -4,6 +4,11 @@
 # Prints the largest base position deviation (m); exit 0 if within tolerance (default 1 mm).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+usage() { sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'; }
+# Help needs no set-up (the tool's own --help, with every option, needs the venv).
+if [ ! -f "$ROOT/install/setup.bash" ]; then
+    case " $* " in *" -h "*|*" --help "*) usage; exit 0 ;; esac
+fi
 # shellcheck disable=SC1091
 source "$ROOT/scripts/env.sh"
 exec python -m replan_ros.tools.rerun "$@"

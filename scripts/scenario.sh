@@ -1,9 +1,15 @@
 #!/usr/bin/env bash
-# Run a scenario headless: scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--params FILE ...]
+# Run a scenario headless.
+# Usage: scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--params FILE ...] [--profile NAME]
 # Writes DIR/bag (mcap), DIR/metrics.json, DIR/*.png and the node logs in DIR/logs.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-[ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
+usage() { sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'; }
+if [ ! -f "$ROOT/install/setup.bash" ]; then
+    # Help needs no set-up and must not start one (the tool's own --help needs the venv).
+    case " $* " in *" -h "*|*" --help "*) usage; exit 0 ;; esac
+    "$ROOT/scripts/setup.sh"
+fi
 # shellcheck disable=SC1091
 source "$ROOT/scripts/env.sh"
 exec python -m replan_ros.tools.scenario "$@"

@@ -1,8 +1,20 @@
 #!/usr/bin/env bash
 # Idempotent set-up: .venv with python3.11, the pinned requirements, colcon build.
 # A second run with nothing changed takes a few seconds.
+# Usage: scripts/setup.sh [--deps-only]
+#   --deps-only   only the .venv and requirements.txt, no colcon build: it needs no more than
+#                 requirements.txt and this script (docker/Dockerfile's cached wheels layer)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+usage() { sed -n '2,6p' "$0" | sed 's/^# \{0,1\}//'; }
+deps_only=false
+while [ $# -gt 0 ]; do
+    case "$1" in
+        -h|--help) usage; exit 0 ;;
+        --deps-only) deps_only=true; shift ;;
+        *) echo "setup.sh: unknown argument $1" >&2; usage >&2; exit 2 ;;
+    esac
+done
 cd "$ROOT"
 PYTHON="${PYTHON:-python3.11}"
 STAMP_DIR=.venv/.replan
@@ -33,6 +45,10 @@ if [ "$(cat "$STAMP_DIR/requirements" 2>/dev/null)" != "$req_hash" ]; then
     echo "$req_hash" > "$STAMP_DIR/requirements"
 else
     say "requirements up to date"
+fi
+if $deps_only; then
+    say "dependencies ready (--deps-only: no colcon build)"
+    exit 0
 fi
 
 # Rebuild only when a package's manifest or setup files changed: --symlink-install links the

@@ -2,19 +2,22 @@
 # The whole test suite: ruff, the package unit tests (colcon test, per-package pytest
 # arguments from colcon.meta) and the node-graph tests in test/ (real processes on a reserved
 # ROS_DOMAIN_ID). Exit code 0 only if everything passed.
+# Usage: scripts/test.sh [--slow] [-- PYTEST_ARGS]
 #   ./scripts/test.sh            everything but tests marked slow
 #   ./scripts/test.sh --slow     everything
 #   ./scripts/test.sh -- ARGS    extra pytest arguments for test/ (e.g. -k sim)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+usage() { sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; }
 cd "$ROOT"
 marker=(-m "not slow")
 extra=()
 while [ $# -gt 0 ]; do
     case "$1" in
+        -h|--help) usage; exit 0 ;;
         --slow) marker=(); shift ;;
         --) shift; extra=("$@"); break ;;
-        *) echo "usage: $0 [--slow] [-- PYTEST_ARGS]" >&2; exit 2 ;;
+        *) echo "test.sh: unknown argument $1" >&2; usage >&2; exit 2 ;;
     esac
 done
 start=$(date +%s)

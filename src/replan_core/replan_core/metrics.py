@@ -258,3 +258,23 @@ def peaks_around(times: np.ndarray, values: np.ndarray, events: np.ndarray,
             window = values[inside]
             out.append(float(window.max() - window.min()))
     return np.array(out)
+
+
+def planned_zmp_at(times: np.ndarray, plans: list[tuple[float, np.ndarray, np.ndarray]]
+                   ) -> np.ndarray:
+    """The planned ZMP (n, 2) at ``times`` from the newest plan made at or before each time.
+
+    plans: (plan stamp, sample times (m,), ZMP samples (m, 2)) in any order; between samples
+    the LIP plan's ZMP is linear (the CoM acceleration is, under constant jerk). NaN where no
+    plan exists yet.
+    """
+    out = np.full((len(times), 2), np.nan)
+    plans = sorted(plans, key=lambda p: p[0])
+    starts = np.array([p[0] for p in plans])
+    for i, (stamp, sample_times, zmp) in enumerate(plans):
+        end = starts[i + 1] if i + 1 < len(plans) else np.inf
+        inside = (times >= stamp - 1e-9) & (times < end - 1e-9)
+        if np.any(inside) and len(sample_times):
+            out[inside, 0] = np.interp(times[inside], sample_times, zmp[:, 0])
+            out[inside, 1] = np.interp(times[inside], sample_times, zmp[:, 1])
+    return out

@@ -121,3 +121,12 @@ def test_estimator_errors_and_peaks():
     assert errors['velocity_rmse_mps'] == pytest.approx(0.01 * np.sqrt(3))
     pitch = np.where(np.abs(t - 5.0) < 0.15, 0.02, 0.0)
     np.testing.assert_allclose(peaks_around(t, pitch, np.array([5.0, 8.0])), [0.02, 0.0])
+
+
+def test_planned_zmp_follows_the_newest_plan():
+    from replan_core.metrics import planned_zmp_at
+    first = (0.0, np.array([0.0, 1.0]), np.array([[0.0, 0.0], [1.0, -1.0]]))
+    second = (0.5, np.array([0.5, 1.5]), np.array([[5.0, 5.0], [6.0, 5.0]]))
+    zmp = planned_zmp_at(np.array([-0.1, 0.25, 0.75]), [second, first])
+    assert np.all(np.isnan(zmp[0]))
+    np.testing.assert_allclose(zmp[1:], [[0.25, -0.25], [5.25, 5.0]])

@@ -20,6 +20,7 @@ from geometry_msgs.msg import Twist
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock
 
 from replan_ros import qos
@@ -55,14 +56,16 @@ def main(argv=None) -> int:
     parser.add_argument('wz', type=float)
     parser.add_argument('--for', dest='duration', type=float, metavar='SECONDS')
     parser.add_argument('--rate', type=float, default=10.0)
-    args, ros_args = parser.parse_known_args(argv if argv is not None else sys.argv[1:])
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # Only what follows --ros-args is rclpy's: any other unknown option is an error.
+    args = parser.parse_args(remove_ros_args(['', *argv])[1:])
     if not all(math.isfinite(v) for v in (args.vx, args.vy, args.wz)):
         parser.error('VX VY WZ must be finite numbers')
     if args.rate <= 0 or (args.duration is not None and args.duration <= 0):
         parser.error('--rate and --for must be positive')
     twist = Twist()
     twist.linear.x, twist.linear.y, twist.angular.z = args.vx, args.vy, args.wz
-    rclpy.init(args=[sys.argv[0], *ros_args])
+    rclpy.init(args=[sys.argv[0], *argv])
     node = None
     try:
         node = CmdVelPublisher(twist, args.rate)

@@ -20,6 +20,7 @@ from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock
 
 from replan_core.types import WORLD_FRAME
@@ -73,14 +74,16 @@ def main(argv=None) -> int:
                         help='start this many sim seconds after the current time (default 0)')
     parser.add_argument('--timeout', type=float, default=5.0, metavar='S',
                         help='wall seconds to wait for the sim (default 5)')
-    args, ros_args = parser.parse_known_args(argv if argv is not None else sys.argv[1:])
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # Only what follows --ros-args is rclpy's: any other unknown option is an error.
+    args = parser.parse_args(remove_ros_args(['', *argv])[1:])
     force = (args.fx, args.fy, args.fz)
     if not all(math.isfinite(v) for v in (*force, *args.torque)):
         parser.error('FX FY FZ and --torque must be finite numbers')
     if not (args.duration > 0 and math.isfinite(args.duration)) or args.delay < 0:
         parser.error('--duration must be positive and --delay not negative')
 
-    rclpy.init(args=[sys.argv[0], *ros_args])
+    rclpy.init(args=[sys.argv[0], *argv])
     node = None
     try:
         node = PushPublisher()

@@ -22,6 +22,7 @@ from replan_core.metrics import (
     estimator_errors,
     interval_stats,
     peaks_around,
+    planned_zmp_at,
     roll_pitch_yaw,
     touchdown_timing,
     tracking_errors,
@@ -156,7 +157,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
         read_errors=[e for _, e in data.get('_errors', [])])
     estimate = (_estimate_against_truth(data, odom) if truth_topic == TRUTH_TOPIC else None)
     metrics['estimator'] = estimate[0] if estimate else None
-    balance = _measured_balance(data, times, rpy)
+    balance = _measured_balance(data, times, rpy, estimate[1] if estimate else None)
     metrics.update(balance[0])
     try:
         metrics['plots'] = plot_run(data, times, pos, rpy, segments, solve, out_dir)
@@ -193,9 +194,12 @@ def _estimate_against_truth(data, truth: list) -> tuple[dict, dict] | None:
     return errors, {'times': times, 'estimated': est, 'true': true}
 
 
-def _measured_balance(data, times: np.ndarray, rpy: np.ndarray) -> tuple[dict, dict]:
-    """Measured CoP margin (true forces, feet in contact), touchdown timing and the attitude
-    excursions around touchdowns, from /ground_truth/contacts and /footholds."""
+def _measured_balance(data, times: np.ndarray, rpy: np.ndarray,
+                      estimate: dict | None) -> tuple[dict, dict]:
+    """Measured CoP margin (true forces, feet in contact), the CoP's deviation from the planned
+    ZMP, touchdown timing and the attitude excursions around touchdowns, from
+    /ground_truth/contacts, /zmp_plan and /footholds. ``estimate``: the estimated and true base
+    series; the plans live in the estimated frame and are moved by the estimation error."""
     contacts = {}
     for _, msg in data.get('/ground_truth/contacts', []):
         try:
@@ -208,8 +212,25 @@ def _measured_balance(data, times: np.ndarray, rpy: np.ndarray) -> tuple[dict, d
     stamps = np.array(sorted(contacts))
     feet = np.array([contacts[t].foot_position for t in stamps])
     forces = np.array([contacts[t].force for t in stamps])
-    _, margin = cop_margins(feet, forces)
+    cop, margin = cop_margins(feet, forces)
     valid = margin[np.isfinite(margin)]
+    # What the feedback and the noise add to the plan: the measured CoP against the ZMP the
+    # newest plan predicted for the same instant.
+    zmp_plans = []
+    for _, msg in data.get('/zmp_plan', []):
+        if msg.poses:
+            zmp_plans.append((stamp_to_sec(msg.header.stamp),
+                              np.array([stamp_to_sec(p.header.stamp) for p in msg.poses]),
+                              np.array([[p.pose.position.x, p.pose.position.y]
+                                        for p in msg.poses])))
+    planned = planned_zmp_at(stamps, zmp_plans)
+    if estimate is not None:
+        for axis in (0, 1):
+            planned[:, axis] += np.interp(
+                stamps, estimate['times'],
+                estimate['true'][:, axis] - estimate['estimated'][:, axis])
+    deviation = np.linalg.norm(cop - planned, axis=1)
+    deviation = deviation[np.isfinite(deviation)]
     touchdowns = [(float(t), int(leg)) for t in stamps
                   for leg in np.flatnonzero(contacts[t].touchdown)]
     planned = []
@@ -228,6 +249,9 @@ def _measured_balance(data, times: np.ndarray, rpy: np.ndarray) -> tuple[dict, d
         'cop_margin_p5_m': _round(np.percentile(valid, 5), 4) if len(valid) else None,
         'cop_margin_median_m': _round(np.median(valid), 4) if len(valid) else None,
         'cop_outside_fraction': _round(np.mean(valid < 0), 4) if len(valid) else None,
+        'cop_zmp_deviation_m': ({'rms': _round(np.sqrt(np.mean(deviation ** 2)), 4),
+                                 'p95': _round(np.percentile(deviation, 95), 4)}
+                                if len(deviation) else None),
         'touchdowns': len(events),
         'touchdown_timing_error_s': ({
             'mean': _round(timing.mean(), 4), 'median_abs': _round(np.median(np.abs(timing)), 4),
