@@ -72,6 +72,18 @@ def test_forward_crawl_keeps_the_commanded_speed(ros_domain, tmp_path):
     assert metrics['cop_margin_p5_m'] is not None and metrics['touchdown_timing_error_s']
 
 
+def test_estimator_drift_over_a_40_s_walk(ros_domain, tmp_path):
+    """The realistic profile's state estimator over 40 s of walking: xy drift at most 5 % of
+    the distance walked, velocity RMSE at most 0.05 m/s, measured against the truth."""
+    metrics = run_scenario('long_walk', tmp_path / 'long_walk', ros_domain)
+    estimator = metrics['estimator']
+    assert estimator['path_length_m'] > 5.0, estimator
+    assert estimator['xy_drift_fraction'] <= 0.05, estimator
+    assert estimator['velocity_rmse_mps'] <= 0.05, estimator
+    vx, _, _ = segment(metrics, 1.0)['achieved']
+    assert vx == pytest.approx(0.15, rel=0.10), metrics['velocity_tracking']
+
+
 def test_lateral_walk_and_turn_within_15_percent(ros_domain, tmp_path):
     metrics = run_scenario('lateral_yaw', tmp_path / 'lateral_yaw', ros_domain)
     _, vy, _ = segment(metrics, 1.0)['achieved']

@@ -1,6 +1,28 @@
+import os
+from pathlib import Path
+
 from setuptools import find_packages, setup
 
 package_name = 'replan_ros'
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+
+
+def shared_tree(folder: str) -> list[tuple[str, list[str]]]:
+    """data_files entries installing REPO/folder, subfolders included, under share/replan_ros.
+
+    The nodes find config/ and urdf/ through REPLAN_CONFIG and REPLAN_URDF (scripts/env.sh);
+    installed, they are also under get_package_share_directory('replan_ros').
+    """
+    entries = []
+    for directory in sorted([REPO / folder, *(REPO / folder).rglob('*')]):
+        files = sorted(p for p in directory.glob('*') if p.is_file()) if directory.is_dir() else []
+        if files:
+            target = Path('share', package_name, directory.relative_to(REPO))
+            # Relative to this file's folder, where setuptools resolves data_files.
+            entries.append((str(target), [os.path.relpath(f, HERE) for f in files]))
+    return entries
+
 
 setup(
     name=package_name,
@@ -9,6 +31,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        *shared_tree('config'),
+        *shared_tree('urdf'),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -29,7 +53,9 @@ setup(
             'scenario = replan_ros.tools.scenario:main',
             'cmd_vel = replan_ros.tools.cmd_vel:main',
             'push = replan_ros.tools.push:main',
+            'topic = replan_ros.tools.topic:main',
             'topic_probe = replan_ros.tools.topic_probe:main',
+            'teleop = replan_ros.tools.teleop:main',
             'launch_graph = replan_ros.tools.launch_graph:main',
         ],
     },

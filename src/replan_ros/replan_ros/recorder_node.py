@@ -209,7 +209,9 @@ class RecorderNode(Node):
 
     def _write_config(self, p: dict) -> None:
         root = Path(os.environ.get('REPLAN_ROOT', Path(__file__).resolve().parents[3]))
-        revision = _git(root, 'rev-parse', 'HEAD') or 'unknown'
+        # Without git or a .git folder (a Docker image), the revision baked in at build time.
+        revision = (_git(root, 'rev-parse', 'HEAD') or os.environ.get('REPLAN_GIT_REVISION')
+                    or 'unknown')
         status = _git(root, 'status', '--porcelain', '--untracked-files=no')
         run = {
             'git_revision': revision,

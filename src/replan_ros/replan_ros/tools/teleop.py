@@ -31,7 +31,14 @@ import tty
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import rclpy
 import yaml
+from geometry_msgs.msg import Twist
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
+
+from replan_ros import qos
 
 # Increments per key press, as fractions of each axis' limit; + / - move along this list.
 STEP_FRACTIONS = (0.05, 0.1, 0.25, 0.5, 1.0)
@@ -125,6 +132,11 @@ def status_line(setpoint: SetPoint) -> str:
             f'of the limits')
 
 
+def keys_help() -> str:
+    """The key table of this module's docstring."""
+    return next(p for p in __doc__.split('\n\n') if p.startswith('Keys'))
+
+
 def _default_gait_config() -> Path:
     config = os.environ.get('REPLAN_CONFIG')
     if config:
@@ -139,14 +151,6 @@ def _raise_interrupt(signum, frame) -> None:
 
 def run(limits: Limits, rate: float, ros_args: list[str]) -> int:
     """The interactive loop; the terminal is restored and zero sent however it ends."""
-    # rclpy imported here: --help and the refusals above need no ROS.
-    import rclpy
-    from geometry_msgs.msg import Twist
-    from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
-
-    from replan_ros import qos
-
     # No rclpy signal handlers: Ctrl-C must leave the context up to send the final zero.
     rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
     node = Node('teleop')
@@ -166,7 +170,7 @@ def run(limits: Limits, rate: float, ros_args: list[str]) -> int:
     period = 1.0 / rate
     try:
         tty.setcbreak(fd)     # one key at a time, no echo; Ctrl-C still interrupts
-        print(__doc__.split('\n\n')[2].rstrip() + '\n', flush=True)
+        print(keys_help() + '\n', flush=True)
         next_send = time.monotonic()
         quit_now = False
         while not quit_now:
@@ -206,9 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--gait-config', type=Path, metavar='FILE',
                         help='gait parameters with the limits (default $REPLAN_CONFIG/gait.yaml)')
     argv = list(sys.argv[1:] if argv is None else argv)
-    # What follows --ros-args is rclpy's (removed here without importing rclpy).
-    own = argv[:argv.index('--ros-args')] if '--ros-args' in argv else argv
-    args = parser.parse_args(own)
+    # Only what follows --ros-args is rclpy's: any other unknown option is an error.
+    args = parser.parse_args(remove_ros_args(['', *argv])[1:])
     if not args.rate > 0:
         parser.error('--rate must be positive')
     if not sys.stdin.isatty():
