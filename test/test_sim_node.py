@@ -263,3 +263,17 @@ def test_noisy_sensors_are_seeded_and_drawn_once_per_tick(launcher, probe):
                                   joints.position)
     assert driver2.odom[-1].pose.pose.position.z == truth_height
     assert driver2.imu[-1].angular_velocity_covariance[0] > 0.0
+
+
+def test_default_qos_subscriber_receives_sensor_topics(launcher, probe):
+    """REP-2003: sensor topics are published reliable, so a subscriber with the default QoS
+    (depth 10, reliable: `ros2 topic echo`, RViz) is compatible and receives them."""
+    start_sim(launcher)
+    joints = probe.subscribe(JointState, 'joint_states', 10)
+    imu = probe.subscribe(Imu, 'imu', 10)
+    odom = probe.subscribe(Odometry, 'ground_truth/odom', 10)
+    assert probe.spin_until(lambda: joints and imu and odom, 30.0), launcher.logs()
+    for topic in ('/joint_states', '/imu', '/ground_truth/odom'):
+        infos = probe.node.get_publishers_info_by_topic(topic)
+        assert infos and all(i.qos_profile.reliability == qos.SENSOR_PUB.reliability
+                             for i in infos), topic

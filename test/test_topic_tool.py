@@ -46,8 +46,8 @@ def test_list_echo_info_hz_on_the_sim(sim, ros_domain):
     assert 'Type: sensor_msgs/msg/JointState' in info.stdout
     assert 'Publisher count: 1' in info.stdout
     assert 'Node name: sim' in info.stdout
-    # The sim publishes joint_states best effort (qos.SENSOR).
-    assert 'Reliability: BEST_EFFORT' in info.stdout.split('Subscription count')[0]
+    # The sim publishes joint_states reliable (qos.SENSOR_PUB, REP-2003); readers choose.
+    assert 'Reliability: RELIABLE' in info.stdout.split('Subscription count')[0]
 
     # Before the first command the sim only republishes, so the rate is low but not zero.
     rate = topic(ros_domain, 'hz', '/clock', '--duration', '3')

@@ -27,7 +27,6 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Twist, TwistStamped, Vector3
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -58,6 +57,7 @@ from replan_ros.interfaces import (
     stamp_to_ns,
 )
 from replan_ros.on_demand import OnDemandSubscriptions
+from replan_ros.params import declare_node_parameters
 from replan_ros.qos import (
     COMMAND,
     CONTACTS,
@@ -85,55 +85,7 @@ class GaitNode(Node):
 
     def __init__(self) -> None:
         super().__init__('gait')
-        d = GaitParams()
-        self._declared: list[str] = []
-        self._declare('urdf_path', '', "robot URDF for the hip positions; '' = $REPLAN_URDF")
-        self._declare('swing_duration', d.swing_duration, 'duration of one swing, s')
-        self._declare('four_feet_duration', d.four_feet_duration,
-                      'four feet on the ground before each swing, s')
-        self._declare('step_height', d.step_height,
-                      'swing apex above the higher of lift-off and foothold, m')
-        self._declare('sequence', [LEGS[i] for i in d.sequence],
-                      'crawl order, one swing leg at a time (leg names lf rf lh rh)')
-        self._declare('stance_offsets', [float(v) for xy in d.stance_offsets for v in xy],
-                      'nominal foot about its hip, base frame x, y per leg (lf rf lh rh), m')
-        self._declare('max_step_length_x', d.max_step_length_x,
-                      'max foot displacement per step along the body x axis, m')
-        self._declare('max_step_length_y', d.max_step_length_y,
-                      'max foot displacement per step along the body y axis, m')
-        self._declare('max_linear_x', d.max_linear_x, '|cmd_vel linear.x| clamp, m/s')
-        self._declare('max_linear_y', d.max_linear_y, '|cmd_vel linear.y| clamp, m/s')
-        self._declare('max_angular_z', d.max_angular_z, '|cmd_vel angular.z| clamp, rad/s')
-        self._declare('n_footholds', d.n_footholds, 'steps per plan (paper: 8 over 8 s)')
-        self._declare('replan_window', d.replan_window,
-                      're-plan at every K-th touchdown (paper: 1)')
-        self._declare('haptic', d.haptic, 'swings end at sensed contact (paper section V.A)')
-        self._declare('foothold_correction', d.foothold_correction,
-                      'first foothold of each leg about the actual hip (paper section V.B)')
-        self._declare('correction_threshold', d.correction_threshold,
-                      'm, foothold correction moves a first foothold to the actual hip only '
-                      'when that differs from the foot-relative one by more (0: always)')
-        self._declare('min_swing_fraction', 0.5,
-                      'haptic touchdown accepted after this fraction of the planned swing '
-                      '(sent in footholds: the controller applies the same)')
-        self._declare('max_extension', 0.3,
-                      'haptic swing forced to end this long after its planned touchdown, s '
-                      '(sent in footholds)')
-        self._declare('start_delay', 1.0,
-                      'first plan: stand this long before the first lift-off, s')
-        self._declare('cmd_vel_timeout', 0.5,
-                      'no cmd_vel for this long (sim s): stand still (cmd_vel_stamped does not '
-                      'time out)')
-        self._declare('cmd_vel_reject_above', 10.0,
-                      'a cmd_vel component above this magnitude is absurd and rejected (m/s, '
-                      'rad/s); smaller ones beyond the limits are clamped')
-        self._declare('contacts_poll_period', 0.02,
-                      'wall s between two reads of the queued contacts ticks; a contact event '
-                      'reads them at once. It bounds the delay of a re-plan whose touchdown has '
-                      'no contact event (haptic off, forced)')
-        self._declare('warn_period', 2.0, 'throttle of repeated warnings, wall s')
-
-        p = {name: self.get_parameter(name).value for name in self._declared}
+        p = declare_node_parameters(self, 'gait', on_change=self._on_parameter_change)
         self.params = self._gait_params(p)
         self.min_swing_fraction = float(p['min_swing_fraction'])
         self.max_extension = float(p['max_extension'])
@@ -184,9 +136,14 @@ class GaitNode(Node):
 
     # ----------------------------------------------------------------------------- set-up
 
-    def _declare(self, name, default, description):
-        self._declared.append(name)
-        self.declare_parameter(name, default, ParameterDescriptor(description=description))
+    def _on_parameter_change(self, name: str, value) -> None:
+        """A run-time change of one of the writable parameters (params.GAIT)."""
+        if name == 'cmd_vel_timeout':
+            self.cmd_vel_timeout = float(value)
+        elif name == 'cmd_vel_reject_above':
+            self.reject_above = float(value)
+        elif name == 'warn_period':
+            self.warn_period = float(value)
 
     def _gait_params(self, p) -> GaitParams:
         defaults = GaitParams()
@@ -211,8 +168,9 @@ class GaitNode(Node):
             params.validate()
             return params
         except ValueError as err:
-            self.get_logger().error(f'invalid gait parameters ({err}); using the defaults')
-            return defaults
+            # The tables check each value; this is what they cannot see (combinations).
+            self.get_logger().fatal(f'config error: gait: {err}')
+            raise SystemExit(2) from None
 
     def _robot_model(self, urdf_path: str):
         path = urdf_path or os.environ.get('REPLAN_URDF', '')

@@ -29,7 +29,6 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry, Path
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -53,6 +52,7 @@ from replan_ros.interfaces import (
     stamp_to_ns,
 )
 from replan_ros.on_demand import OnDemandSubscriptions
+from replan_ros.params import declare_node_parameters
 from replan_ros.qos import (
     COMMAND,
     CONTACTS,
@@ -70,33 +70,10 @@ class MpcNode(Node):
 
     def __init__(self) -> None:
         super().__init__('mpc')
-        d = MpcSettings()
-        self._declared: list[str] = []
-        self._declare('urdf_path', '', "robot URDF for the CoM (pinocchio); '' = $REPLAN_URDF")
-        self._declare('dt', d.dt, 'sampling = constant-jerk interval of the plan, s')
-        self._declare('horizon', d.horizon, 'planning horizon, s (paper: 8 s)')
-        self._declare('com_height', d.com_height,
-                      'LIP CoM height above the mean stance foot height, m (eq. 1)')
-        self._declare('gravity', d.gravity, 'gravity, m/s^2')
-        self._declare('jerk_weight', d.jerk_weight, 'R of eq. (6), weight of the squared jerk')
-        self._declare('velocity_weight', d.velocity_weight,
-                      'weight of the velocity-tracking term (0 disables it)')
-        self._declare('zmp_margin', 0.02, 'inward safety margin of the support polygons, m')
-        self._declare('terminal_capture_point', d.terminal_capture_point,
-                      'keep the capture point at the end of the horizon in the last polygon')
-        self._declare('eps_abs', d.eps_abs, 'proxsuite absolute tolerance')
-        self._declare('max_iter', d.max_iter, 'proxsuite iterations per QP solve')
-        self._declare('state_buffer', 20,
-                      'joint_states / odom samples queued for the lookup (newest ones)')
-        self._declare('state_wait', 0.02,
-                      'wall s a request waits for the state of its stamp before it is left '
-                      'pending (the state normally arrives before the footholds)')
-        self._declare('retry_period', 0.02, 'wall s between two looks for a pending state')
-        self._declare('warn_period', 2.0, 'throttle of repeated warnings, wall s')
-        p = {name: self.get_parameter(name).value for name in self._declared}
+        p = declare_node_parameters(self, 'mpc', on_change=self._on_parameter_change)
         self.settings = self._settings(p)
-        self.mpc = LipMpc(self.settings)                       # QP built once, here
         self.model = self._robot_model(str(p['urdf_path']))
+        self.mpc = LipMpc(self.settings)                       # QP built once, here
         self.state_buffer = max(int(p['state_buffer']), 2)
         self.state_wait = max(float(p['state_wait']), 0.0)
         self.warn_period = float(p['warn_period'])
@@ -135,11 +112,13 @@ class MpcNode(Node):
 
     # ----------------------------------------------------------------------------- set-up
 
-    def _declare(self, name, default, description):
-        self._declared.append(name)
-        self.declare_parameter(name, default, ParameterDescriptor(description=description))
+    def _on_parameter_change(self, name: str, value) -> None:
+        """A run-time change of one of the writable parameters (params.MPC)."""
+        if name == 'warn_period':
+            self.warn_period = float(value)
 
     def _settings(self, p) -> MpcSettings:
+        # The values were checked against params.MPC; only horizon >= dt ties two together.
         try:
             s = MpcSettings(dt=float(p['dt']), horizon=float(p['horizon']),
                             com_height=float(p['com_height']), gravity=float(p['gravity']),
@@ -154,16 +133,17 @@ class MpcNode(Node):
                 raise ValueError('out of range')
             return s
         except (TypeError, ValueError) as err:
-            self.get_logger().error(f'invalid mpc parameters ({err}); using the defaults')
-            return MpcSettings(zmp_margin=0.02)
+            self.get_logger().fatal(f'config error: mpc: {err}')
+            raise SystemExit(2) from None
 
-    def _robot_model(self, urdf_path: str) -> RobotModel | None:
+    def _robot_model(self, urdf_path: str) -> RobotModel:
         path = urdf_path or os.environ.get('REPLAN_URDF', '')
         try:
             return RobotModel(path)
-        except Exception as err:   # any load error: keep running, refuse to plan (logged)
-            self.get_logger().error(f'cannot load the URDF {path!r} ({err}): no CoM, no plans')
-            return None
+        except Exception as err:   # any load error: without a model there is no CoM to plan
+            # from; exit non-zero so that the launcher reports it (and respawns, up to a limit)
+            self.get_logger().fatal(f'cannot load the URDF {path!r} ({err}): exiting')
+            raise SystemExit(1) from None
 
     def _warn(self, key: str, text: str) -> None:
         """Warning throttled per ``key``: at most one every ``warn_period`` wall seconds."""

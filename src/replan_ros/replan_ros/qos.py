@@ -3,10 +3,18 @@
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-# Sensor-like streams: the newest sample matters, a lost one is replaced by the next tick.
+# Sensor-like streams (joint_states, imu, odom, ground_truth/odom), as REP-2003 asks of a
+# driver: read best effort by our own nodes (SENSOR: the newest sample matters, a lost one is
+# replaced by the next tick and never waited for), published reliable (SENSOR_PUB, same depth),
+# so that a subscriber with the default QoS, which is reliable (`ros2 topic echo`, RViz, a
+# `create_subscription(..., 10)`), is compatible and receives them. A reliable writer does not
+# wait for best-effort readers, and with KEEP_LAST it never blocks on a slow reliable one.
 SENSOR = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                     reliability=ReliabilityPolicy.BEST_EFFORT,
                     durability=DurabilityPolicy.VOLATILE)
+SENSOR_PUB = QoSProfile(depth=SENSOR.depth, history=HistoryPolicy.KEEP_LAST,
+                        reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)
 
 # Contact sensing drives the touchdown rule in two nodes that must agree tick by tick, so no
 # sample may be lost; depth covers a subscriber that is busy for a re-plan.

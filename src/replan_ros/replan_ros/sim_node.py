@@ -36,7 +36,6 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -44,7 +43,7 @@ from sensor_msgs.msg import Imu, JointState, PointCloud2
 
 from replan_core.robot_variant import perturbed_urdf
 from replan_core.sensors import ImuNoiseParams, ImuSensor, JointSensor, JointSensorParams
-from replan_core.sim_world import STANDING_POSE, TERRAINS, ActuatorParams, SimWorld
+from replan_core.sim_world import STANDING_POSE, ActuatorParams, SimWorld
 from replan_core.types import JOINT_NAMES, WORLD_FRAME
 from replan_ros import diagnostics, qos
 from replan_ros.interfaces import (
@@ -57,6 +56,7 @@ from replan_ros.interfaces import (
     stamp_to_ns,
     torque_cmd_from_msg,
 )
+from replan_ros.params import declare_node_parameters
 
 WAITING, LOCK_STEP, FREE_RUN, DAMPING = 'waiting_first_command', 'lock_step', 'free_run', 'damping'
 _LOG_THROTTLE = 1.0          # wall s between two log lines of the same kind
@@ -132,14 +132,14 @@ class SimNode(Node):
 
         self.clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK,
                                                event_callbacks=qos.INTERNAL_PUB_EVENTS)
-        self.truth_odom_pub = self.create_publisher(Odometry, 'ground_truth/odom', qos.SENSOR,
+        self.truth_odom_pub = self.create_publisher(Odometry, 'ground_truth/odom', qos.SENSOR_PUB,
                                                     event_callbacks=qos.INTERNAL_PUB_EVENTS)
         self.truth_contacts_pub = self.create_publisher(
             PointCloud2, 'ground_truth/contacts', qos.CONTACTS,
             event_callbacks=qos.INTERNAL_PUB_EVENTS)
-        self.imu_pub = self.create_publisher(Imu, 'imu', qos.SENSOR,
+        self.imu_pub = self.create_publisher(Imu, 'imu', qos.SENSOR_PUB,
                                              event_callbacks=qos.INTERNAL_PUB_EVENTS)
-        self.joint_pub = self.create_publisher(JointState, 'joint_states', qos.SENSOR,
+        self.joint_pub = self.create_publisher(JointState, 'joint_states', qos.SENSOR_PUB,
                                                event_callbacks=qos.INTERNAL_PUB_EVENTS)
         self.applied_pub = self.create_publisher(WrenchStamped, 'applied_wrench', qos.SCHEDULE,
                                                  event_callbacks=qos.INTERNAL_PUB_EVENTS)
@@ -187,63 +187,13 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> dict:
-        specs = [
-            ('urdf_path', '', "robot URDF; '' = $REPLAN_URDF or <repo>/urdf/hyq.urdf"),
-            ('physics_dt', 0.001, 'physics step, s'),
-            ('control_period', 0.004, 'control tick, s (a multiple of physics_dt)'),
-            ('clock_period', 0.02, '/clock period, s (a multiple of control_period): every node '
-             'pays a callback per /clock message, and stamps, not /clock, drive the control'),
-            ('standing_joint_positions', STANDING_POSE.tolist(),
-             'spawn joint angles, rad, JOINT_NAMES order'),
-            ('initial_base_height', 0.0, 'spawn base_link height, m; 0 = feet touching ground'),
-            ('terrain', 'flat', f'terrain: {" | ".join(TERRAINS)}'),
-            ('terrain_step_x', 0.6, 'step_down/step_up: x of the step edge, m'),
-            ('terrain_step_height', 0.1, 'step_down: drop, step_up: rise, m'),
-            ('terrain_step_length', 2.0, 'step_up: box length along x, m'),
-            ('terrain_width', 4.0, 'step_up/rough: extent along y, m'),
-            ('terrain_rough_start_x', 0.6, 'rough: x where the heightfield begins, m'),
-            ('terrain_rough_length', 4.0, 'rough: extent along x, m'),
-            ('terrain_rough_amplitude', 0.03, 'rough: heights uniform in [0, amplitude], m'),
-            ('terrain_rough_resolution', 0.05, 'rough: cell size, m'),
-            ('seed', 0, 'rough: heightfield seed'),
-            ('friction', 0.8, 'foot/ground Coulomb friction coefficient'),
-            ('contact_stiffness', 0.0, 'foot contact stiffness, N/m; 0 = rigid (PyBullet)'),
-            ('contact_damping', 0.0, 'foot contact damping, N s/m (with contact_stiffness)'),
-            ('actuator_time_constant', 0.0, 'first-order lag of the torque loop, s; 0 = none'),
-            ('actuator_delay', 0.0, 'transport delay of the torque command, s; 0 = none'),
-            ('joint_viscous_damping', 0.0, 'joint viscous friction, N m s/rad'),
-            ('joint_coulomb_friction', 0.0, 'joint Coulomb friction, N m'),
-            ('torque_limit_scale', 1.0, 'actuator torque limits, times the URDF effort limits'),
-            ('imu_gyro_noise_density', 0.0, 'gyro white noise, rad/s/sqrt(Hz)'),
-            ('imu_gyro_bias_random_walk', 0.0, 'gyro bias random walk, rad/s^2/sqrt(Hz)'),
-            ('imu_gyro_initial_bias', 0.0, 'gyro bias at start, std per axis, rad/s'),
-            ('imu_accel_noise_density', 0.0, 'accelerometer white noise, m/s^2/sqrt(Hz)'),
-            ('imu_accel_bias_random_walk', 0.0, 'accelerometer bias random walk, m/s^3/sqrt(Hz)'),
-            ('imu_accel_initial_bias', 0.0, 'accelerometer bias at start, std per axis, m/s^2'),
-            ('encoder_counts_per_rev', 0, 'joint encoder resolution, counts/rev; 0 = exact'),
-            ('joint_position_noise', 0.0, 'joint position noise, rad (std)'),
-            ('joint_velocity_noise', 0.0, 'joint velocity noise, rad/s (std)'),
-            ('joint_torque_noise', 0.0, 'joint torque sensor noise, N m (std)'),
-            ('payload_mass', 0.0, 'payload fixed to the trunk, unknown to the controller, kg'),
-            ('payload_offset', [0.0, 0.0, 0.0], 'payload position in base_link, m'),
-            ('leg_mass_error', 0.0, 'leg link masses off by up to this fraction (seeded)'),
-            ('noise_seed', 0, 'seed of the sensor noise and the leg mass errors'),
-            ('contact_threshold', 30.0, 'normal force for contact, N'),
-            ('debounce_ticks', 2, 'ticks the force must stay above/below the threshold'),
-            ('lock_step', True, 'advance one tick per joint_torque_cmd of the current stamp'),
-            ('republish_period', 0.1, 'lock-step: republish the state after this many wall s'),
-            ('command_timeout', 3.0, 'wall s without a command before damping mode (above the '
-             "controller's plan_timeout)"),
-            ('damping_gain', 40.0, 'controller-dead joint damping, N m s/rad'),
-            ('real_time_factor', 1.0, 'free-run/damping: sim s per wall s to aim for'),
-            ('gui', False, 'open the PyBullet GUI'),
-            ('diagnostics_period', 1.0, '/diagnostics period, wall s'),
-        ]
-        values = {}
-        for name, default, description in specs:
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-            values[name] = self.get_parameter(name).value
-        return values
+        """Declared from params.SIM (defaults, units, ranges); a bad value exits with 2."""
+        return declare_node_parameters(self, 'sim', on_change=self._on_parameter_change)
+
+    def _on_parameter_change(self, name: str, value) -> None:
+        """A run-time change of one of the writable parameters (params.SIM)."""
+        if name == 'damping_gain':
+            self.damping_gain = float(value)
 
     # ------------------------------------------------------------------ helpers
     def _log_throttled(self, level: str, key: str, text: str) -> None:

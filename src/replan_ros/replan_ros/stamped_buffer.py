@@ -17,11 +17,19 @@ from rclpy.serialization import deserialize_message
 T = TypeVar('T')
 
 
+def cdr_byte_order(cdr: bytes) -> str:
+    """'little' or 'big': the byte order of a serialized payload, from its encapsulation
+    identifier (bytes 0-1, big endian). The identifiers of DDS-XTYPES 1.3 (CDR_BE 0, CDR_LE 1,
+    PL_CDR_BE 2, PL_CDR_LE 3, CDR2_BE 6, CDR2_LE 7, D_CDR2_BE 8, D_CDR2_LE 9, PL_CDR2_BE 10,
+    PL_CDR2_LE 11) come in pairs whose odd member is the little-endian one."""
+    return 'little' if cdr[1] & 1 else 'big'
+
+
 def cdr_header_stamp_ns(cdr: bytes) -> int | None:
     """``header.stamp`` (ns) of a CDR payload whose first field is a std_msgs/Header."""
     if len(cdr) < 12:
         return None
-    order = 'little' if cdr[1] in (1, 3) else 'big'     # encapsulation kind: CDR_LE / PL_CDR_LE
+    order = cdr_byte_order(cdr)
     sec = int.from_bytes(cdr[4:8], order, signed=True)
     nanosec = int.from_bytes(cdr[8:12], order, signed=False)
     return sec * 1_000_000_000 + nanosec

@@ -38,7 +38,6 @@ import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -68,6 +67,7 @@ from replan_ros.interfaces import (
     torque_cmd_to_msg,
 )
 from replan_ros.on_demand import OnDemandSubscriptions
+from replan_ros.params import declare_node_parameters
 from replan_ros.qos import (
     COMMAND,
     CONTACTS,
@@ -75,6 +75,7 @@ from replan_ros.qos import (
     INTERNAL_SUB_EVENTS,
     LATCHED,
     SENSOR,
+    SENSOR_PUB,
 )
 
 _NS = 1_000_000_000
@@ -89,63 +90,8 @@ class WbcNode(Node):
 
     def __init__(self) -> None:
         super().__init__('wbc')
-        self._declare('urdf_path', '', "robot URDF; '' = $REPLAN_URDF, else <repo>/urdf/hyq.urdf")
-        self._declare('control_rate', 250.0,
-                      'Hz, the sim control tick rate (1 / control_period): stale-input check')
-        self._declare('plan_timeout', 2.0,
-                      'wall s to wait for footholds + com_plan of a due re-plan (or the first '
-                      'plans); then go on with the old plans (or stand) and report WARN')
-        self._declare('first_plan_timeout', 30.0,
-                      'wall s to wait for the very first plans before standing: the sim does '
-                      'not advance before the first command, so waiting costs nothing, while '
-                      'standing up without them would make the run depend on start-up speed')
-        self._declare('plan_max_age', 6.0,
-                      'sim s: a plan pair older than this (or past its horizon) -> stand')
-        self._declare('stale_ticks', 3,
-                      'a gap of more than this many control periods between answered ticks '
-                      'means the inputs went stale (sim free-ran): stand until a new plan')
-        self._declare('haptic_velocity', 0.15,
-                      'm/s, descent of a haptic swing foot after its planned touchdown')
-        self._declare('touchdown_depth', WbcParams().touchdown_depth,
-                      'm, a haptic swing aims this far below its foothold so that contact '
-                      'comes at the planned time despite the swing tracking lag')
-        defaults = WbcParams()
-        self._declare('com_kp', defaults.com_kp.tolist(), '1/s^2, CoM PD stiffness x y z')
-        self._declare('com_kd', defaults.com_kd.tolist(), '1/s, CoM PD damping x y z')
-        self._declare('trunk_kp', defaults.trunk_kp.tolist(),
-                      '1/s^2, trunk orientation PD stiffness roll pitch yaw')
-        self._declare('trunk_kd', defaults.trunk_kd.tolist(),
-                      '1/s, trunk orientation PD damping roll pitch yaw')
-        self._declare('swing_kp', defaults.swing_kp.tolist(), 'N/m, swing foot stiffness x y z')
-        self._declare('swing_kd', defaults.swing_kd.tolist(), 'N s/m, swing foot damping x y z')
-        self._declare('friction', defaults.friction,
-                      'friction coefficient of the force QP (inner pyramid mu / sqrt 2)')
-        self._declare('fz_min', defaults.fz_min, 'N, least normal force of a stance foot')
-        self._declare('fz_max', defaults.fz_max, 'N, largest normal force of a stance foot')
-        self._declare('weight_force', defaults.weight_force, 'QP weight of the force rows')
-        self._declare('weight_moment', defaults.weight_moment, 'QP weight of the moment rows')
-        self._declare('regularization', defaults.regularization, 'QP weight of |f|^2')
-        self._declare('fallback_kp', defaults.fallback_kp,
-                      'N m/rad, joint PD of the safe stand after a numerical failure')
-        self._declare('fallback_kd', defaults.fallback_kd, 'N m s/rad, same, damping')
-        self._declare('diagnostics_period', 1.0, 'wall s between /diagnostics messages')
-        self._declare('state_estimation', False,
-                      'true: base pose and twist from the state estimator (imu + leg '
-                      'kinematics); false: the simulator\'s ground_truth/odom (ideal)')
-        self._declare('contact_estimation', False,
-                      'true: foot contacts from forces estimated from the joint torques; '
-                      'false: the simulator\'s ground_truth/contacts (ideal)')
-        self._declare('plan_latency', 0.0,
-                      'sim s from a re-plan trigger until its plans take effect (rounded up to '
-                      'control ticks; the old plans are tracked meanwhile): the solve time')
-        estimator_defaults = EstimatorParams()
-        for item in dataclasses.fields(EstimatorParams):
-            value = getattr(estimator_defaults, item.name)
-            self._declare(f'estimator.{item.name}',
-                          value.tolist() if hasattr(value, 'tolist') else value,
-                          f'state estimator: {item.name} (replan_core.estimator.EstimatorParams)')
-
-        p = {name: self.get_parameter(name).value for name in self._parameter_names}
+        # The parameters and their ranges: params.WBC, estimator.<field> included.
+        p = declare_node_parameters(self, 'wbc', on_change=self._on_parameter_change)
         params = WbcParams(
             com_kp=np.array(p['com_kp'], float), com_kd=np.array(p['com_kd'], float),
             trunk_kp=np.array(p['trunk_kp'], float), trunk_kd=np.array(p['trunk_kd'], float),
@@ -157,9 +103,6 @@ class WbcNode(Node):
             haptic_velocity=float(p['haptic_velocity']),
             touchdown_depth=float(p['touchdown_depth']),
             fallback_kp=float(p['fallback_kp']), fallback_kd=float(p['fallback_kd']))
-        for gain in ('com_kp', 'com_kd', 'trunk_kp', 'trunk_kd', 'swing_kp', 'swing_kd'):
-            if getattr(params, gain).shape != (3,):
-                raise ValueError(f'parameter {gain} needs 3 values')
         self.plan_timeout = float(p['plan_timeout'])
         self.first_plan_timeout = float(p['first_plan_timeout'])
         self.plan_max_age = float(p['plan_max_age'])
@@ -169,9 +112,7 @@ class WbcNode(Node):
         self.state_estimation = bool(p['state_estimation'])
         self.contact_estimation = bool(p['contact_estimation'])
         period_ns = sec_to_ns(1.0 / float(p['control_rate']))
-        latency = float(p['plan_latency'])
-        if not (math.isfinite(latency) and 0.0 <= latency < 1.0):
-            raise ValueError(f'wbc: plan_latency must be within [0, 1) s, got {latency}')
+        latency = float(p['plan_latency'])         # within [0, 0.99] s (params.WBC)
         self.latency_ns = math.ceil(sec_to_ns(latency) / period_ns - 1e-9) * period_ns
 
         urdf = p['urdf_path'] or os.environ.get('REPLAN_URDF') or str(
@@ -223,7 +164,7 @@ class WbcNode(Node):
                                              event_callbacks=INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
                                               event_callbacks=INTERNAL_PUB_EVENTS)
-        self.odom_pub = self.create_publisher(Odometry, 'odom', SENSOR,
+        self.odom_pub = self.create_publisher(Odometry, 'odom', SENSOR_PUB,
                                               event_callbacks=INTERNAL_PUB_EVENTS)
         self.contacts_pub = self.create_publisher(PointCloud2, 'contacts', CONTACTS,
                                                   event_callbacks=INTERNAL_PUB_EVENTS)
@@ -259,9 +200,10 @@ class WbcNode(Node):
             f'wbc ready: {urdf}, mass {self.robot.total_mass:.2f} kg, {sources}, plan latency '
             f'{self.latency_ns / _NS:.3f} s, plan_timeout {self.plan_timeout} s')
 
-    def _declare(self, name: str, default, description: str) -> None:
-        self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        self._parameter_names = [*getattr(self, '_parameter_names', []), name]
+    def _on_parameter_change(self, name: str, value) -> None:
+        """A run-time change of one of the writable parameters (params.WBC)."""
+        if name == 'plan_timeout':
+            self.plan_timeout = float(value)
 
     def _warn(self, text: str) -> None:
         self.get_logger().warning(text, throttle_duration_sec=2.0)

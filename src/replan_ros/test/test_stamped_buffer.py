@@ -7,7 +7,7 @@ from rclpy.serialization import serialize_message
 
 from replan_core.types import BaseState
 from replan_ros.interfaces import base_state_from_odom, odom_from_base_state
-from replan_ros.stamped_buffer import RawStampedBuffer, cdr_header_stamp_ns
+from replan_ros.stamped_buffer import RawStampedBuffer, cdr_byte_order, cdr_header_stamp_ns
 
 
 def _odom_cdr(t: float, x: float) -> bytes:
@@ -43,3 +43,17 @@ def test_a_message_that_fails_to_decode_is_dropped_with_the_error():
     with pytest.raises(ValueError, match='non-finite'):
         buffer.get(ns)
     assert ns not in buffer
+
+
+@pytest.mark.parametrize('kind, order', [
+    (0, 'big'), (1, 'little'), (2, 'big'), (3, 'little'),          # CDR, PL_CDR
+    (6, 'big'), (7, 'little'), (8, 'big'), (9, 'little'),          # CDR2, D_CDR2
+    (10, 'big'), (11, 'little')])                                  # PL_CDR2
+def test_byte_order_follows_the_encapsulation_identifier(kind, order):
+    """Odd identifiers are the little-endian ones (XCDR2 included: 7, 9, 11)."""
+    stamp = 12_348_000_000
+    sec, nanosec = divmod(stamp, 1_000_000_000)
+    body = sec.to_bytes(4, order, signed=True) + nanosec.to_bytes(4, order)
+    cdr = bytes([0, kind, 0, 0]) + body + b'\x00' * 8
+    assert cdr_byte_order(cdr) == order
+    assert cdr_header_stamp_ns(cdr) == stamp

@@ -1,10 +1,20 @@
 """Start the node graph (sim, gait, mpc, wbc, optionally the recorder) and supervise it.
 
 There is no `ros2 launch` in the PyPI wheels; this is the project's launcher, behind
-``scripts/launch.sh``. Each node is its own process (own process group) with its log in the run
-folder. A node that dies is reported (which, when, exit code) and started again (respawn), or,
-with ``--no-respawn``, the rest is stopped and the exit code is non-zero. Ctrl-C, SIGTERM or the
+``scripts/launch.sh``. Before anything starts, every parameter file of the run (the node files,
+the profile, ``--params``) is checked against the nodes' parameter tables
+(``replan_ros/params.py``): an unknown key (with the closest name), a wrong type, a value out
+of range or not among the choices, or two nodes that disagree (``wbc.control_rate`` and
+``sim.control_period``; ``sim.command_timeout`` must exceed ``wbc.plan_timeout``) stops the
+start with one line, e.g. ``config error: /tmp/x.yaml: gait.replan_window = 0 is out of range
+[1, 8]``. Each node is its own process (own process group) with its log in the run folder. A
+node that dies is reported (which, when, exit code) and started again after a back-off of 1 s,
+2 s, 4 s ...; a node that dies 3 times within 30 s stops the graph and its last 20 log lines
+are printed. With ``--no-respawn`` the first death stops the rest. Ctrl-C, SIGTERM or the
 sim-time ``--duration`` stop everything cleanly (SIGINT, then SIGKILL after a timeout).
+
+Exit codes: 0 done; 1 a node died (``--no-respawn``); 2 bad command line or configuration
+(nothing was started); 3 wall-time limit (scenarios); 4 a node kept dying (respawn limit).
 """
 
 from __future__ import annotations
@@ -32,6 +42,7 @@ from rosgraph_msgs.msg import Clock
 
 from replan_ros import qos
 from replan_ros.on_demand import helper_name
+from replan_ros.params import TABLES, ConfigError, Source, check_run, load_param_file, load_yaml
 
 NODES = ('sim', 'gait', 'mpc', 'wbc')
 # Published by sim, gait and mpc as soon as they are up; with a recorder in the graph the wbc,
@@ -44,7 +55,11 @@ DEFAULT_PROFILE = 'realistic'
 RECORDER_WAIT = 20.0    # s, wall
 DELIVERY_WAIT = 30.0    # s, wall: scheduled inputs acknowledged by the nodes that use them
 STOP_TIMEOUT = 10.0     # s, SIGINT -> SIGKILL
-RESPAWN_DELAY = 1.0     # s, wall
+RESPAWN_DELAY = 1.0     # s, wall: first back-off, doubled at each further death
+RESPAWN_LIMIT = 3       # deaths of one node within RESPAWN_WINDOW that stop the graph
+RESPAWN_WINDOW = 30.0   # s, wall
+LOG_TAIL = 20           # lines of a node's log printed when it keeps dying
+EXIT_DONE, EXIT_DIED, EXIT_CONFIG, EXIT_WALL_TIME, EXIT_RESPAWN_LIMIT = 0, 1, 2, 3, 4
 
 
 def _executable(name: str) -> str:
@@ -65,6 +80,25 @@ def profile_file(config_dir: Path, profile: str) -> Path:
     return path
 
 
+def check_run_files(config_dir: Path, param_files, extra_params=None):
+    """Check the node files of ``config_dir``, then ``param_files`` in order (the profile and
+    the user's files: paths, or ``params.Source`` for parameters not in a file yet), then the
+    ``-p`` values of ``extra_params`` ({node: {name: text}}), against the parameter tables and
+    each other; returns the effective values (``params.Resolved``). ConfigError names the
+    file, the node, the key, the value and what is allowed."""
+    sources = []
+    for name in TABLES:
+        path = config_dir / f'{name}.yaml'
+        if path.is_file():
+            sources.append(Source(str(path), load_param_file(path), nodes=(name,)))
+    sources += [item if isinstance(item, Source) else Source(str(item), load_param_file(item))
+                for item in param_files]
+    for name, values in (extra_params or {}).items():
+        sources.append(Source('command line (-p)', {
+            name: {key: load_yaml(str(text)) for key, text in values.items()}}, nodes=(name,)))
+    return check_run(sources, TABLES)
+
+
 def _stamp() -> str:
     return datetime.datetime.now().strftime('%H:%M:%S')
 
@@ -78,6 +112,8 @@ class ManagedNode:
     process: subprocess.Popen | None = None
     starts: int = 0
     log_file: object = field(default=None, repr=False)
+    deaths: list[float] = field(default_factory=list)   # monotonic times, within the window
+    respawn_at: float | None = None                       # monotonic time of the next start
 
     def start(self, env: dict[str, str]) -> None:
         if self.log_file is None:
@@ -99,6 +135,15 @@ class ManagedNode:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.process.pid, sig)
 
+    def log_tail(self, lines: int = LOG_TAIL) -> list[str]:
+        """The last ``lines`` lines of the node's log."""
+        if self.log_file is not None:
+            self.log_file.flush()
+        try:
+            return self.log_path.read_text(errors='replace').splitlines()[-lines:]
+        except OSError:
+            return []
+
     def close(self) -> None:
         if self.log_file is not None:
             self.log_file.close()
@@ -113,6 +158,12 @@ class Graph:
                  record_dir: Path | None = None, gui: bool = False, respawn: bool = True,
                  extra_params: dict[str, dict[str, str]] | None = None,
                  env: dict[str, str] | None = None, log=print) -> None:
+        """ConfigError (nothing started, nothing written) when a parameter file of the run
+        does not pass ``params.check_run``."""
+        extra_params = extra_params or {}
+        if profile is not None:
+            param_files = [profile_file(config_dir, profile), *param_files]
+        self.resolved = check_run_files(config_dir, param_files, extra_params)
         self.run_dir = run_dir
         self.log_dir = run_dir / 'logs'
         self.log_dir.mkdir(parents=True, exist_ok=True)
@@ -121,12 +172,9 @@ class Graph:
         self.env['PYTHONUNBUFFERED'] = '1'
         self.log = log
         self.nodes: list[ManagedNode] = []
-        extra_params = extra_params or {}
         # The node files are the ideal world; the profile's settings come on top of them and
         # the user's files last (None: the files already hold one, as in a re-run).
         self.profile = profile
-        if profile is not None:
-            param_files = [profile_file(config_dir, profile), *param_files]
         names = (['recorder'] if record_dir is not None else []) + list(NODES)
         for name in names:
             cmd = [_executable(f'{name}_node'), '--ros-args', '-r', f'__node:={name}',
@@ -191,9 +239,19 @@ class Graph:
         self.log(f'[launch {_stamp()}] recorder not subscribed to {missing} after '
                  f'{RECORDER_WAIT} s; starting anyway (the bag may miss the first messages)')
 
-    def poll(self) -> bool:
-        """Check the nodes once; respawn the dead ones. False when the graph must stop."""
+    def poll(self) -> int | None:
+        """Check the nodes once; respawn the dead ones after their back-off. None while the
+        graph runs on, else the exit code it must stop with (EXIT_DIED without respawn,
+        EXIT_RESPAWN_LIMIT when a node died RESPAWN_LIMIT times within RESPAWN_WINDOW)."""
+        now = time.monotonic()
         for node in self.nodes:
+            if node.respawn_at is not None:
+                if now >= node.respawn_at:
+                    node.respawn_at = None
+                    node.start(self.env)
+                    self.log(f'[launch {_stamp()}] respawned {node.name} '
+                             f'(pid {node.process.pid})')
+                continue
             if node.process is None or node.alive:
                 continue
             code = node.process.returncode
@@ -201,11 +259,21 @@ class Graph:
                      f'after start #{node.starts}; log {node.log_path}')
             self.failed.append(node.name)
             if not node.respawn:
-                return False
-            time.sleep(RESPAWN_DELAY)
-            node.start(self.env)
-            self.log(f'[launch {_stamp()}] respawned {node.name} (pid {node.process.pid})')
-        return True
+                return EXIT_DIED
+            node.deaths = [t for t in node.deaths if now - t <= RESPAWN_WINDOW] + [now]
+            if len(node.deaths) >= RESPAWN_LIMIT:
+                tail = node.log_tail()
+                self.log(f'[launch {_stamp()}] {node.name} died {len(node.deaths)} times '
+                         f'within {RESPAWN_WINDOW:.0f} s: stopping the graph. The last '
+                         f'{len(tail)} lines of {node.log_path}:')
+                for line in tail:
+                    self.log(f'    {line}')
+                return EXIT_RESPAWN_LIMIT
+            # Back-off: a node that dies at start would otherwise restart in a tight loop.
+            delay = RESPAWN_DELAY * 2 ** (len(node.deaths) - 1)
+            node.respawn_at = now + delay
+            self.log(f'[launch {_stamp()}] respawning {node.name} in {delay:.0f} s')
+        return None
 
     def memory_peaks_mb(self) -> dict[str, float]:
         """Peak resident memory (VmHWM, MB) of each running node process."""
@@ -324,9 +392,11 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
                 first_tick = (time.monotonic(), watch.sim_time)
             if on_tick is not None:
                 on_tick(watch.sim_time)
-            if not graph.poll():
-                graph.log(f'[launch {_stamp()}] --no-respawn: stopping the rest')
-                code = 1
+            result = graph.poll()
+            if result is not None:
+                if result == EXIT_DIED:
+                    graph.log(f'[launch {_stamp()}] --no-respawn: stopping the rest')
+                code = result
                 break
             if duration is not None and watch.sim_time >= duration:
                 graph.log(f'[launch {_stamp()}] reached {duration} s of sim time')
@@ -386,9 +456,13 @@ def main(argv=None) -> int:
         profile_file(args.config_dir, args.profile)
     except ValueError as err:
         parser.error(str(err))
-    graph = Graph(run_dir, config_dir=args.config_dir, param_files=args.params,
-                  profile=args.profile, record_dir=args.record, gui=args.gui,
-                  respawn=not args.no_respawn)
+    try:
+        graph = Graph(run_dir, config_dir=args.config_dir, param_files=args.params,
+                      profile=args.profile, record_dir=args.record, gui=args.gui,
+                      respawn=not args.no_respawn)
+    except ConfigError as err:
+        print(f'config error: {err}', file=sys.stderr)
+        return EXIT_CONFIG
     print(f'[launch] run folder {run_dir} (domain {os.environ.get("ROS_DOMAIN_ID", "0")}), '
           f'profile {args.profile}')
     return run_graph(graph, args.duration)

@@ -32,6 +32,7 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 
 from replan_ros.interfaces import stamp_to_ns
+from replan_ros.params import ConfigError
 from replan_ros.tools.launch_graph import NODES
 
 INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped}
@@ -271,6 +272,9 @@ def main(argv=None) -> int:
     out = args.out or root / 'runs' / f'rerun-{time.strftime("%Y%m%d-%H%M%S")}'
     try:
         comparison, code = rerun(args.bag, out, tolerance=args.tolerance, gui=args.gui)
+    except ConfigError as err:      # the recorded configuration no longer passes the check
+        print(f'config error: {err}', file=sys.stderr)
+        return 2
     except (RerunError, OSError) as err:
         print(f'rerun: {err}', file=sys.stderr)
         return 2

@@ -8,14 +8,18 @@ A scenario file (see config/scenarios/ and the README):
     duration: 20.0                      # s of sim time
     profile: realistic                  # optional: realistic (default) | ideal | a YAML file
     terrain: flat                       # flat | step_up | step_down | rough, or a mapping
-                                        #   {type: step_up, <sim terrain parameters>}
+                                        #   {type: step_up, <sim terrain parameters>};
+                                        #   the only place for the terrain (a terrain key
+                                        #   under params: is refused)
     params:                             # parameter overrides per node (as in config/<node>.yaml)
       gait: {haptic: true}
     events:                             # timed inputs, sim time
       - {t: 0.5, cmd_vel: [0.15, 0.0, 0.0]}            # vx, vy (m/s), wz (rad/s)
       - {t: 8.0, push: {force: [0.0, 150.0, 0.0], duration: 0.2}}   # N, s
 
-Events are sent before the simulation starts, stamped with their sim time, on the transient-local
+Every parameter of the run is checked before anything starts (replan_ros/params.py): a bad
+one ends the run with one ``config error:`` line and exit code 2. Events are sent before the
+simulation starts, stamped with their sim time, on the transient-local
 schedule topics (`cmd_vel_stamped`, `external_wrench`), so the same file always gives the same run.
 """
 
@@ -34,10 +38,13 @@ import yaml
 from geometry_msgs.msg import TwistStamped, WrenchStamped
 
 from replan_ros.interfaces import sec_to_stamp
+from replan_ros.params import ConfigError, Source, load_param_file
 from replan_ros.tools.launch_graph import (
     DEFAULT_PROFILE,
+    EXIT_CONFIG,
     Graph,
     ScheduledInputs,
+    check_run_files,
     profile_file,
     run_graph,
 )
@@ -63,6 +70,8 @@ class Scenario:
     fall_limits: dict = field(default_factory=dict)
     profile: str = DEFAULT_PROFILE
     source_text: str = ''
+    source: str = '<scenario>'
+    terrain_given: bool = False       # the file has a top-level terrain (else: flat)
 
 
 def _finite_numbers(value, count: int, where: str) -> tuple[float, ...]:
@@ -106,7 +115,8 @@ def parse_scenario(text: str, source: str = '<scenario>') -> Scenario:
         raise ScenarioError(f'{source}: profile must be a profile name or a YAML file')
     scenario = Scenario(name=str(doc.get('name', Path(source).stem)), duration=float(duration),
                         terrain=terrain, params=params, fall_limits=doc.get('fall_limits') or {},
-                        profile=profile, source_text=text)
+                        profile=profile, source_text=text, source=source,
+                        terrain_given='terrain' in doc)
     for i, event in enumerate(doc.get('events') or []):
         where = f'{source}: events[{i}]'
         if not isinstance(event, dict) or 't' not in event:
@@ -153,6 +163,40 @@ def params_document(scenario: Scenario) -> dict:
     return doc
 
 
+def _terrain_keys(values: dict) -> list[str]:
+    return [k for k in values if k == 'terrain' or k.startswith('terrain_')]
+
+
+def check_scenario(scenario: Scenario, config_dir: Path, extra_param_files=()) -> None:
+    """Check the run's parameters before anything starts (ConfigError, one line): the
+    scenario's ``params`` and terrain, its profile and the extra files against the nodes'
+    tables (``launch_graph.check_run_files``), and no terrain set in two places: the sim's
+    terrain comes from the top-level ``terrain:`` (``flat`` when absent), which a
+    ``params: {sim: {terrain...}}`` entry or a terrain key in an extra file would contradict
+    (before this check one of them silently won)."""
+    top = (f'the top-level terrain ({scenario.terrain["type"]}'
+           + (')' if scenario.terrain_given else ', the default when terrain: is absent)'))
+    hint = ('set the terrain with the top-level terrain: key (a name or {type: step_up, '
+            'step_height: 0.05, ...})')
+    keys = _terrain_keys(scenario.params.get('sim', {}))
+    if keys:
+        raise ConfigError(f'{scenario.source}: params.sim.{keys[0]} = '
+                          f'{scenario.params["sim"][keys[0]]!r} conflicts with {top}; {hint}')
+    for path in extra_param_files:
+        sim = load_param_file(path).get('sim', {})
+        keys = _terrain_keys(sim)
+        if keys:
+            raise ConfigError(f'{path}: sim.{keys[0]} = {sim[keys[0]]!r} conflicts with {top} '
+                              f'of {scenario.source}; {hint}')
+    doc = params_document(scenario)
+    terrain = {k: v for k, v in doc['sim']['ros__parameters'].items() if k.startswith('terrain')}
+    sources = [profile_file(config_dir, scenario.profile),
+               Source(f'{scenario.source} (params)', scenario.params),
+               Source(f'{scenario.source} (terrain)', {'sim': terrain}),
+               *extra_param_files]
+    check_run_files(config_dir, sources)
+
+
 def scenario_inputs(scenario: Scenario) -> ScheduledInputs:
     """The scenario's events as stamped messages: each push is its wrench from ``t`` and a zero
     wrench from ``t + duration``."""
@@ -179,11 +223,12 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
     """Run, then analyse; returns the metrics (also written to out_dir/metrics.json)."""
     from replan_ros.tools.run_analysis import analyse_run  # matplotlib only when needed
 
+    config_dir = config_dir or Path(os.environ.get('REPLAN_CONFIG', 'config'))
+    check_scenario(scenario, config_dir, extra_param_files)     # ConfigError: nothing started
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / 'scenario.yaml').write_text(scenario.source_text)
     params_file = out_dir / 'params.yaml'
     params_file.write_text(yaml.safe_dump(params_document(scenario), sort_keys=False))
-    config_dir = config_dir or Path(os.environ.get('REPLAN_CONFIG', 'config'))
     bag_dir = out_dir / 'bag'
     graph = Graph(out_dir, config_dir=config_dir, profile=scenario.profile,
                   param_files=[params_file, *extra_param_files], record_dir=bag_dir,
@@ -222,19 +267,28 @@ def main(argv=None) -> int:
                         help='world profile (realistic | ideal | a YAML file), instead of the '
                              'scenario\'s profile: key (default realistic)')
     args = parser.parse_args(argv)
+    config_dir = Path(os.environ.get('REPLAN_CONFIG', 'config'))
+    for path in args.params:
+        if not path.is_file():
+            parser.error(f'parameter file {path} does not exist')
     try:
         scenario = load_scenario(args.scenario)
         if args.profile:
             scenario.profile = args.profile
-        profile_file(Path(os.environ.get('REPLAN_CONFIG', 'config')), scenario.profile)
+        profile_file(config_dir, scenario.profile)
+        check_scenario(scenario, config_dir, args.params)
+    except ConfigError as err:
+        print(f'config error: {err}', file=sys.stderr)
+        return EXIT_CONFIG
     except (ScenarioError, ValueError) as err:
         print(f'scenario: {err}', file=sys.stderr)
-        return 2
+        return EXIT_CONFIG
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'{scenario.name}-{time.strftime("%Y%m%d-%H%M%S")}'
     print(f'[scenario] {scenario.name}: {scenario.duration} s of sim time, profile '
           f'{scenario.profile}, output in {out}')
-    metrics = run_scenario(scenario, out, gui=args.gui, extra_param_files=args.params)
+    metrics = run_scenario(scenario, out, gui=args.gui, config_dir=config_dir,
+                           extra_param_files=args.params)
     print(summary(metrics, out))
     return 0 if metrics.get('completed') else 1
 

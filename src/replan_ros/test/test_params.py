@@ -1,0 +1,237 @@
+"""The parameter tables (replan_ros/params.py) and the check of a run's parameter files."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from pathlib import Path
+
+import pytest
+
+from replan_core.estimator import EstimatorParams
+from replan_core.sim_world import STANDING_POSE, TERRAINS, ActuatorParams
+from replan_ros import params
+from replan_ros.params import ConfigError, Source, check_run, resolve, sources_from_argv
+from replan_ros.tools.launch_graph import check_run_files
+from replan_ros.tools.scenario import check_scenario, parse_scenario
+
+REPO = Path(__file__).resolve().parents[3]
+CONFIG = REPO / 'config'
+NODES = tuple(params.TABLES)
+
+
+def _source(text: str, label: str = '/tmp/x.yaml') -> Source:
+    return Source(label, params.parse_param_doc(params.load_yaml(text), label))
+
+
+def _error(text: str, nodes=NODES) -> str:
+    with pytest.raises(ConfigError) as info:
+        check_run([_source(text)], nodes)
+    return str(info.value)
+
+
+# ------------------------------------------------------------------------------ tables
+@pytest.mark.parametrize('node', NODES)
+def test_node_file_keys_are_in_the_table_with_its_defaults(node):
+    """config/<node>.yaml holds only parameters of the table, each at the table's default:
+    the table is the one source of the defaults, the file shows them."""
+    values = params.load_param_file(CONFIG / f'{node}.yaml')[node]
+    specs = params.table(node)
+    for name, value in values.items():
+        if name in params.BUILTIN:
+            continue
+        assert name in specs, f'{node}.{name} is in config/{node}.yaml but not in the table'
+        default = specs[name].default
+        assert params.check_value(specs[name], value) == pytest.approx(default), name
+
+
+@pytest.mark.parametrize('node', NODES)
+def test_specs_are_consistent(node):
+    for spec in params.TABLES[node]:
+        assert spec.description
+        params.check_value(spec, spec.default)       # every default is valid
+        if spec.min is not None and spec.max is not None:
+            assert spec.min <= spec.max, spec.name
+    names = [spec.name for spec in params.TABLES[node]]
+    assert len(names) == len(set(names))
+
+
+def test_nearly_everything_is_read_only():
+    writable = {(n, s.name) for n in NODES for s in params.TABLES[n] if not s.read_only}
+    assert writable <= {('gait', 'cmd_vel_timeout'), ('gait', 'cmd_vel_reject_above'),
+                        ('gait', 'warn_period'), ('mpc', 'warn_period'),
+                        ('sim', 'damping_gain'), ('wbc', 'plan_timeout')}
+
+
+def test_sim_literals_agree_with_the_core():
+    assert params.TERRAINS == TERRAINS
+    assert list(params.STANDING_POSE) == STANDING_POSE.tolist()
+    actuator = ActuatorParams()
+    sim = params.table('sim')
+    for field_name, key in (('time_constant', 'actuator_time_constant'),
+                            ('delay', 'actuator_delay'),
+                            ('viscous_damping', 'joint_viscous_damping'),
+                            ('coulomb_friction', 'joint_coulomb_friction'),
+                            ('torque_limit_scale', 'torque_limit_scale')):
+        assert sim[key].default == getattr(actuator, field_name)
+
+
+def test_wbc_declares_every_estimator_field():
+    wbc = params.table('wbc')
+    for item in dataclasses.fields(EstimatorParams):
+        spec = wbc[f'estimator.{item.name}']
+        assert spec.default == getattr(EstimatorParams(), item.name)
+
+
+def test_recorder_table_matches_the_recorder_node():
+    source = (REPO / 'src/replan_ros/replan_ros/recorder_node.py').read_text()
+    declared = set(re.findall(r"self\._declare\(\s*'(\w+)'", source))
+    assert declared == set(params.table('recorder'))
+
+
+# ------------------------------------------------------------------------------ checking
+def test_shipped_files_pass():
+    for profile in ('realistic', 'ideal'):
+        check_run_files(CONFIG, [CONFIG / 'profiles' / f'{profile}.yaml'])
+
+
+def test_unknown_key_names_the_closest_one():
+    message = _error('gait:\n  ros__parameters:\n    replan_windw: 2\n')
+    assert message == ('/tmp/x.yaml: gait.replan_windw = 2 is not a parameter of gait '
+                       '(did you mean replan_window?)')
+
+
+def test_unknown_node_names_the_closest_one():
+    assert 'gaits is not a node of the graph (did you mean gait?)' in _error(
+        'gaits:\n  ros__parameters:\n    haptic: true\n')
+
+
+def test_out_of_range():
+    assert _error('gait:\n  ros__parameters:\n    replan_window: 0\n') == (
+        '/tmp/x.yaml: gait.replan_window = 0 is out of range [1, 8]')
+    assert 'out of range' in _error('sim:\n  ros__parameters:\n    friction: -0.1\n')
+
+
+def test_wrong_type():
+    assert _error('mpc:\n  ros__parameters:\n    horizon: "eight"\n') == (
+        "/tmp/x.yaml: mpc.horizon = 'eight' has the wrong type: expected a float "
+        '(an int is accepted)')
+    assert 'wrong type' in _error('gait:\n  ros__parameters:\n    n_footholds: 8.0\n')
+    assert 'wrong type' in _error('gait:\n  ros__parameters:\n    haptic: 1\n')
+    assert 'wrong type' in _error('gait:\n  ros__parameters:\n    use_sim_time: 1\n')
+
+
+def test_an_int_is_accepted_for_a_float_and_becomes_one():
+    resolved = check_run([_source('mpc:\n  ros__parameters:\n    horizon: 6\n'
+                                  'sim:\n  ros__parameters:\n    payload_offset: [0, 0.1, 0]\n'
+                                  '    contact_stiffness: 1.0e5\n')], NODES)
+    assert resolved.values['mpc']['horizon'] == 6.0
+    assert isinstance(resolved.values['mpc']['horizon'], float)
+    assert resolved.values['sim']['payload_offset'] == [0.0, 0.1, 0.0]
+    assert resolved.values['sim']['contact_stiffness'] == 1e5      # rcl reads 1.0e5 as a float
+    assert resolved.where('mpc', 'horizon') == '/tmp/x.yaml'
+    assert resolved.where('mpc', 'dt') == 'default'
+
+
+def test_bad_choice_and_list_length():
+    assert _error('sim:\n  ros__parameters:\n    terrain: moon\n') == (
+        "/tmp/x.yaml: sim.terrain = 'moon' is not one of flat, step_down, step_up, rough")
+    assert 'has 2 values: expected 3' in _error(
+        'sim:\n  ros__parameters:\n    payload_offset: [0.1, 0.2]\n')
+    assert 'not one of lf, rf, lh, rh' in _error(
+        'gait:\n  ros__parameters:\n    sequence: [lh, lf, rh, xx]\n')
+    assert 'each leg' in _error('gait:\n  ros__parameters:\n    sequence: [lh, lf, rh, lh]\n')
+
+
+def test_nested_estimator_keys_are_checked():
+    check_run([_source('wbc:\n  ros__parameters:\n    estimator: {accel_gate: 3.0}\n')], NODES)
+    assert 'did you mean estimator.accel_gate?' in _error(
+        'wbc:\n  ros__parameters:\n    estimator: {acel_gate: 3.0}\n')
+
+
+def test_wildcard_section_applies_to_every_node():
+    resolved = check_run([_source('/**:\n  ros__parameters:\n    warn_period: 5.0\n')], NODES)
+    assert resolved.values['gait']['warn_period'] == 5.0
+    assert resolved.values['mpc']['warn_period'] == 5.0
+
+
+def test_malformed_files(tmp_path):
+    with pytest.raises(ConfigError, match='expected exactly one key ros__parameters'):
+        _source('gait:\n  replan_window: 2\n')
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('gait: [1\n')
+    with pytest.raises(ConfigError, match='not valid YAML'):
+        params.load_param_file(bad)
+    with pytest.raises(ConfigError, match='cannot read'):
+        params.load_param_file(tmp_path / 'missing.yaml')
+
+
+def test_cross_node_checks():
+    assert 'wbc.control_rate = 200.0 (/tmp/x.yaml) disagrees with sim.control_period' in _error(
+        'wbc:\n  ros__parameters:\n    control_rate: 200.0\n')
+    check_run([_source('wbc:\n  ros__parameters:\n    control_rate: 500.0\n'
+                       'sim:\n  ros__parameters:\n    control_period: 0.002\n')], NODES)
+    assert 'sim.command_timeout = 1.0 (/tmp/x.yaml) must exceed wbc.plan_timeout' in _error(
+        'sim:\n  ros__parameters:\n    command_timeout: 1.0\n')
+    assert 'must be below' in _error('wbc:\n  ros__parameters:\n    fz_min: 900.0\n')
+    assert 'must be at least' in _error('mpc:\n  ros__parameters:\n    horizon: 0.2\n'
+                                        '    dt: 0.3\n')
+
+
+def test_later_files_win_and_are_checked_in_order():
+    sources = [_source('gait:\n  ros__parameters:\n    replan_window: 2\n', 'a.yaml'),
+               _source('gait:\n  ros__parameters:\n    replan_window: 3\n', 'b.yaml')]
+    resolved = resolve(sources, ['gait'])
+    assert resolved.values['gait']['replan_window'] == 3
+    assert resolved.where('gait', 'replan_window') == 'b.yaml'
+
+
+def test_sources_from_a_node_command_line(tmp_path):
+    path = tmp_path / 'p.yaml'
+    path.write_text('gait:\n  ros__parameters:\n    replan_window: 2\n')
+    argv = ['gait_node', '--ros-args', '-r', '__node:=gait', '--params-file', str(path),
+            '-p', 'replan_window:=3', '-p', 'sequence:=[lf, rf, lh, rh]']
+    sources = sources_from_argv(argv, 'gait')
+    resolved = resolve(sources, ['gait'])
+    assert resolved.values['gait']['replan_window'] == 3            # -p wins, as in rcl
+    assert resolved.values['gait']['sequence'] == ['lf', 'rf', 'lh', 'rh']
+    with pytest.raises(ConfigError, match=r'command line \(-p\): gait.replan_window = 0'):
+        resolve(sources_from_argv([*argv, '-p', 'replan_window:=0'], 'gait'), ['gait'])
+
+
+# ------------------------------------------------------------------------------ scenarios
+def _scenario_error(text: str, extra=()) -> str:
+    scenario = parse_scenario(text, 'sc.yaml')
+    with pytest.raises(ConfigError) as info:
+        check_scenario(scenario, CONFIG, extra)
+    return str(info.value)
+
+
+def test_scenario_terrain_in_params_conflicts_with_the_top_level_terrain(tmp_path):
+    message = _scenario_error('duration: 5\nparams:\n  sim: {terrain: step_down}\n')
+    assert message.startswith("sc.yaml: params.sim.terrain = 'step_down' conflicts with the "
+                              'top-level terrain (flat, the default')
+    assert 'top-level terrain: key' in message
+    message = _scenario_error('duration: 5\nterrain: rough\n'
+                              'params:\n  sim: {terrain_step_height: 0.2}\n')
+    assert 'params.sim.terrain_step_height = 0.2 conflicts with the top-level terrain (rough)' \
+        in message
+    extra = tmp_path / 'extra.yaml'
+    extra.write_text('sim:\n  ros__parameters:\n    terrain: step_up\n')
+    assert _scenario_error('duration: 5\n', [extra]).startswith(
+        f"{extra}: sim.terrain = 'step_up' conflicts with the top-level terrain")
+
+
+def test_scenario_params_and_terrain_are_checked():
+    assert _scenario_error('duration: 5\nparams:\n  gait: {replan_window: 9}\n') == (
+        'sc.yaml (params): gait.replan_window = 9 is out of range [1, 8]')
+    assert 'sim.terrain_height = 0.05 is not a parameter of sim (did you mean ' in \
+        _scenario_error('duration: 5\nterrain: {type: step_up, height: 0.05}\n')
+    check_scenario(parse_scenario('duration: 5\nterrain: {type: step_up, step_height: 0.05}\n'
+                                  'params:\n  gait: {replan_window: 2}\n', 'sc.yaml'), CONFIG)
+
+
+@pytest.mark.parametrize('path', sorted((CONFIG / 'scenarios').glob('*.yaml')),
+                         ids=lambda p: p.stem)
+def test_shipped_scenarios_pass(path):
+    check_scenario(parse_scenario(path.read_text(), str(path)), CONFIG)

@@ -1,0 +1,136 @@
+"""Bad configuration stops the start (issue 15): the launcher and the scenario runner check
+every parameter file before anything starts (exit 2, one line), a node started by hand with a
+bad value exits non-zero, read-only parameters refuse run-time changes, and a node that keeps
+dying stops the graph (exit 4)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+import pytest
+from conftest import CONFIG_DIR
+from harness import REPO_ROOT, graph_env
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+
+BAD_FILES = {
+    'out_of_range': ('gait:\n  ros__parameters:\n    replan_window: 0\n',
+                     'gait.replan_window = 0 is out of range [1, 8]'),
+    'misspelt_key': ('gait:\n  ros__parameters:\n    replan_windw: 2\n',
+                     'gait.replan_windw = 2 is not a parameter of gait '
+                     '(did you mean replan_window?)'),
+    'wrong_type': ('mpc:\n  ros__parameters:\n    horizon: "eight"\n',
+                   "mpc.horizon = 'eight' has the wrong type: expected a float"),
+}
+
+
+def _run_tool(module: str, args: list[str], domain: int, timeout: float):
+    start = time.monotonic()
+    result = subprocess.run([sys.executable, '-m', module, *args], env=graph_env(domain),
+                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=timeout)
+    return result, time.monotonic() - start
+
+
+@pytest.mark.parametrize('case', sorted(BAD_FILES))
+def test_launcher_refuses_a_bad_parameter_file(case, ros_domain, tmp_path):
+    text, expected = BAD_FILES[case]
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text(text)
+    run_dir = tmp_path / 'run'
+    result, wall = _run_tool('replan_ros.tools.launch_graph',
+                             ['--params', str(bad), '--duration', '1', '--run-dir', str(run_dir)],
+                             ros_domain, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    lines = (result.stdout + result.stderr).strip().splitlines()
+    assert lines == [f'config error: {bad}: {expected}'] or (
+        len(lines) == 1 and lines[0].startswith(f'config error: {bad}: {expected}')), lines
+    assert not run_dir.exists(), 'no run folder, no logs: nothing was started'
+    assert wall < 15.0
+
+
+def test_scenario_refuses_terrain_set_in_two_places(ros_domain, tmp_path):
+    scenario = tmp_path / 'step.yaml'
+    scenario.write_text('duration: 2\nparams:\n  sim: {terrain: step_down}\n'
+                        'events:\n  - {t: 0.5, cmd_vel: [0.1, 0.0, 0.0]}\n')
+    out = tmp_path / 'out'
+    result, wall = _run_tool('replan_ros.tools.scenario', [str(scenario), '--out', str(out)],
+                             ros_domain, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    lines = (result.stdout + result.stderr).strip().splitlines()
+    assert len(lines) == 1, lines
+    assert lines[0].startswith(f"config error: {scenario}: params.sim.terrain = 'step_down' "
+                               'conflicts with the top-level terrain (flat'), lines
+    assert 'top-level terrain: key' in lines[0]
+    assert not out.exists()
+    assert wall < 15.0
+
+
+def test_node_started_alone_with_a_bad_value_exits_non_zero(launcher):
+    gait = launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
+                          params={'replan_window': 0})
+    gait.process.wait(30)
+    assert gait.process.returncode == 2
+    assert 'config error: command line (-p): gait.replan_window = 0 is out of range [1, 8]' \
+        in gait.log()
+
+
+def test_node_started_alone_with_a_misspelt_key_exits_non_zero(launcher, tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('mpc:\n  ros__parameters:\n    horizn: 6.0\n')
+    mpc = launcher.start('mpc_node', params_file=CONFIG_DIR / 'mpc.yaml',
+                         ros_args=['--params-file', str(bad)])
+    mpc.process.wait(30)
+    assert mpc.process.returncode == 2
+    assert f'config error: {bad}: mpc.horizn = 6.0 is not a parameter of mpc ' \
+           '(did you mean horizon?)' in mpc.log()
+
+
+def _set(probe, client, name, value):
+    future = client.set_parameters([Parameter(name, value=value)])
+    assert probe.spin_until(future.done, 10.0)
+    return future.result().results[0]
+
+
+def test_run_time_changes_are_refused_when_read_only_or_invalid(launcher, probe):
+    # An int accepted for a float on the command line (ROS's rule): start_delay:=2.
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
+                   params={'start_delay': 2})
+    client = AsyncParameterClient(probe.node, 'gait')
+    assert client.wait_for_services(timeout_sec=30.0), launcher.logs()
+    result = _set(probe, client, 'replan_window', 2)
+    assert not result.successful
+    assert 'read-only' in result.reason and 'replan_window' in result.reason
+    result = _set(probe, client, 'warn_period', -1.0)          # writable, out of range
+    assert not result.successful and 'out of range' in result.reason, result.reason
+    assert _set(probe, client, 'warn_period', 5.0).successful
+    future = client.get_parameters(['warn_period', 'replan_window', 'start_delay'])
+    assert probe.spin_until(future.done, 10.0)
+    values = [v.double_value or v.integer_value for v in future.result().values]
+    assert values == [5.0, 1, 2.0]
+    future = client.describe_parameters(['replan_window'])
+    assert probe.spin_until(future.done, 10.0)
+    descriptor = future.result().descriptors[0]
+    assert descriptor.read_only
+    assert (descriptor.integer_range[0].from_value, descriptor.integer_range[0].to_value) == (1, 8)
+
+
+def test_a_node_that_keeps_dying_stops_the_graph(ros_domain, tmp_path):
+    """mpc cannot load its URDF: it dies at start, is respawned after 1 s and 2 s, and its
+    third death within 30 s stops the graph with exit code 4 and its last log lines. The other
+    nodes idle meanwhile (the controller waits for its first plans, the sim for a command)."""
+    bad = tmp_path / 'bad_urdf.yaml'
+    bad.write_text("mpc:\n  ros__parameters:\n    urdf_path: '/nonexistent/robot.urdf'\n")
+    result, wall = _run_tool('replan_ros.tools.launch_graph',
+                             ['--params', str(bad), '--profile', 'ideal', '--duration', '100',
+                              '--run-dir', str(tmp_path / 'run')], ros_domain, timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 4, output
+    assert output.count('node mpc died') == 3, output
+    assert 'respawning mpc in 1 s' in output and 'respawning mpc in 2 s' in output, output
+    assert 'mpc died 3 times within 30 s: stopping the graph' in output, output
+    tail = output.split('stopping the graph', 1)[1]
+    assert "cannot load the URDF '/nonexistent/robot.urdf'" in tail, output
+    assert 'all nodes stopped' in output
+    assert wall < 90.0
