@@ -291,6 +291,9 @@ WBC = (
        "torques; false: the simulator's ground_truth/contacts (ideal)"),
     _p('plan_latency', 0.0, 'from a re-plan trigger until its plans take effect (rounded up to '
        'control ticks)', 'sim s', min=0.0, max=0.99),
+    _p('first_command_waits_for', [], 'nodes that must subscribe to odom, contacts and '
+       'contact_events before the first command lets the sim move (the launcher sets the '
+       "recorder's, so a bag holds the estimate from t = 0)", kind='str[]'),
     *_estimator_specs(),
 )
 

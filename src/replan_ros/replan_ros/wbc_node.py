@@ -114,6 +114,8 @@ class WbcNode(Node):
         period_ns = sec_to_ns(1.0 / float(p['control_rate']))
         latency = float(p['plan_latency'])         # within [0, 0.99] s (params.WBC)
         self.latency_ns = math.ceil(sec_to_ns(latency) / period_ns - 1e-9) * period_ns
+        self.first_command_waits_for = set(p['first_command_waits_for'])
+        self._listeners_ready = not self.first_command_waits_for
 
         urdf = p['urdf_path'] or os.environ.get('REPLAN_URDF') or str(
             Path(__file__).resolve().parents[3] / 'urdf' / 'hyq.urdf')
@@ -354,6 +356,8 @@ class WbcNode(Node):
             self._end_wait()
         if self._last_answered is not None and stamp <= self._last_answered:
             return                                   # an old stamp: nothing to answer
+        if not self._listeners_ready and not self._listeners_subscribed():
+            return          # the sim's republish of the tick (every 0.1 s) asks again
         t = stamp / _NS
         contacts = self._contacts[stamp]
         if not self._started:
@@ -392,6 +396,19 @@ class WbcNode(Node):
                     self._wait(stamp, first=False)
                     return
         self._answer(stamp)
+
+    def _listeners_subscribed(self) -> bool:
+        """True once every node of ``first_command_waits_for`` (e.g. the recorder's on-demand
+        helper) subscribes to the estimate's topics: the sim does not move before our first
+        command, so a bag then holds them from t = 0."""
+        for topic in ('odom', 'contacts', 'contact_events'):
+            readers = {info.node_name for info in
+                       self.get_subscriptions_info_by_topic(self.resolve_topic_name(topic))}
+            if not self.first_command_waits_for <= readers:
+                return False
+        self._listeners_ready = True
+        self.get_logger().info(f'{sorted(self.first_command_waits_for)} listen: starting')
+        return True
 
     def _wait(self, stamp: int, first: bool) -> None:
         self._waiting = stamp

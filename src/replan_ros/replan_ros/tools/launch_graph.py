@@ -183,6 +183,10 @@ class Graph:
                 cmd += ['--params-file', str(extra)]
             if name == 'sim' and gui:
                 cmd += ['-p', 'gui:=true']
+            if name == 'wbc' and record_dir is not None:
+                # The estimate (odom, contacts) comes from the wbc, which starts last: its first
+                # command waits until the recorder listens, so the bag holds it from t = 0.
+                cmd += ['-p', f'first_command_waits_for:=[{helper_name("recorder")}]']
             if name == 'recorder':
                 cmd += ['-p', f'output_dir:={record_dir}']
                 cmd += ['-p', 'config_files:=[' + ', '.join(
