@@ -2,7 +2,8 @@
 # Whole-graph benchmark, headless, lock-step, 1 kHz physics, 250 Hz control, RUNS times each
 # (default 3: on a shared 2-core VM one run varies by +-0.2 in real-time factor), the two
 # profiles interleaved in every round so that their ratio is measured under the same load:
-#  1. the four nodes alone (scripts/launch.sh --duration 20: the robot steps in place), ideal
+#  1. the four nodes alone (scripts/launch.sh --duration 20: zero set-point, so the robot steps
+#     in place for one crawl cycle and then stands: idle stance, docs/gait.md), ideal
 #     and realistic profile;
 #  2. the forward scenario (0.15 m/s, 22 s of sim time) with the recorder on, as users run it,
 #     ideal and realistic.
@@ -12,7 +13,7 @@
 #   Usage: scripts/bench_graph.sh [--runs N] [OUT_DIR]
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; }
 runs=3
 while [ $# -gt 0 ]; do
     case "$1" in

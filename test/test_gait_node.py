@@ -204,7 +204,8 @@ def test_bad_cmd_vel_is_rejected_or_clamped(sim, launcher):
 
 def test_non_haptic_replans_at_the_planned_touchdown(launcher, probe):
     launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
-                   params={**TIMING, 'haptic': False, 'replan_window': 2})
+                   params={**TIMING, 'haptic': False, 'replan_window': 2,
+                           'idle_stance': False})   # no set-point: would stand at 2.5 s
     sim = FakeSim(probe)
     sim.wait_connected(launcher)
     plan = sim.replan_at(0.0, launcher)
@@ -219,3 +220,37 @@ def test_non_haptic_replans_at_the_planned_touchdown(launcher, probe):
     assert len(sim.footholds) == 1
     plan = sim.replan_at(2.5, launcher, contact=[False, True, True, True])
     assert LEGS[plan.steps[0].leg] == 'rh'
+
+
+def test_idle_stance_stands_then_walks_off_at_the_next_trigger(launcher, probe):
+    """Zero set-point for idle_after: the re-plan at a touchdown publishes a stand plan (one
+    zero-length replan trigger, no real step); the trigger's tick re-plans, and with a new
+    set-point the plan walks off after the four-feet phase, the crawl order kept."""
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
+                   params={**TIMING, 'idle_after': 1.0, 'idle_replan_period': 0.5})
+    sim = FakeSim(probe)
+    sim.wait_connected(launcher)
+    first = sim.replan_at(0.0, launcher)              # zero set-point from the start
+    assert len(first.steps) == 8 and LEGS[first.steps[0].leg] == 'lh'
+    sim.tick(1.0)                                     # lh lifts off
+    stand = sim.replan_at(1.3, launcher)              # lh touches down: zero for 1.3 s
+    assert len(stand.steps) == 1
+    trigger = stand.steps[0]
+    assert trigger.liftoff_time == trigger.touchdown_time and trigger.step_height == 0.0
+    assert trigger.replan and not trigger.haptic
+    assert 1.3 < trigger.liftoff_time < 1.3 + 0.5    # half a tick early (ticks here: 0.3 s)
+    np.testing.assert_allclose(trigger.target, sim.feet[trigger.leg])
+    np.testing.assert_allclose(sim.setpoint_at(1.3), 0.0)
+
+    stamped = TwistStamped()
+    stamped.header.stamp = sec_to_stamp(1.75)
+    stamped.twist.linear.x = 0.1
+    sim.stamped_pub.publish(stamped)
+    sim.tick(1.7)                                     # the trigger "lifts off"...
+    walk = sim.replan_at(1.8, launcher)               # ...and ends one tick later: re-plan
+    np.testing.assert_allclose(sim.setpoint_at(1.8), [0.1, 0.0, 0.0])
+    assert len(walk.steps) == 8
+    assert LEGS[walk.steps[0].leg] == 'lf'            # the trigger did not advance the crawl
+    assert walk.steps[0].liftoff_time == pytest.approx(1.8 + TIMING['four_feet_duration'])
+    assert all(s.target[0] > FEET[s.leg, 0] for s in walk.steps)
+    assert 'idle stance at t=1.300' in launcher.processes[0].log()

@@ -16,6 +16,14 @@ stays symmetric about its hip over its stance.
 Foothold correction (section V.B): the first foothold of each leg in the horizon is placed about
 the *actual* hip; without it, it is the foot's previous (actual) position plus one stride. The
 later footholds of a leg are its previous foothold plus one stride in both cases.
+
+Idle stance (issue 16): after ``idle_after`` s of zero set-point the crawl stops at a re-plan
+(a touchdown, so all four feet are down) and a *stand plan* follows: no real step, only a
+zero-length, ``replan`` "trigger" step every ``idle_replan_period``. The shared touchdown rule
+(``contact.StepTracker``) ends it one tick after its lift-off tick, so both the gait node and
+the controller see the same re-plan tick and the simulator waits for its plans, exactly as for
+a touchdown: a set-point that becomes non-zero is picked up at the next trigger,
+deterministically (docs/gait.md, "Idle stance").
 """
 
 from __future__ import annotations
@@ -74,6 +82,12 @@ class GaitParams:
     # m: the first foothold of a leg moves to the actual hip only when the hip-relative and
     # foot-relative placements differ by more than this (after a push); 0 = always (literal V.B)
     correction_threshold: float = 0.10
+    # Idle stance (issue 16): stop stepping after idle_after s of zero set-point (one crawl
+    # cycle, 4 * 0.75 s); while standing, re-plan every idle_replan_period s so that a new
+    # set-point is picked up within idle_replan_period + four_feet_duration (0.75 s, one step).
+    idle_stance: bool = True
+    idle_after: float = 3.0                # s of zero set-point before the crawl stands still
+    idle_replan_period: float = 0.5        # s between two re-plan triggers while standing
 
     @property
     def step_period(self) -> float:
@@ -102,10 +116,12 @@ class GaitParams:
             raise ValueError('hip_offsets and stance_offsets need one (x, y) per leg')
         values = (self.step_height, self.max_step_length_x, self.max_step_length_y,
                   self.max_linear_x, self.max_linear_y, self.max_angular_z,
-                  self.correction_threshold)
+                  self.correction_threshold, self.idle_after)
+        if not (math.isfinite(self.idle_replan_period) and self.idle_replan_period > 0):
+            raise ValueError('idle_replan_period must be finite, > 0')
         if not all(math.isfinite(v) and v >= 0 for v in values):
-            raise ValueError('heights, step-length and velocity limits and the correction '
-                             'threshold must be finite, >= 0')
+            raise ValueError('heights, step-length and velocity limits, the correction '
+                             'threshold and idle_after must be finite, >= 0')
 
 
 @dataclass
@@ -301,12 +317,15 @@ def stance_phases(plan: FootholdPlan) -> list[tuple[float, float, np.ndarray, np
     """Support phases of a plan: (t_start, t_end, feet (4, 3), in_stance (4,) bool) each.
 
     Phases follow the planned times: four feet, then three during each swing, ...; the last
-    four-feet phase has ``t_end = inf`` (the final stance holds).
+    four-feet phase has ``t_end = inf`` (the final stance holds). Idle triggers (zero-length
+    steps of a stand plan) move no foot and add no phase.
     """
     feet = plan.initial_feet.copy()
     phases = []
     t = plan.start_time
     for step in plan.steps:
+        if is_idle_trigger(step):
+            continue                 # moves no foot: the four-feet phase goes on
         all_down = np.ones(4, dtype=bool)
         if step.liftoff_time > t + _EPS:
             phases.append((t, step.liftoff_time, feet.copy(), all_down))
@@ -317,3 +336,70 @@ def stance_phases(plan: FootholdPlan) -> list[tuple[float, float, np.ndarray, np
         t = step.touchdown_time
     phases.append((t, math.inf, feet.copy(), np.ones(4, dtype=bool)))
     return phases
+
+
+# ------------------------------------------------------------------------------ idle stance
+def is_idle_trigger(step: Step) -> bool:
+    """A stand plan's re-plan trigger: zero duration, zero height (it moves no foot)."""
+    return step.touchdown_time <= step.liftoff_time + _EPS and step.step_height == 0.0
+
+
+def is_stand_plan(plan: FootholdPlan) -> bool:
+    """True if the plan has no real step: all four feet stay down over the whole horizon."""
+    return all(is_idle_trigger(s) for s in plan.steps)
+
+
+def stand_plan(initial_feet: np.ndarray, base_yaw: float, start_time: float,
+               trigger_leg: int | None, trigger_time: float | None) -> FootholdPlan:
+    """A plan that keeps all four feet where they are (idle stance).
+
+    trigger_leg, trigger_time: the optional zero-length ``replan`` step (lift-off = touchdown =
+    ``trigger_time``, target = the foot itself, height 0, not haptic) that makes both trackers
+    re-plan one control tick after ``trigger_time``; None: no step at all. Put
+    ``trigger_time`` between two ticks (the node uses half a tick early): the MPC samples lie on
+    the tick grid, and ``support.support_schedule`` takes a leg out of the polygon on the closed
+    interval [lift-off, touchdown], so a trigger on a sample would cost it one triangle.
+    """
+    feet = np.asarray(initial_feet, dtype=float).reshape(4, 3).copy()
+    plan = FootholdPlan(start_time=start_time, initial_feet=feet.copy(),
+                        initial_yaw=float(base_yaw))
+    if trigger_leg is not None and trigger_time is not None:
+        if not trigger_time > start_time:
+            raise ValueError(f'trigger at {trigger_time} s is not after the plan start '
+                             f'{start_time} s')
+        plan.steps.append(Step(leg=int(trigger_leg), liftoff_time=float(trigger_time),
+                               touchdown_time=float(trigger_time),
+                               target=feet[int(trigger_leg)].copy(), step_height=0.0,
+                               haptic=False, replan=True, yaw=float(base_yaw)))
+    return plan
+
+
+@dataclass
+class IdleMonitor:
+    """Decides, at each re-plan, whether the crawl stands still (issue 16).
+
+    The zero run starts at the first re-plan tick whose set-point is zero and ends at the first
+    one whose set-point is not; the crawl stands at the first re-plan at least ``idle_after -
+    tolerance`` later. With the defaults (3 s, half a step) that is the fifth touchdown after
+    the change: the four steps of a cycle stepped in place, each leg once; the tolerance keeps
+    a few ms of haptic touchdown jitter over those four steps from costing a fifth.
+    Re-plan ticks, not the set-point's own stamp: ``scripts/rerun.sh`` replays a bag's
+    set-points stamped with the re-plans that used them (``velocity_setpoint``), so the re-run
+    reaches the same decisions. A non-zero set-point that came and went between two re-plans
+    (less than a step) is not seen, as by any re-plan.
+    """
+
+    idle_after: float = 3.0                 # s
+    enabled: bool = True
+    tolerance: float = 0.0                  # s
+    zero_since: float | None = None         # s, re-plan tick that started the zero run
+
+    def update(self, t: float, set_point) -> bool:
+        """The re-plan at sim time ``t`` uses ``set_point`` (vx, vy, wz); True: stand still."""
+        if np.any(np.asarray(set_point, dtype=float) != 0.0):
+            self.zero_since = None
+            return False
+        if self.zero_since is None:
+            self.zero_since = float(t)
+        return (self.enabled
+                and t - self.zero_since >= self.idle_after - self.tolerance - _EPS)

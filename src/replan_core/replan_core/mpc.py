@@ -373,6 +373,8 @@ class LipMpc:
         """
         ks = self._row_sample
         bind = lam > 1e-9 * max(float(lam.max()), 1e-300)
+        if not np.any(bind):
+            return work, lam          # no row binds (e.g. standing deep inside the polygon)
         wa = work[bind]
         A = np.column_stack([axr[wa], ayr[wa]])
         M = (A @ A.T) * self._G[np.ix_(ks[wa], ks[wa])]

@@ -5,15 +5,22 @@ import math
 import numpy as np
 import pytest
 
+from replan_core.contact import StepTracker
 from replan_core.gait import (
     DEFAULT_SEQUENCE,
     CrawlSchedule,
     GaitParams,
+    IdleMonitor,
     ReferenceTrajectory,
     clamp_velocity,
     compute_footholds,
+    is_idle_trigger,
+    is_stand_plan,
     stance_phases,
+    stand_plan,
 )
+from replan_core.mpc import STATUS_SOLVED, LipMpc, MpcSettings
+from replan_core.support import support_schedule
 from replan_core.types import LEGS
 
 TOL = 1e-9
@@ -339,3 +346,116 @@ def test_walking_and_turning_at_once_is_scaled_to_feasible_strides():
     # The targets of the issue, one at a time, are not scaled.
     for v in ((0.15, 0.0, 0.0), (0.0, 0.1, 0.0), (0.0, 0.0, 0.2), (0.15, 0.1, 0.0)):
         np.testing.assert_allclose(clamp_velocity(v, params), v)
+
+
+# ------------------------------------------------------------------------------ idle stance
+TICK = 0.004     # s, control period
+
+
+@pytest.mark.parametrize('trigger', [False, True])
+def test_stand_plan_keeps_the_four_feet_polygon_and_the_qp_keeps_the_zmp_in_it(trigger):
+    """A plan with no (real) step: one four-feet polygon over the whole 8 s horizon, and the
+    QP, started off-centre and moving, keeps its ZMP inside it (margin included)."""
+    params = GaitParams()
+    feet = standing_feet(params)
+    t0 = 10.0
+    plan = stand_plan(feet, 0.0, t0, 2 if trigger else None,
+                      t0 + params.idle_replan_period - TICK / 2 if trigger else None)
+    assert len(plan.steps) == (1 if trigger else 0) and is_stand_plan(plan)
+    # As config/mpc.yaml: 2 cm margin, velocity term 300 (pulls to the plan's zero velocity).
+    settings = MpcSettings(zmp_margin=0.02, velocity_weight=300.0)
+    sched = support_schedule(plan, t0, settings.dt, settings.n, settings.zmp_margin)
+    assert np.all(sched.n_feet == 4) and not np.any(sched.degenerate)
+    np.testing.assert_allclose(sched.A, sched.A[:1].repeat(settings.n, axis=0))
+    np.testing.assert_allclose(sched.b, sched.b[:1].repeat(settings.n, axis=0))
+    phases = stance_phases(plan)
+    assert len(phases) == 1 and phases[0][3].all() and phases[0][1] == math.inf
+    res = LipMpc(settings).solve(t0, np.array([0.08, -0.05, 0.55]), np.array([0.1, 0.05, 0.0]),
+                                 np.zeros(3), plan, v_ref=np.zeros(2))
+    assert res.status == STATUS_SOLVED and not res.is_fallback, res.reason
+    assert res.min_zmp_margin_m >= settings.zmp_margin - 1e-5
+    zmp = res.plan.position[1:, :2] - (settings.com_height / settings.gravity
+                                       * res.plan.acceleration[1:, :2])
+    assert np.min(sched.margins(zmp)) >= -1e-6
+    assert np.linalg.norm(res.plan.velocity[25:, :2], axis=1).max() < 1e-2   # rest in 1 s
+
+
+def test_idle_trigger_is_a_replan_one_tick_after_it_moving_no_foot():
+    """Both trackers (gait node, controller) end the trigger one tick after its lift-off tick
+    and call for the re-plan there: the same tick in both, as for a touchdown."""
+    feet = standing_feet(GaitParams())
+    t0 = 10.0
+    plan = stand_plan(feet, 0.3, t0, 2, t0 + 0.5 - TICK / 2)
+    step = plan.steps[0]
+    assert is_idle_trigger(step) and step.replan and not step.haptic
+    assert step.step_height == 0.0 and step.yaw == 0.3
+    np.testing.assert_allclose(step.target, feet[2])
+    tracker = StepTracker(plan)
+    ticks = t0 + TICK * np.arange(1, 200)
+    due = []
+    for t in ticks:
+        events = tracker.update(float(t), np.ones(4, dtype=bool))
+        if tracker.replan_due:
+            due.append((float(t), [(e.kind, e.reason) for e in events]))
+            break
+    assert due and due[0][0] == pytest.approx(t0 + 0.5 + TICK)
+    assert due[0][1] == [('touchdown', 'planned')]           # lifted off at t0 + 0.5
+    assert tracker.liftoff_tick[0] == pytest.approx(t0 + 0.5)
+    with pytest.raises(ValueError):
+        stand_plan(feet, 0.0, t0, 2, t0)                        # not after the plan start
+    # A walking plan is not a stand plan.
+    assert not is_stand_plan(plan_for((0.0, 0.0, 0.0)))
+    assert not any(is_idle_trigger(s) for s in plan_for((0.0, 0.0, 0.0)).steps)
+
+
+def test_idle_monitor_stands_after_a_cycle_of_zero_set_point():
+    params = GaitParams()
+    assert params.idle_after == pytest.approx(params.cycle_duration)   # one crawl cycle
+    idle = IdleMonitor(params.idle_after, tolerance=0.5 * params.step_period)   # as the node
+    walk = np.array([0.1, 0.0, 0.0])
+    assert not idle.update(5.28, walk)
+    # Zero from 6.0, first used by the re-plan at the touchdown of 6.03: the crawl steps in
+    # place for the four steps of a cycle, then stands at the fifth touchdown, also when the
+    # four steps took a little less than 3 s (haptic touchdowns jitter).
+    touchdowns = 6.03 + params.step_period * np.arange(6) - np.array([0, 0, 0, 0, 0.03, 0])
+    assert [idle.update(float(t), np.zeros(3)) for t in touchdowns] == [False] * 4 + [True] * 2
+    assert idle.zero_since == 6.03
+    # The stand's own re-plans (every idle_replan_period) go on standing.
+    assert idle.update(10.3, np.zeros(3))
+    # Any non-zero component ends the stand, and the count starts over.
+    assert not idle.update(10.8, np.array([0.0, 0.0, 0.05]))
+    assert idle.zero_since is None
+    assert not idle.update(11.5, np.zeros(3))
+    assert not idle.update(14.1, np.zeros(3))
+    assert idle.update(14.125, np.zeros(3))
+    # Switched off: never stands (steps in place as before issue 16).
+    off = IdleMonitor(params.idle_after, enabled=False)
+    assert not off.update(0.0, np.zeros(3)) and not off.update(100.0, np.zeros(3))
+
+
+def test_restart_from_a_stand_walks_off_after_the_four_feet_phase():
+    """The re-plan that sees a new set-point while standing: its first lift-off is one
+    four-feet phase after it (within one step of the set-point's first trigger), and the
+    reference trunk stands until then, so the first strides are partial, as at the start."""
+    params = GaitParams()
+    t0 = 12.004
+    v = (0.1, 0.0, 0.0)
+    restart = plan_for(v, params, t0=t0, delay=params.four_feet_duration)
+    moving = plan_for(v, params, t0=t0)
+    assert restart.steps[0].liftoff_time == pytest.approx(t0 + params.four_feet_duration)
+    assert not is_stand_plan(restart)
+    first, _ = legs_first_last(restart)
+    first_moving, _ = legs_first_last(moving)
+    feet = standing_feet(params)
+    for leg, step in first.items():
+        advance = step.target[0] - feet[leg, 0]
+        assert 0.0 < advance < first_moving[leg].target[0] - feet[leg, 0]
+    assert 0.0 < first[restart.steps[0].leg].target[0] - feet[restart.steps[0].leg, 0] < \
+        0.1 * params.cycle_duration
+
+
+def test_idle_parameters_are_checked():
+    with pytest.raises(ValueError):
+        plan_for((0, 0, 0), GaitParams(idle_replan_period=0.0))
+    with pytest.raises(ValueError):
+        plan_for((0, 0, 0), GaitParams(idle_after=-1.0))

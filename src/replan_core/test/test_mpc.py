@@ -176,3 +176,32 @@ def test_full_formulations_agree(formulation):
         0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
     assert other.status == STATUS_SOLVED
     np.testing.assert_allclose(other.zmp, ref.zmp, atol=1e-3)
+
+
+def test_standing_after_a_crawl_solves_with_no_binding_row():
+    """A stand plan (four feet, no step) at rest in the middle of the polygon after crawl
+    re-plans (the gait's idle stance): solved, no fallback, the CoM stays where it is."""
+    mpc = LipMpc(MpcSettings(zmp_margin=0.02))
+    _, res = list(crawl(mpc, seed=3, replans=3))[-1]
+    plan = res.plan
+    offset = np.array([plan.position[0, 0], plan.position[0, 1], 0.0])
+    feet = np.array([[0.37, 0.32, 0.0], [0.37, -0.32, 0.0], [-0.37, 0.32, 0.0],
+                     [-0.37, -0.32, 0.0]]) + offset
+    t = plan.start_time + 0.76
+    stand = FootholdPlan(t, feet, 0.0, [])
+    com = np.array([feet[:, 0].mean(), feet[:, 1].mean(), 0.55])
+    out = mpc.solve(t, com, np.zeros(3), np.zeros(3), stand)
+    assert out.status == STATUS_SOLVED, out.message
+    assert not out.fallback
+    np.testing.assert_allclose(out.plan.position[:, :2], [com[:2]] * len(out.plan.position),
+                               atol=1e-5)
+
+
+def test_polish_keeps_a_working_set_whose_multipliers_are_all_zero():
+    """The warm-started rows of a stand re-plan can all end with zero multipliers: the exact
+    polish then has nothing to solve (it used to fail on an empty minimum, and the re-plan
+    fell back to the relaxed plan)."""
+    mpc = LipMpc()
+    work, lam = np.array([3, 7]), np.zeros(2)
+    out_work, out_lam = mpc._polish(work, lam, None, None, None, None, None, None, None)
+    assert out_work is work and out_lam is lam

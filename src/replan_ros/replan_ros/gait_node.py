@@ -12,6 +12,10 @@
   (TwistStamped, effective from ``header.stamp``, never times out). A re-plan at ``t`` uses the
   most recent of the two: the latest stamped one with stamp <= t, the last good ``cmd_vel`` by
   the sim time it was received at.
+- Idle stance (``idle_stance``): a re-plan that finds the set-point zero for ``idle_after`` s
+  publishes a stand plan (all four feet down; one zero-length ``replan`` trigger step after
+  ``idle_replan_period``), so the re-plans go on, at ticks both trackers agree on, and the one
+  after a new set-point walks off (docs/gait.md, "Idle stance").
 """
 
 from __future__ import annotations
@@ -38,9 +42,13 @@ from replan_core.contact import StepTracker
 from replan_core.gait import (
     CrawlSchedule,
     GaitParams,
+    IdleMonitor,
     clamp_velocity,
     compute_footholds,
+    is_idle_trigger,
+    is_stand_plan,
     stance_phases,
+    stand_plan,
 )
 from replan_core.robot_model import RobotModel
 from replan_core.rotations import yaw_of
@@ -76,6 +84,7 @@ _LEG_COLOURS = ((0.9, 0.2, 0.2), (0.2, 0.7, 0.2), (0.2, 0.4, 0.9), (0.9, 0.7, 0.
 _POLYGON_ORDER = (0, 1, 3, 2)
 _ODOM_QUEUE = 20         # newest odom samples queued until a re-plan reads them
 _CONTACTS_QUEUE = 500    # contacts ticks queued between two reads (2 s at 250 Hz): none lost
+_DEFAULT_TICK_NS = 4_000_000   # control period until the stamps have shown it (250 Hz)
 _STATE_WAIT = 0.02       # wall s to wait for a due sample (odom of a re-plan, contacts of an
                          # event) before going on; the sim republishes a tick it waits at
 
@@ -164,7 +173,9 @@ class GaitNode(Node):
                 max_angular_z=float(p['max_angular_z']), n_footholds=int(p['n_footholds']),
                 replan_window=int(p['replan_window']), haptic=bool(p['haptic']),
                 foothold_correction=bool(p['foothold_correction']),
-                correction_threshold=float(p['correction_threshold']))
+                correction_threshold=float(p['correction_threshold']),
+                idle_stance=bool(p['idle_stance']), idle_after=float(p['idle_after']),
+                idle_replan_period=float(p['idle_replan_period']))
             params.validate()
             return params
         except ValueError as err:
@@ -201,6 +212,10 @@ class GaitNode(Node):
         self.unprocessed: deque[ContactState] = deque()
         self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
         self.replans = 0
+        # Half a step of slack: the zero run is timed from re-plan (touchdown) ticks, which
+        # jitter by a few ms (gait.IdleMonitor).
+        self.idle = IdleMonitor(self.params.idle_after, self.params.idle_stance,
+                                0.5 * self.params.step_period)
 
     def _warn(self, key: str, text: str) -> None:
         """Warning throttled per ``key`` (rclpy's throttle is per call site, and all of these
@@ -318,8 +333,8 @@ class GaitNode(Node):
             self.pending = (ns, cs, True)  # the first state seen: the initial plan
             return
         for event in self.tracker.update(cs.stamp, cs.contact):
-            if event.kind != 'touchdown':
-                continue
+            if event.kind != 'touchdown' or is_idle_trigger(self.plan.steps[event.step]):
+                continue                    # a stand plan's trigger moves no leg
             self.schedule.touched_down(event.leg)
             if event.reason == 'forced':
                 self.forced += 1
@@ -367,10 +382,18 @@ class GaitNode(Node):
         yaw = yaw_of(base.quaternion)
         hips = self.model.hip_positions(base) if self.model is not None else None
         setpoint, source = self.setpoint_at(ns)
+        stand = self.idle.update(t, setpoint) and not initial
+        was_standing = self.plan is not None and is_stand_plan(self.plan)
         try:
-            plan = compute_footholds(setpoint, feet, base.position, yaw, hips,
-                                     self.schedule.next_leg, t, self.params,
-                                     delay=self.start_delay if initial else 0.0)
+            if stand:
+                plan = stand_plan(feet, yaw, t, self.schedule.next_leg, self._trigger_time(t))
+            else:
+                # Walking off from a stand, as at the start: the reference trunk stands
+                # through the four-feet phase, so the first strides are partial.
+                delay = (self.start_delay if initial
+                         else self.params.four_feet_duration if was_standing else 0.0)
+                plan = compute_footholds(setpoint, feet, base.position, yaw, hips,
+                                         self.schedule.next_leg, t, self.params, delay=delay)
         except ValueError as err:
             self.get_logger().error(f'footholds at t={t:.3f} s failed ({err}); keeping the '
                                     'previous plan')
@@ -399,13 +422,30 @@ class GaitNode(Node):
         if initial:
             self.get_logger().info(f'initial plan at t={t:.3f} s: stand {self.start_delay} s, '
                                    f'then {LEGS[self.schedule.next_leg]} first')
+        elif stand and not was_standing:
+            self.get_logger().info(f'idle stance at t={t:.3f} s: set-point zero since '
+                                   f'{self.idle.zero_since:.3f} s, all four feet down')
+        elif was_standing and not stand:
+            self.get_logger().info(f'walking again at t={t:.3f} s ({source} '
+                                   f'{setpoint.tolist()}), {LEGS[self.schedule.next_leg]} '
+                                   'first')
         return True
+
+    def _trigger_time(self, t: float) -> float:
+        """When a stand plan's trigger lifts off: ``idle_replan_period`` after ``t``, half a
+        control tick early. The trackers lift it off at the next tick (on the tick grid) and
+        end it one tick later; half a tick off the grid it is never an MPC sample, so the
+        support stays four feet at every sample (gait.stand_plan)."""
+        tick = (self.tick_ns or _DEFAULT_TICK_NS) * 1e-9
+        return t + self.params.idle_replan_period - 0.5 * tick
 
     # ----------------------------------------------------------------------------- output
 
     def _publish_diagnostics(self, t: float, source: str) -> None:
         level = diagnostics.WARN if self.forced else diagnostics.OK
+        standing = self.plan is not None and is_stand_plan(self.plan)
         values = {'replans': self.replans, 'last_replan_time': t, 'setpoint_source': source,
+                  'idle_stance': standing,
                   'rejected_cmd_vel': self.rejected, 'forced_touchdowns': self.forced,
                   'next_leg': LEGS[self.schedule.next_leg]}
         message = 'forced touchdowns happened' if self.forced else 'ok'

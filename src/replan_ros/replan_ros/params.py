@@ -184,6 +184,13 @@ GAIT = (
        'touchdown (sent in footholds)', 's', min=0.0, max=5.0),
     _p('start_delay', 1.0, 'first plan: stand this long before the first lift-off', 's',
        min=0.0, max=60.0),
+    _p('idle_stance', _G.idle_stance, 'stand still (all four feet down, no step) after '
+       'idle_after of zero set-point; false: step in place'),
+    _p('idle_after', _G.idle_after, 'zero set-point for this long before the crawl stands still '
+       '(default: one crawl cycle)', 'sim s', min=0.0, max=3600.0),
+    _p('idle_replan_period', _G.idle_replan_period, 'while standing, re-plan this often (a '
+       'zero-length trigger step, so a new set-point is picked up deterministically)', 's',
+       min=0.05, max=5.0),
     _p('contacts_poll_period', 0.02, 'wall s between two reads of the queued contacts ticks; '
        'bounds the delay of a re-plan whose touchdown has no contact event', 's', min=0.001,
        max=1.0),

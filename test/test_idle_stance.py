@@ -1,0 +1,69 @@
+"""Idle stance end to end (issue 16): walk, stand still at a zero set-point, walk off again.
+
+Runs ``config/scenarios/idle_stance.yaml`` with ``scripts/scenario.sh`` as ``test_walk.py``
+does (real processes, the default realistic profile: estimated state, noisy sensors) and
+checks on the bag: after idle_after + one step of zero set-point no step is planned and the
+four feet stay down, the trunk stays within 1 cm, the first lift-off after the new set-point
+comes within one step, and the walk afterwards reaches the commanded speed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_walk import run_scenario, segment, trajectory
+
+from replan_core.gait import GaitParams, is_idle_trigger
+from replan_ros.interfaces import contacts_from_msg, footholds_from_msg
+from replan_ros.tools.run_analysis import read_messages
+
+ZERO_AT, WALK_AGAIN, END = 6.0, 12.0, 17.0     # s, config/scenarios/idle_stance.yaml
+SPEED = 0.1                                    # m/s, before and after
+
+
+def test_idle_stance_stands_still_then_walks_off_within_one_step(ros_domain, tmp_path):
+    out = tmp_path / 'idle_stance'
+    metrics = run_scenario('idle_stance', out, ros_domain)     # no fall, completed
+    assert metrics['profile'] == 'realistic'
+    gait = GaitParams()
+    quiet = (ZERO_AT + gait.idle_after + gait.step_period, WALK_AGAIN)   # 9.75 .. 12 s
+
+    topics = ('/footholds', '/ground_truth/contacts')
+    messages = read_messages(out / 'bag', topics)
+    plans = sorted((footholds_from_msg(m) for _, m in messages['/footholds']),
+                   key=lambda p: p.start_time)
+    # Real steps (not the stand plans' zero-length triggers) of the plan in force at each
+    # time: a plan holds from its stamp to the next one's.
+    real = []
+    for plan, after in zip(plans, [*plans[1:], None], strict=True):
+        until = after.start_time if after is not None else np.inf
+        real += [s for s in plan.steps if not is_idle_trigger(s) and s.liftoff_time < until]
+    in_quiet = [s for s in real if quiet[0] <= s.liftoff_time <= quiet[1]]
+    assert not in_quiet, [(s.leg, s.liftoff_time) for s in in_quiet]
+    stand_plans = [p for p in plans if quiet[0] <= p.start_time < quiet[1]]
+    assert stand_plans and all(len(p.steps) <= 1 for p in stand_plans)
+
+    # The true contact flags: all four feet down through the quiet window.
+    contacts = [contacts_from_msg(m) for _, m in messages['/ground_truth/contacts']]
+    flags = np.array([c.contact for c in contacts if quiet[0] <= c.stamp <= quiet[1]])
+    assert len(flags) > 0.9 * (quiet[1] - quiet[0]) / 0.004
+    assert flags.all(), f'{int((~flags).sum())} foot-ticks without contact while standing'
+
+    # The trunk (truth) stays within 1 cm, in every axis, while standing.
+    times, positions, _ = trajectory(out)
+    still = (times >= quiet[0]) & (times <= quiet[1])
+    spread = positions[still].max(axis=0) - positions[still].min(axis=0)
+    assert np.all(spread <= 0.01), spread
+
+    # Walking off: the first real lift-off after the new set-point within one step (0.75 s
+    # to the next trigger at most 0.5 s away, plus the 0.25 s four-feet phase; 0.25 s slack).
+    first = min(s.liftoff_time for s in real if s.liftoff_time >= WALK_AGAIN)
+    assert first - WALK_AGAIN <= gait.step_period + 0.25, first
+    true_liftoff = next(c.stamp for c in contacts if c.stamp > WALK_AGAIN and not c.contact.all())
+    assert true_liftoff - WALK_AGAIN <= gait.step_period + 0.25 + 0.1, true_liftoff
+
+    # Both walks reach the commanded speed (within 15 %) after 2 s of settling.
+    for start in (1.0, WALK_AGAIN):
+        vx, vy, _ = segment(metrics, start)['achieved']
+        assert vx == pytest.approx(SPEED, rel=0.15), metrics['velocity_tracking']
+        assert abs(vy) < 0.03, metrics['velocity_tracking']
