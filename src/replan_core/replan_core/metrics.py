@@ -278,3 +278,44 @@ def planned_zmp_at(times: np.ndarray, plans: list[tuple[float, np.ndarray, np.nd
             out[inside, 0] = np.interp(times[inside], sample_times, zmp[:, 0])
             out[inside, 1] = np.interp(times[inside], sample_times, zmp[:, 1])
     return out
+
+
+def flag_intervals(times: np.ndarray, flags: np.ndarray) -> list[tuple[float, float]]:
+    """The (start, end) times of the runs of True in a sampled boolean series: from the first
+    true sample of a run to the first false sample after it (the last time if none)."""
+    flags = np.asarray(flags, dtype=bool)
+    if len(flags) == 0:
+        return []
+    edges = np.diff(flags.astype(np.int8))
+    starts = list(np.flatnonzero(edges == 1) + 1)
+    ends = list(np.flatnonzero(edges == -1) + 1)
+    if flags[0]:
+        starts.insert(0, 0)
+    out = [(float(times[s]), float(times[e])) for s, e in zip(starts, ends, strict=False)]
+    if len(starts) > len(ends):
+        out.append((float(times[starts[-1]]), float(times[-1])))
+    return out
+
+
+def executed_steps(touchdowns: list[tuple[float, int]],
+                   planned: list[tuple[float, int, float, float]]
+                   ) -> list[tuple[int, float, float, float | None]]:
+    """The executed steps and their actual touchdowns, by the rule of ``touchdown_timing``:
+    (leg, planned lift-off, planned touchdown, actual touchdown or None if no edge matched),
+    in plan order. Arguments as for ``touchdown_timing``."""
+    by_leg: dict[int, list[float]] = {}
+    for t, leg in touchdowns:
+        by_leg.setdefault(leg, []).append(t)
+    for times in by_leg.values():
+        times.sort()
+    stamps = sorted({p[0] for p in planned})
+    next_plan = {a: b for a, b in zip(stamps, [*stamps[1:], np.inf], strict=True)}
+    out: list[tuple[int, float, float, float | None]] = []
+    for stamp, leg, liftoff, touchdown in sorted(planned, key=lambda p: (p[0], p[2])):
+        if liftoff >= next_plan[stamp] - 1e-9:
+            continue
+        swing = touchdown - liftoff
+        actual = next((t for t in by_leg.get(leg, [])
+                       if liftoff + 0.5 * swing < t <= touchdown + swing), None)
+        out.append((int(leg), float(liftoff), float(touchdown), actual))
+    return out

@@ -13,6 +13,12 @@ node that dies is reported (which, when, exit code) and started again after a ba
 are printed. With ``--no-respawn`` the first death stops the rest. Ctrl-C, SIGTERM or the
 sim-time ``--duration`` stop everything cleanly (SIGINT, then SIGKILL after a timeout).
 
+While the graph runs, a progress line shows the sim time, the real-time factor (last 5 wall
+seconds and overall), the distance from the start (``/ground_truth/odom`` when the run is
+recorded, as scenarios and re-runs are; else the estimate ``/odom``, so that nothing but the
+recorder reads the truth) and the re-plans: refreshed in place on a terminal, one plain line
+every 5 s otherwise; ``--quiet`` turns it off.
+
 Exit codes: 0 done; 1 a node died (``--no-respawn``); 2 bad command line or configuration
 (nothing was started); 3 wall-time limit (scenarios); 4 a node kept dying (respawn limit).
 """
@@ -22,26 +28,31 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime
+import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import rclpy
 from ament_index_python.packages import get_package_prefix
 from geometry_msgs.msg import TwistStamped, WrenchStamped
+from nav_msgs.msg import Odometry
 from rclpy.context import Context
 from rclpy.duration import Duration as RclpyDuration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
 
 from replan_ros import qos
-from replan_ros.on_demand import helper_name
+from replan_ros.on_demand import OnDemandSubscriptions, helper_name
 from replan_ros.params import TABLES, ConfigError, Source, check_run, load_param_file, load_yaml
 
 NODES = ('sim', 'gait', 'mpc', 'wbc')
@@ -60,6 +71,9 @@ RESPAWN_LIMIT = 3       # deaths of one node within RESPAWN_WINDOW that stop the
 RESPAWN_WINDOW = 30.0   # s, wall
 LOG_TAIL = 20           # lines of a node's log printed when it keeps dying
 EXIT_DONE, EXIT_DIED, EXIT_CONFIG, EXIT_WALL_TIME, EXIT_RESPAWN_LIMIT = 0, 1, 2, 3, 4
+PROGRESS_TTY_PERIOD = 1.0      # s, wall: refresh of the in-place progress line on a terminal
+PROGRESS_PLAIN_PERIOD = 5.0    # s, wall: one progress line per period otherwise (CI logs)
+PROGRESS_RTF_WINDOW = 5.0      # s, wall: window of the recent real-time factor
 
 
 def _executable(name: str) -> str:
@@ -340,10 +354,23 @@ class ScheduledInputs:
         return deliveries
 
 
-class ClockWatch:
-    """Follows /clock from the launcher's own process, to stop after a sim-time duration."""
+# The odometry the progress line reads: the newest sample is all it needs, and a best-effort
+# reader of the sim's reliable writer never makes the writer wait (qos.SENSOR_PUB).
+PROGRESS_ODOM_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                               reliability=ReliabilityPolicy.BEST_EFFORT,
+                               durability=DurabilityPolicy.VOLATILE)
 
-    def __init__(self, env: dict[str, str]) -> None:
+
+class ClockWatch:
+    """Follows /clock from the launcher's own process, to stop after a sim-time duration.
+
+    With ``follow_run`` it also counts the re-plans (distinct /footholds stamps) and follows
+    the base position for the progress line: ``/ground_truth/odom`` if ``truth``, else
+    ``/odom`` (the estimate). The odometry (a sample per tick) is read on demand
+    (``on_demand``) once per ``spin``, so it never wakes the launcher in between."""
+
+    def __init__(self, env: dict[str, str], *, follow_run: bool = False,
+                 truth: bool = True) -> None:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=int(env.get('ROS_DOMAIN_ID', '0')))
         self.node = Node('launch_clock_watch', context=self.context)
@@ -353,28 +380,193 @@ class ClockWatch:
         self.node.create_subscription(
             Clock, '/clock', self._on_clock,
             QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+        self.plan_stamps: set[tuple[int, int]] = set()
+        self.start_position: tuple[float, float] | None = None
+        self.position: tuple[float, float] | None = None
+        self.odom_topic = '/ground_truth/odom' if truth else '/odom'
+        self._odom: OnDemandSubscriptions | None = None
+        if follow_run:
+            # Same profile as the writer (reliable, transient local, depth 1): a late start
+            # still gets the newest plan, and a reliable KEEP_LAST reader never blocks it.
+            self.node.create_subscription(PointCloud2, '/footholds', self._on_footholds,
+                                          qos.LATCHED, event_callbacks=qos.INTERNAL_SUB_EVENTS)
+            self._odom = OnDemandSubscriptions(self.node)
+            self._odom.subscribe(Odometry, self.odom_topic, PROGRESS_ODOM_QOS, self._on_odom,
+                                 raw=False)
 
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    def _on_footholds(self, msg: PointCloud2) -> None:
+        # A respawned gait node may send a plan again: a re-plan is a new stamp.
+        self.plan_stamps.add((msg.header.stamp.sec, msg.header.stamp.nanosec))
+
+    def _on_odom(self, msg: Odometry) -> None:
+        p = msg.pose.pose.position
+        self.position = (p.x, p.y)
+        if self.start_position is None:
+            self.start_position = self.position
+
+    @property
+    def replans(self) -> int:
+        return len(self.plan_stamps)
+
+    def distance(self) -> float | None:
+        """Straight-line distance (m, in the plane) of the base from its first position."""
+        if self.position is None or self.start_position is None:
+            return None
+        return math.hypot(self.position[0] - self.start_position[0],
+                          self.position[1] - self.start_position[1])
 
     def spin(self, seconds: float) -> None:
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=max(end - time.monotonic(), 0.0))
+        if self._odom is not None:
+            # The newest sample only (depth 1); taken at each look from the start on, so the
+            # first one is the pose the robot started from.
+            self._odom.drain()
 
     def close(self) -> None:
+        if self._odom is not None:
+            self._odom.destroy()
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
 
 
+# Words of the launcher's event lines that tests and users grep for; a progress line must
+# never contain them (test/test_launch.py, test/test_config_errors.py).
+EVENT_WORDS = ('started', 'died', 'respawn', 'real-time factor', 'reached', 'stopping',
+               'stopped', 'error', 'deviation')
+
+
+def format_progress(sim_time: float, duration: float | None, rtf_recent: float | None,
+                    rtf_total: float | None, distance: float | None, *,
+                    estimated: bool = False, replans: int = 0,
+                    events: tuple[int, int] | None = None) -> str:
+    """One progress line: sim time (of ``duration``), real-time factor over the last few wall
+    seconds and since the first tick, distance from the start, re-plans, and for scenarios the
+    timed inputs whose time has come out of those sent (``events``: (due, sent))."""
+    if duration:
+        parts = [f'sim {sim_time:5.1f} / {duration:.1f} s '
+                 f'({min(100.0, 100.0 * sim_time / duration):3.0f} %)']
+    else:
+        parts = [f'sim {sim_time:5.1f} s']
+    if rtf_total is None:
+        parts.append('waiting for the first tick')
+    else:
+        recent = f'{rtf_recent:.2f}' if rtf_recent is not None else '-'
+        parts.append(f'RTF {recent} now, {rtf_total:.2f} overall')
+    if distance is not None:
+        parts.append(f'distance {distance:.2f} m' + (' (estimated)' if estimated else ''))
+    parts.append(f're-plans {replans}')
+    if events is not None:
+        parts.append(f'events {events[0]}/{events[1]}')
+    return '[progress] ' + ' | '.join(parts)
+
+
+def is_terminal(stream) -> bool:
+    """True if ``stream`` is an interactive terminal that understands \\r and ESC[K."""
+    try:
+        return bool(stream.isatty()) and os.environ.get('TERM', '') != 'dumb'
+    except (AttributeError, ValueError):      # no isatty, or a closed stream
+        return False
+
+
+class ProgressLine:
+    """Prints progress lines: refreshed in place on a terminal (every PROGRESS_TTY_PERIOD),
+    else as plain lines every PROGRESS_PLAIN_PERIOD, so that logs stay readable."""
+
+    def __init__(self, stream=None, *, in_place: bool | None = None,
+                 period: float | None = None) -> None:
+        self.stream = stream if stream is not None else sys.stdout
+        self.in_place = is_terminal(self.stream) if in_place is None else in_place
+        self.period = period if period is not None else (
+            PROGRESS_TTY_PERIOD if self.in_place else PROGRESS_PLAIN_PERIOD)
+        self._next: float | None = None
+        self._shown = False
+
+    def due(self, now: float) -> bool:
+        """True when a new line should be shown (the first one a period after the first call)."""
+        if self._next is None:
+            self._next = now + self.period
+        return now >= self._next
+
+    def show(self, text: str, now: float) -> None:
+        self._next = now + self.period
+        if self.in_place:
+            # A line longer than the terminal would wrap, and \r would then only rewrite its
+            # last row.
+            width = shutil.get_terminal_size((120, 24)).columns
+            self.stream.write('\r' + text[:max(width - 1, 20)] + '\x1b[K')
+            self._shown = True
+        else:
+            self.stream.write(text + '\n')
+        self.stream.flush()
+
+    def clear(self) -> None:
+        """Erase the in-place line, before another line is printed or at the end."""
+        if self._shown:
+            self.stream.write('\r\x1b[K')
+            self.stream.flush()
+            self._shown = False
+
+
+class RunProgress:
+    """Real-time factors from (wall, sim) samples and the progress text of a run."""
+
+    def __init__(self, duration: float | None, event_times=(),
+                 window: float = PROGRESS_RTF_WINDOW) -> None:
+        self.duration = duration
+        self.event_times = sorted(event_times)
+        self.window = window
+        self._first: tuple[float, float] | None = None    # (wall, sim) when the sim moved
+        self._recent: deque[tuple[float, float]] = deque()
+        self.sim_time = 0.0
+
+    def sample(self, wall: float, sim_time: float) -> None:
+        self.sim_time = sim_time
+        if sim_time <= 0.0:
+            return
+        if self._first is None:
+            self._first = (wall, sim_time)
+        self._recent.append((wall, sim_time))
+        while len(self._recent) > 2 and wall - self._recent[1][0] >= self.window:
+            self._recent.popleft()
+
+    def real_time_factors(self) -> tuple[float | None, float | None]:
+        """(over the last ``window`` wall seconds, since the first tick); None before the sim
+        moved (or too soon to tell)."""
+        if self._first is None:
+            return None, None
+        last_wall, last_sim = self._recent[-1]
+        total = ((last_sim - self._first[1]) / (last_wall - self._first[0])
+                 if last_wall > self._first[0] else 0.0)
+        wall0, sim0 = self._recent[0]
+        recent = (last_sim - sim0) / (last_wall - wall0) if last_wall > wall0 else None
+        return recent, total
+
+    def text(self, distance: float | None, *, estimated: bool = False,
+             replans: int = 0) -> str:
+        recent, total = self.real_time_factors()
+        events = None
+        if self.event_times:
+            due = sum(1 for t in self.event_times if t <= self.sim_time + 1e-9)
+            events = (due, len(self.event_times))
+        return format_progress(self.sim_time, self.duration, recent, total, distance,
+                               estimated=estimated, replans=replans, events=events)
+
+
 def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None = None,
-              on_start=None, on_tick=None) -> int:
+              on_start=None, on_tick=None, progress: ProgressLine | None = None,
+              event_times=()) -> int:
     """Start, supervise until the sim-time duration, Ctrl-C, a death (no respawn) or a wall
     timeout; stop. ``on_start(node)`` gets the launcher's own rclpy node before the graph
     starts, to publish inputs; it may return (publisher, topic, consumer node) entries that
     must be delivered before the sim may advance. ``on_tick(sim_time)`` is called about every
-    0.1 s. Returns an
+    0.1 s. With ``progress``, a progress line (``RunProgress``) is printed on it; the sim times
+    of the timed inputs (``event_times``) count as events there. Returns an
     exit code: 0 done, 1 a node died without respawn, 3 wall-time limit."""
     stop_requested = []
 
@@ -383,7 +575,17 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
 
     old_int = signal.signal(signal.SIGINT, request_stop)
     old_term = signal.signal(signal.SIGTERM, request_stop)
-    watch = ClockWatch(graph.env)
+    # The truth only when the run records it anyway: a plain launch has no reader of the
+    # simulator's truth at all (test/test_launch.py checks it), so it shows the estimate.
+    recording = any(n.name == 'recorder' for n in graph.nodes)
+    watch = ClockWatch(graph.env, follow_run=progress is not None, truth=recording)
+    tracker = RunProgress(duration, event_times)
+    log = graph.log
+    if progress is not None:
+        def log_clear(text: str) -> None:     # an event line must not land on the progress
+            progress.clear()
+            log(text)
+        graph.log = log_clear
     code = 0
     start_wall = time.monotonic()
     first_tick: tuple[float, float] | None = None      # (wall, sim) when the sim first moved
@@ -396,6 +598,12 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
                 first_tick = (time.monotonic(), watch.sim_time)
             if on_tick is not None:
                 on_tick(watch.sim_time)
+            if progress is not None:
+                now = time.monotonic()
+                tracker.sample(now, watch.sim_time)
+                if progress.due(now):
+                    progress.show(tracker.text(watch.distance(), estimated=not recording,
+                                               replans=watch.replans), now)
             result = graph.poll()
             if result is not None:
                 if result == EXIT_DIED:
@@ -421,7 +629,10 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
                       f'{sum(graph.peak_memory_mb.values()):.0f} MB in '
                       f'{len(graph.peak_memory_mb)} nodes')
     finally:
+        if progress is not None:
+            progress.clear()
         graph.stop()
+        graph.log = log
         watch.close()
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
@@ -450,6 +661,9 @@ def main(argv=None) -> int:
     parser.add_argument('--run-dir', type=Path, help='folder for logs (default runs/<time>)')
     parser.add_argument('--config-dir', type=Path,
                         default=Path(os.environ.get('REPLAN_CONFIG', 'config')))
+    parser.add_argument('--quiet', action='store_true',
+                        help='no progress line (sim time, real-time factor, distance, '
+                             're-plans) while the graph runs')
     args = parser.parse_args(argv)
     for path in args.params:
         if not path.is_file():
@@ -469,7 +683,8 @@ def main(argv=None) -> int:
         return EXIT_CONFIG
     print(f'[launch] run folder {run_dir} (domain {os.environ.get("ROS_DOMAIN_ID", "0")}), '
           f'profile {args.profile}')
-    return run_graph(graph, args.duration)
+    return run_graph(graph, args.duration,
+                     progress=None if args.quiet else ProgressLine())
 
 
 if __name__ == '__main__':

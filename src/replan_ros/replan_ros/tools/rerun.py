@@ -1,6 +1,6 @@
 """Re-run a recorded run and compare the base trajectory: a bag becomes a reproducible report.
 
-    scripts/rerun.sh BAG [--out DIR] [--tolerance M] [--gui]
+    scripts/rerun.sh BAG [--out DIR] [--tolerance M] [--gui] [--quiet]
 
 1. From BAG: the inputs (``velocity_setpoint``: the set-point each re-plan used; ``applied_wrench``:
    each external wrench change as applied, both stamped in sim time), the configuration (the
@@ -31,7 +31,7 @@ from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 
-from replan_ros.interfaces import stamp_to_ns
+from replan_ros.interfaces import stamp_to_ns, stamp_to_sec
 from replan_ros.params import ConfigError
 from replan_ros.tools.launch_graph import NODES
 
@@ -198,8 +198,9 @@ def _find_bag(folder: Path) -> Path:
 
 
 def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = False,
-          config_dir: Path | None = None, log=print) -> tuple[Comparison, int]:
-    """Re-run ``bag`` into ``out_dir``; returns the comparison and the launcher's exit code."""
+          config_dir: Path | None = None, log=print, progress=None) -> tuple[Comparison, int]:
+    """Re-run ``bag`` into ``out_dir``; returns the comparison and the launcher's exit code.
+    ``progress``: a ``launch_graph.ProgressLine`` to print the progress on while it runs."""
     from replan_ros import qos
     from replan_ros.tools.launch_graph import Graph, ScheduledInputs, run_graph
 
@@ -231,8 +232,9 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
 
     log(f'[rerun] {bag}: {run.duration:.2f} s of sim time, recorded at git '
         f'{run.run_info.get("git_revision", "?")}; output in {out_dir}')
+    event_times = [stamp_to_sec(m.header.stamp) for m in [*setpoints, *wrenches]]
     code = run_graph(graph, run.duration, wall_timeout=max(300.0, 20.0 * run.duration),
-                     on_start=send_inputs)
+                     on_start=send_inputs, progress=progress, event_times=event_times)
     new_run = load_run(_find_bag(bag_dir))
     return compare_trajectories(run.odom, new_run.odom), code
 
@@ -257,6 +259,9 @@ def main(argv=None) -> int:
     parser.add_argument('--against', type=Path, metavar='OTHER_BAG',
                         help='compare BAG with another recorded run instead of re-running '
                              '(e.g. two runs of one scenario)')
+    parser.add_argument('--quiet', action='store_true',
+                        help='no progress line (sim time, real-time factor, distance, '
+                             're-plans, inputs) while the graph runs')
     args = parser.parse_args(argv)
     if args.against is not None:
         try:
@@ -271,7 +276,9 @@ def main(argv=None) -> int:
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'rerun-{time.strftime("%Y%m%d-%H%M%S")}'
     try:
-        comparison, code = rerun(args.bag, out, tolerance=args.tolerance, gui=args.gui)
+        from replan_ros.tools.launch_graph import ProgressLine
+        comparison, code = rerun(args.bag, out, tolerance=args.tolerance, gui=args.gui,
+                                 progress=None if args.quiet else ProgressLine())
     except ConfigError as err:      # the recorded configuration no longer passes the check
         print(f'config error: {err}', file=sys.stderr)
         return 2

@@ -20,6 +20,8 @@ from replan_core.metrics import (
     detect_fall,
     distance_travelled,
     estimator_errors,
+    executed_steps,
+    flag_intervals,
     interval_stats,
     peaks_around,
     planned_zmp_at,
@@ -32,6 +34,7 @@ from replan_ros.interfaces import (
     base_state_from_odom,
     contacts_from_msg,
     footholds_from_msg,
+    joint_state_from_msg,
     stamp_to_sec,
 )
 from replan_ros.introspection import message_class
@@ -40,7 +43,11 @@ from replan_ros.introspection import message_class
 # estimate), compared with the truth. Bags from before the estimator hold the truth on /odom.
 TRUTH_TOPIC = '/ground_truth/odom'
 TOPICS = ('/clock', TRUTH_TOPIC, '/odom', '/ground_truth/contacts', '/footholds', '/zmp_plan',
-          '/com_plan', '/diagnostics', '/velocity_setpoint', '/applied_wrench')
+          '/com_plan', '/diagnostics', '/velocity_setpoint', '/applied_wrench',
+          '/contacts', '/joint_states')
+LEG_LABELS = ('LF', 'RF', 'LH', 'RH')      # replan_core.types.LEGS order
+JOINT_LABELS = ('HAA', 'HFE', 'KFE')       # per leg, replan_core.types.JOINTS_PER_LEG order
+GAIT_WINDOW = 6.0     # s of sim time in the detail view of the gait diagram of a long run
 
 
 def bag_files(bag: Path) -> list[Path]:
@@ -162,6 +169,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     try:
         metrics['plots'] = plot_run(data, times, pos, rpy, segments, solve, out_dir)
         metrics['plots'] += plot_realism(times, pos, estimate, balance[1], out_dir)
+        metrics['plots'] += plot_contacts_and_torques(data, out_dir)
     except Exception as err:  # plots are a convenience; the metrics must survive them
         metrics['plot_error'] = str(err)
     return metrics
@@ -399,3 +407,188 @@ def _body_velocity(times, pos, yaw, window: float) -> np.ndarray:
         out[i, 1] = (-math.sin(h) * d[0] + math.cos(h) * d[1]) / span
         out[i, 2] = (yaw_u[i] - yaw_u[j]) / span
     return out
+
+
+# ------------------------------------------------------------------------------------------
+# Gait diagram, ground reaction forces and joint torques
+
+
+def contact_series(data, topic: str) -> dict | None:
+    """Per-tick contacts of ``topic`` (one sample per stamp): 'times' (n,), 'contact' (n, 4),
+    'touchdown' (n, 4) bool, 'force' (n, 4, 3) N; None if the bag holds none."""
+    by_stamp = {}
+    for _, msg in data.get(topic, []):
+        try:
+            state = contacts_from_msg(msg)
+        except ValueError:
+            continue
+        by_stamp.setdefault(state.stamp, state)
+    if not by_stamp:
+        return None
+    stamps = sorted(by_stamp)
+    return {'times': np.array(stamps),
+            'contact': np.array([by_stamp[t].contact for t in stamps]),
+            'touchdown': np.array([by_stamp[t].touchdown for t in stamps]),
+            'force': np.array([by_stamp[t].force for t in stamps])}
+
+
+def effort_series(data) -> tuple[np.ndarray, np.ndarray] | None:
+    """Measured joint torques from /joint_states: times (n,) and efforts (n, 12) N m in
+    JOINT_NAMES order, one sample per stamp; None without efforts."""
+    by_stamp = {}
+    for _, msg in data.get('/joint_states', []):
+        if not len(msg.effort):
+            continue
+        try:
+            state = joint_state_from_msg(msg)
+        except ValueError:
+            continue
+        by_stamp.setdefault(state.stamp, state.effort)
+    if not by_stamp:
+        return None
+    stamps = sorted(by_stamp)
+    return np.array(stamps), np.array([by_stamp[t] for t in stamps])
+
+
+def planned_steps(data) -> list[tuple[float, int, float, float]]:
+    """(plan stamp, leg, planned lift-off, planned touchdown) of every step of every plan."""
+    planned = []
+    for _, msg in data.get('/footholds', []):
+        try:
+            plan = footholds_from_msg(msg)
+        except ValueError:
+            continue
+        planned += [(plan.start_time, s.leg, s.liftoff_time, s.touchdown_time)
+                    for s in plan.steps]
+    return planned
+
+
+def plot_contacts_and_torques(data, out_dir: Path) -> list[str]:
+    """gait.png, forces.png and torques.png from the topics that are in the bag."""
+    written = []
+    truth = contact_series(data, '/ground_truth/contacts')
+    if truth is not None:
+        touchdowns = [(float(truth['times'][k]), int(leg))
+                      for k, leg in zip(*np.nonzero(truth['touchdown']), strict=True)]
+        steps = executed_steps(touchdowns, planned_steps(data))
+        written.append(plot_gait(truth['times'], truth['contact'], steps, out_dir))
+        estimate = contact_series(data, '/contacts')
+        written.append(plot_forces(
+            truth['times'], truth['force'][:, :, 2],
+            (estimate['times'], estimate['force'][:, :, 2]) if estimate else None, out_dir))
+    efforts = effort_series(data)
+    if efforts is not None:
+        written.append(plot_torques(*efforts, out_dir))
+    return written
+
+
+def gait_window(times: np.ndarray, steps, window: float = GAIT_WINDOW
+                ) -> tuple[float, float] | None:
+    """The detail window of a long run's gait diagram: ``window`` s in the middle of the
+    walking (from the first planned lift-off to the last planned touchdown); None when the
+    whole run is short enough to read at once."""
+    start, end = float(times[0]), float(times[-1])
+    if end - start <= 1.5 * window:
+        return None
+    if steps:
+        walk_start = min(s[1] for s in steps)
+        walk_end = min(max(s[2] for s in steps), end)
+        middle = 0.5 * (walk_start + walk_end)
+    else:
+        middle = 0.5 * (start + end)
+    t0 = min(max(middle - 0.5 * window, start), end - window)
+    return t0, t0 + window
+
+
+def _draw_gait(ax, times, contact, steps, markers: bool) -> None:
+    for leg in range(4):
+        y = 3 - leg        # LF on top
+        stance = [(a, b - a) for a, b in flag_intervals(times, contact[:, leg])]
+        ax.broken_barh(stance, (y - 0.3, 0.6), facecolor='tab:blue', alpha=0.55,
+                       label='stance (true contact)' if leg == 0 else None)
+        swings = [(lo, td - lo) for step_leg, lo, td, _ in steps if step_leg == leg]
+        ax.broken_barh(swings, (y - 0.3, 0.6), facecolor='none', edgecolor='tab:orange',
+                       hatch='///', lw=1.2, label='planned swing' if leg == 0 else None)
+        if markers:
+            planned_td = [td for step_leg, _, td, _ in steps if step_leg == leg]
+            actual_td = [a for step_leg, _, _, a in steps if step_leg == leg and a is not None]
+            ax.plot(planned_td, [y + 0.42] * len(planned_td), 'v', color='black', ms=7,
+                    label='planned touchdown' if leg == 0 else None)
+            ax.plot(actual_td, [y - 0.42] * len(actual_td), '^', color='tab:red', ms=7,
+                    label='actual touchdown' if leg == 0 else None)
+    ax.set_yticks(range(4), LEG_LABELS[::-1])
+    ax.set_ylim(-0.7, 3.7)
+
+
+def plot_gait(times: np.ndarray, contact: np.ndarray, steps, out_dir: Path,
+              window: float = GAIT_WINDOW) -> str:
+    """gait.png: per leg the stance intervals from the true contact flags (bars), the planned
+    swings of the executed steps (hatched) and the planned and actual touchdowns (triangles);
+    a long run gets an overview and a ``window`` s detail view in steady walking."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    detail = gait_window(times, steps, window)
+    if detail is None:
+        fig, ax = plt.subplots(figsize=(11, 4))
+        axes = [ax]
+    else:
+        fig, axes = plt.subplots(2, 1, figsize=(11, 7), gridspec_kw={'height_ratios': [1, 2]})
+        overview = axes[0]
+        _draw_gait(overview, times, contact, steps, markers=False)
+        overview.axvspan(*detail, color='0.85', zorder=0)
+        overview.set_xlim(times[0], times[-1])
+        overview.set_title(f'Whole run (grey: the {window:.0f} s shown below)', fontsize=10)
+        overview.set_xlabel('sim time [s]')
+    ax = axes[-1]
+    _draw_gait(ax, times, contact, steps, markers=True)
+    ax.set_xlim(*(detail or (times[0], times[-1])))
+    ax.set_xlabel('sim time [s]')
+    ax.legend(loc='upper center', bbox_to_anchor=(0.5, -0.16), ncol=4, fontsize=8,
+              frameon=False)
+    fig.suptitle('Gait: stance from /ground_truth/contacts, executed steps from /footholds')
+    return _save(fig, out_dir / 'gait.png')
+
+
+def plot_forces(times: np.ndarray, normal: np.ndarray, estimate, out_dir: Path) -> str:
+    """forces.png: per foot the true normal ground reaction force and, dashed, the one the
+    state estimator inferred from the joint torques (``estimate``: (times, normal) or None)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(4, 1, figsize=(11, 8), sharex=True, sharey=True)
+    for leg, ax in enumerate(axes):
+        ax.plot(times, normal[:, leg], color='tab:blue', lw=0.7,
+                label='true (/ground_truth/contacts)')
+        if estimate is not None:
+            ax.plot(estimate[0], estimate[1][:, leg], '--', color='tab:orange', lw=0.7,
+                    label='estimated from joint torques (/contacts)')
+        ax.set_ylabel(f'{LEG_LABELS[leg]} $F_z$ [N]')
+        ax.grid(alpha=0.3)
+    # Above the plot: inside, it would hide the stance peaks.
+    axes[0].legend(loc='lower right', bbox_to_anchor=(1.0, 1.0), fontsize=8, ncol=2,
+                   frameon=False)
+    axes[0].set_title('Normal ground reaction force per foot (world z)', loc='left')
+    axes[-1].set_xlabel('sim time [s]')
+    return _save(fig, out_dir / 'forces.png')
+
+
+def plot_torques(times: np.ndarray, efforts: np.ndarray, out_dir: Path) -> str:
+    """torques.png: measured joint torques (/joint_states effort), one subplot per leg."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(4, 1, figsize=(11, 8), sharex=True, sharey=True)
+    for leg, ax in enumerate(axes):
+        for j, name in enumerate(JOINT_LABELS):
+            ax.plot(times, efforts[:, 3 * leg + j], lw=0.6, label=name)
+        ax.set_ylabel(f'{LEG_LABELS[leg]} torque [N m]')
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc='lower right', bbox_to_anchor=(1.0, 1.0), fontsize=8, ncol=3,
+                   frameon=False)
+    axes[0].set_title('Measured joint torques (/joint_states effort)', loc='left')
+    axes[-1].set_xlabel('sim time [s]')
+    return _save(fig, out_dir / 'torques.png')

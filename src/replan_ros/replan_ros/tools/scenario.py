@@ -1,6 +1,6 @@
 """Run a scripted scenario headless and write the bag, metrics.json and plots.
 
-    scripts/scenario.sh FILE.yaml [--out DIR] [--gui]
+    scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--quiet]
 
 A scenario file (see config/scenarios/ and the README):
 
@@ -21,6 +21,8 @@ Every parameter of the run is checked before anything starts (replan_ros/params.
 one ends the run with one ``config error:`` line and exit code 2. Events are sent before the
 simulation starts, stamped with their sim time, on the transient-local
 schedule topics (`cmd_vel_stamped`, `external_wrench`), so the same file always gives the same run.
+While it runs, a progress line (launch.sh's, plus ``events due/sent``) is printed unless
+``--quiet``.
 """
 
 from __future__ import annotations
@@ -37,12 +39,13 @@ from pathlib import Path
 import yaml
 from geometry_msgs.msg import TwistStamped, WrenchStamped
 
-from replan_ros.interfaces import sec_to_stamp
+from replan_ros.interfaces import sec_to_stamp, stamp_to_sec
 from replan_ros.params import ConfigError, Source, load_param_file
 from replan_ros.tools.launch_graph import (
     DEFAULT_PROFILE,
     EXIT_CONFIG,
     Graph,
+    ProgressLine,
     ScheduledInputs,
     check_run_files,
     profile_file,
@@ -219,8 +222,9 @@ def scenario_inputs(scenario: Scenario) -> ScheduledInputs:
 
 def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                  config_dir: Path | None = None, extra_param_files: list[Path] = (),
-                 log=print) -> dict:
-    """Run, then analyse; returns the metrics (also written to out_dir/metrics.json)."""
+                 log=print, progress: ProgressLine | None = None) -> dict:
+    """Run, then analyse; returns the metrics (also written to out_dir/metrics.json). With
+    ``progress``, a progress line is printed while the graph runs (``run_graph``)."""
     from replan_ros.tools.run_analysis import analyse_run  # matplotlib only when needed
 
     config_dir = config_dir or Path(os.environ.get('REPLAN_CONFIG', 'config'))
@@ -243,8 +247,10 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
         return deliveries
 
     wall_start = time.monotonic()
+    event_times = [stamp_to_sec(m.header.stamp) for m in [*inputs.setpoints, *inputs.wrenches]]
     code = run_graph(graph, scenario.duration,
-                     wall_timeout=max(300.0, 20.0 * scenario.duration), on_start=publish_events)
+                     wall_timeout=max(300.0, 20.0 * scenario.duration), on_start=publish_events,
+                     progress=progress, event_times=event_times)
     wall = time.monotonic() - wall_start
     metrics = analyse_run(bag_dir, scenario, out_dir, launch_exit_code=code,
                           dead_nodes=graph.failed, wall_time_total=wall)
@@ -266,6 +272,9 @@ def main(argv=None) -> int:
     parser.add_argument('--profile', metavar='NAME',
                         help='world profile (realistic | ideal | a YAML file), instead of the '
                              'scenario\'s profile: key (default realistic)')
+    parser.add_argument('--quiet', action='store_true',
+                        help='no progress line (sim time, real-time factor, distance, '
+                             're-plans, events) while the graph runs')
     args = parser.parse_args(argv)
     config_dir = Path(os.environ.get('REPLAN_CONFIG', 'config'))
     for path in args.params:
@@ -288,7 +297,8 @@ def main(argv=None) -> int:
     print(f'[scenario] {scenario.name}: {scenario.duration} s of sim time, profile '
           f'{scenario.profile}, output in {out}')
     metrics = run_scenario(scenario, out, gui=args.gui, config_dir=config_dir,
-                           extra_param_files=args.params)
+                           extra_param_files=args.params,
+                           progress=None if args.quiet else ProgressLine())
     print(summary(metrics, out))
     return 0 if metrics.get('completed') else 1
 
