@@ -117,7 +117,7 @@ def test_demo_script_walks_and_says_where_the_results_are(ros_domain, tmp_path):
     assert metrics['completed'] and not metrics['fell']
     assert {Path(p).name for p in metrics['plots']} == {
         'top_view.png', 'velocity.png', 'trunk.png', 'solve_times.png', 'estimator.png',
-        'cop_margin.png'}
+        'cop_margin.png', 'gait.png', 'forces.png', 'torques.png'}
     assert list((out / 'bag').glob('*.mcap'))
     final_segment = metrics['velocity_tracking'][-1]
     assert final_segment['commanded'] == [0.0, 0.0, 0.0]
