@@ -228,24 +228,10 @@ def touchdown_timing(touchdowns: list[tuple[float, int]],
     its planned swing and before its planned touchdown plus the planned swing (a step with no
     such edge is left out).
     """
-    by_leg: dict[int, list[float]] = {}
-    for t, leg in touchdowns:
-        by_leg.setdefault(leg, []).append(t)
-    for times in by_leg.values():
-        times.sort()
-    stamps = sorted({p[0] for p in planned})
-    next_plan = {a: b for a, b in zip(stamps, [*stamps[1:], np.inf], strict=True)}
-    errors, actual = [], []
-    for stamp, leg, liftoff, touchdown in planned:
-        if liftoff >= next_plan[stamp] - 1e-9:
-            continue                       # superseded by the next plan before it started
-        swing = touchdown - liftoff
-        for t in by_leg.get(leg, []):
-            if liftoff + 0.5 * swing < t <= touchdown + swing:
-                errors.append(t - touchdown)
-                actual.append(t)
-                break
-    return np.array(errors), np.array(actual)
+    matched = [(actual, actual - touchdown) for _, _, touchdown, actual in
+               executed_steps(touchdowns, planned) if actual is not None]
+    return (np.array([error for _, error in matched]),
+            np.array([actual for actual, _ in matched]))
 
 
 def peaks_around(times: np.ndarray, values: np.ndarray, events: np.ndarray,

@@ -241,15 +241,7 @@ def _measured_balance(data, times: np.ndarray, rpy: np.ndarray,
     deviation = deviation[np.isfinite(deviation)]
     touchdowns = [(float(t), int(leg)) for t in stamps
                   for leg in np.flatnonzero(contacts[t].touchdown)]
-    planned = []
-    for _, msg in data.get('/footholds', []):
-        try:
-            plan = footholds_from_msg(msg)
-        except ValueError:
-            continue
-        planned += [(plan.start_time, s.leg, s.liftoff_time, s.touchdown_time)
-                    for s in plan.steps]
-    timing, events = touchdown_timing(touchdowns, planned)
+    timing, events = touchdown_timing(touchdowns, planned_steps(data))
     roll_peaks = peaks_around(times, rpy[:, 0], events)
     pitch_peaks = peaks_around(times, rpy[:, 1], events)
     out = {
