@@ -178,11 +178,10 @@ class SimNode(Node):
             'waiting for the first joint_torque_cmd')
 
     def _robot_urdf(self, urdf: str, p: dict) -> str:
-        """The simulated robot: the model, or a copy with a payload and leg mass errors."""
-        offset = np.array(p['payload_offset'], dtype=float)
-        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
-            raise ValueError(f'sim: payload_offset needs 3 finite values (m), got {offset}')
-        return perturbed_urdf(urdf, payload_mass=p['payload_mass'], payload_offset=offset,
+        """The simulated robot: the model, or a copy with a payload and leg mass errors
+        (payload_offset: 3 values within [-1, 1] m, checked by params.SIM)."""
+        return perturbed_urdf(urdf, payload_mass=p['payload_mass'],
+                              payload_offset=np.array(p['payload_offset'], dtype=float),
                               leg_mass_error=p['leg_mass_error'], seed=p['noise_seed'])
 
     # ------------------------------------------------------------------ parameters

@@ -125,7 +125,8 @@ class WbcNode(Node):
         if self.state_estimation or self.contact_estimation:
             fields = {item.name: p[f'estimator.{item.name}']
                       for item in dataclasses.fields(EstimatorParams)}
-            self.estimator = StateEstimator(RobotModel(urdf), EstimatorParams(**fields),
+            # The controller's model: the estimator keeps a pinocchio data of its own.
+            self.estimator = StateEstimator(self.robot, EstimatorParams(**fields),
                                             dt=period_ns / _NS)
 
         # Inputs of a tick taken from their queues: stamp (ns) -> (message, core state).

@@ -114,21 +114,21 @@ def main(argv=None) -> int:
     for index, (name, _, profile, doc) in enumerate(rows):
         for seed in range(args.runs):
             run_dir = out / f'{name}_{seed}'
-            files = []
-            overlay = {'sim': {'ros__parameters': {'noise_seed': seed}}}
+            overlay: dict = {}
             for node, section in (doc or {}).items():
                 overlay.setdefault(node, {'ros__parameters': {}})['ros__parameters'].update(
                     section['ros__parameters'])
-            overlay['sim']['ros__parameters']['noise_seed'] = seed
+            # The run's seed, whatever the element's own noise_seed says.
+            overlay.setdefault('sim', {'ros__parameters': {}})['ros__parameters'][
+                'noise_seed'] = seed
             overlay_file = out / f'{name}_{seed}.yaml'
             overlay_file.write_text(yaml.safe_dump(overlay, sort_keys=False))
-            files.append(overlay_file)
             scenario.profile = profile
             done = index * args.runs + seed
             elapsed = time.monotonic() - started
             left = f', about {elapsed / done * (total - done) / 60:.0f} min left' if done else ''
             print(f'[realism] run {done + 1}/{total}: {name} (seed {seed}){left}', flush=True)
-            metrics = run_scenario(scenario, run_dir, extra_param_files=files,
+            metrics = run_scenario(scenario, run_dir, extra_param_files=[overlay_file],
                                    log=lambda *_: None)
             results.setdefault(name, []).append(metrics)
     lines = ['| element on (alone) | what | runs | '
