@@ -295,7 +295,7 @@ def executed_steps(touchdowns: list[tuple[float, int]],
     for times in by_leg.values():
         times.sort()
     stamps = sorted({p[0] for p in planned})
-    next_plan = {a: b for a, b in zip(stamps, [*stamps[1:], np.inf], strict=True)}
+    next_plan = dict(zip(stamps, [*stamps[1:], np.inf], strict=False))
     out: list[tuple[int, float, float, float | None]] = []
     for stamp, leg, liftoff, touchdown in sorted(planned, key=lambda p: (p[0], p[2])):
         if liftoff >= next_plan[stamp] - 1e-9:
@@ -305,3 +305,65 @@ def executed_steps(touchdowns: list[tuple[float, int]],
                        if liftoff + 0.5 * swing < t <= touchdown + swing), None)
         out.append((int(leg), float(liftoff), float(touchdown), actual))
     return out
+
+
+# ------------------------------------------------------------------------------------------
+# Experiment metrics (scripts/experiments.sh, docs/results.md)
+
+
+def settle_time(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray, segment: Segment,
+                window: float = 1.0, tolerance: float = 0.1) -> float | None:
+    """Seconds from the start of ``segment`` until the velocity, averaged over the trailing
+    ``window`` (s; a crawl's velocity swings within each step), is within ``tolerance`` of the
+    segment's set-point; None if it never is before the segment ends.
+
+    Within tolerance: the planar velocity error is at most ``tolerance`` times the commanded
+    planar speed, and, if a yaw rate is commanded, the yaw-rate error at most ``tolerance``
+    times it. The window's delay (about window / 2) is part of the figure.
+    """
+    vx, vy, wz = segment.command
+    speed = float(np.hypot(vx, vy))
+    if speed == 0.0 and wz == 0.0:
+        return None
+    inside = np.flatnonzero((times >= segment.start) & (times <= segment.end))
+    for i in inside:
+        t = float(times[i])
+        if t - window < times[0]:
+            continue
+        achieved = achieved_velocity(times, positions, yaws, t - window, t)
+        if achieved is None:
+            continue
+        linear_ok = np.hypot(achieved[0] - vx, achieved[1] - vy) <= tolerance * speed
+        yaw_ok = wz == 0.0 or abs(achieved[2] - wz) <= tolerance * abs(wz)
+        if linear_ok and yaw_ok:
+            return t - segment.start
+    return None
+
+
+def triangle_inradius(vertices: np.ndarray) -> float:
+    """Radius (m) of the circle inscribed in the triangle of (3, 2) ``vertices``: 2 area /
+    perimeter; 0 for a degenerate triangle."""
+    a, b, c = np.asarray(vertices, dtype=float)[:, :2]
+    area = 0.5 * abs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+    perimeter = np.linalg.norm(b - a) + np.linalg.norm(c - b) + np.linalg.norm(a - c)
+    return float(2.0 * area / perimeter) if perimeter > 0 else 0.0
+
+
+def support_inradius_after(times: np.ndarray, feet: np.ndarray, in_contact: np.ndarray,
+                           start: float, steps: int = 3) -> float | None:
+    """Least inradius (m) of the support triangle (exactly three feet in contact) from ``start``
+    until ``steps`` swings have begun and ended, the paper's measure of how a push degenerates
+    the support polygons; None if no three-foot support occurs in that span.
+
+    times (n,), feet (n, 4, 3) foot positions, in_contact (n, 4) bool.
+    """
+    three = np.count_nonzero(in_contact, axis=1) == 3
+    after = times >= start
+    starts = np.flatnonzero(after[1:] & three[1:] & ~three[:-1]) + 1
+    end = times[-1]
+    if len(starts) > steps:
+        end = times[starts[steps]]              # the start of the (steps+1)-th swing
+    chosen = np.flatnonzero(after & three & (times < end))
+    if len(chosen) == 0:
+        return None
+    return float(min(triangle_inradius(feet[i][in_contact[i]]) for i in chosen))

@@ -130,3 +130,37 @@ def test_planned_zmp_follows_the_newest_plan():
     zmp = planned_zmp_at(np.array([-0.1, 0.25, 0.75]), [second, first])
     assert np.all(np.isnan(zmp[0]))
     np.testing.assert_allclose(zmp[1:], [[0.25, -0.25], [5.25, 5.0]])
+
+
+def test_settle_time_of_a_velocity_step():
+    from replan_core.metrics import Segment, settle_time
+    times = np.arange(0.0, 10.0, 0.01)
+    # 0.1 m/s until 4 s, then a first-order rise to 0.2 m/s (time constant 0.5 s)
+    speed = np.where(times < 4.0, 0.1, 0.2 - 0.1 * np.exp(-(times - 4.0) / 0.5))
+    x = np.concatenate([[0.0], np.cumsum(speed[1:] * np.diff(times))])
+    positions = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.5)])
+    settle = settle_time(times, positions, np.zeros_like(times),
+                         Segment(4.0, 10.0, (0.2, 0.0, 0.0)), window=1.0, tolerance=0.1)
+    # for s >= 1 s the trailing 1 s mean is 0.2 - 0.05 e^(-2 s) (e^2 - 1): 0.18 m/s at
+    # s = 0.5 ln((e^2 - 1) / 0.4) = 1.385 s
+    assert settle == pytest.approx(0.5 * np.log((np.exp(2.0) - 1.0) / 0.4), abs=0.02)
+    never = settle_time(times, positions, np.zeros_like(times),
+                        Segment(4.0, 10.0, (0.4, 0.0, 0.0)))
+    assert never is None
+
+
+def test_support_inradius_after_a_push():
+    from replan_core.metrics import support_inradius_after, triangle_inradius
+    assert triangle_inradius(np.array([[0, 0], [3, 0], [0, 4]])) == pytest.approx(1.0)
+    square = np.array([[0.4, 0.2, 0], [0.4, -0.2, 0], [-0.4, 0.2, 0], [-0.4, -0.2, 0]])
+    times = np.arange(0.0, 4.0, 0.1)
+    feet = np.repeat(square[None], len(times), axis=0)
+    in_contact = np.ones((len(times), 4), dtype=bool)
+    for k, leg in enumerate([2, 0, 3, 1]):           # four swings of 0.5 s from 0.5 s
+        in_contact[(times >= 0.5 + k * 0.8) & (times < 1.0 + k * 0.8), leg] = False
+    feet[times >= 2.0, 0, 1] = 0.05                  # a narrower lf foothold after 2 s
+    whole = support_inradius_after(times, feet, in_contact, 0.0, steps=4)
+    first = support_inradius_after(times, feet, in_contact, 0.0, steps=2)
+    assert first == pytest.approx(triangle_inradius(square[[0, 1, 3]][:, :2]))
+    assert whole < first
+    assert support_inradius_after(times, feet, in_contact, 3.9) is None

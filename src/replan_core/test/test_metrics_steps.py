@@ -24,3 +24,11 @@ def test_executed_steps_follow_touchdown_timing():
     matched = [(a, a - td) for _, _, td, a in steps if a is not None]
     assert np.allclose(actual, [a for a, _ in matched])
     assert np.allclose(errors, [e for _, e in matched])
+
+
+def test_no_plans_means_no_executed_steps():
+    """A run whose controller died before the first plan: nothing to match, no error."""
+    from replan_core.metrics import executed_steps, touchdown_timing
+    assert executed_steps([(1.0, 0)], []) == []
+    errors, times = touchdown_timing([(1.0, 0)], [])
+    assert len(errors) == 0 and len(times) == 0

@@ -114,6 +114,7 @@ def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float 
         'cold_ms': round(float(arr[0]), 3),
         'median_ms': round(float(np.median(arr[1:])), 3),
         'mean_ms': round(float(np.mean(arr[1:])), 3),
+        'std_ms': round(float(np.std(arr[1:], ddof=1)) if len(arr) > 2 else 0.0, 3),
         'p99_ms': round(float(np.percentile(arr[1:], 99)), 3),
         'max_ms': round(float(np.max(arr[1:])), 3),
         'median_iter': float(np.median(iters[1:])),

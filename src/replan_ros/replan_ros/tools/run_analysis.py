@@ -26,6 +26,8 @@ from replan_core.metrics import (
     peaks_around,
     planned_zmp_at,
     roll_pitch_yaw,
+    settle_time,
+    support_inradius_after,
     touchdown_timing,
     tracking_errors,
 )
@@ -98,7 +100,8 @@ def _first(values: dict[str, list[float]], *keys: str) -> list[float]:
 
 
 def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0,
-                dead_nodes=(), wall_time_total: float | None = None) -> dict:
+                dead_nodes=(), wall_time_total: float | None = None,
+                plots: bool = True) -> dict:
     data = read_messages(bag)
     metrics: dict = {'scenario': scenario.name,
                      'profile': getattr(scenario, 'profile', None),
@@ -166,6 +169,9 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     metrics['estimator'] = estimate[0] if estimate else None
     balance = _measured_balance(data, times, rpy, estimate[1] if estimate else None)
     metrics.update(balance[0])
+    _add_response_metrics(metrics, data, times, pos, rpy, segments, scenario)
+    if not plots:
+        return metrics
     try:
         metrics['plots'] = plot_run(data, times, pos, rpy, segments, solve, out_dir)
         metrics['plots'] += plot_realism(times, pos, estimate, balance[1], out_dir)
@@ -173,6 +179,42 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     except Exception as err:  # plots are a convenience; the metrics must survive them
         metrics['plot_error'] = str(err)
     return metrics
+
+
+def _add_response_metrics(metrics: dict, data, times, pos, rpy, segments, scenario) -> None:
+    """Per set-point segment, the time and the touchdowns until the velocity is within 10 % of
+    the set-point (``settle_time_s``, ``settle_steps``); per push, the least support-triangle
+    inradius over the 3 steps after it (``support_inradius_min_m``), from the truth."""
+    contacts = {}
+    for _, msg in data.get('/ground_truth/contacts', []):
+        try:
+            state = contacts_from_msg(msg)
+        except ValueError:
+            continue
+        contacts.setdefault(state.stamp, state)
+    stamps = np.array(sorted(contacts))
+    touchdown_times = np.array([t for t in stamps for _ in np.flatnonzero(
+        contacts[t].touchdown)])
+    by_start = {round(s.start, 6): s for s in segments}
+    for row in metrics.get('velocity_tracking', []):
+        seg = by_start.get(round(row['start_s'], 6))
+        settle = settle_time(times, pos, rpy[:, 2], seg) if seg else None
+        row['settle_time_s'] = _round(settle) if settle is not None else None
+        row['settle_steps'] = (int(np.count_nonzero((touchdown_times > seg.start)
+                                                    & (touchdown_times <= seg.start + settle)))
+                               if settle is not None else None)
+    if not len(stamps):
+        return
+    feet = np.array([contacts[t].foot_position for t in stamps])
+    in_contact = np.array([contacts[t].contact for t in stamps])
+    for push in metrics.get('pushes', []):
+        radius = support_inradius_after(stamps, feet, in_contact, push['t'])
+        push['support_inradius_min_m'] = _round(radius, 4) if radius is not None else None
+        # The same measure over the 3 steps before the push, for the degeneration ratio.
+        earlier = stamps < push['t']
+        radius = support_inradius_after(stamps[earlier], feet[earlier], in_contact[earlier],
+                                        push['t'] - 3.0, steps=3)
+        push['support_inradius_before_m'] = _round(radius, 4) if radius is not None else None
 
 
 def _first_per_stamp(states) -> list:

@@ -31,6 +31,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import sys
 import time
 from dataclasses import dataclass, field
@@ -222,9 +223,12 @@ def scenario_inputs(scenario: Scenario) -> ScheduledInputs:
 
 def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                  config_dir: Path | None = None, extra_param_files: list[Path] = (),
-                 log=print, progress: ProgressLine | None = None) -> dict:
+                 log=print, progress: ProgressLine | None = None, plots: bool = True,
+                 keep_bag: bool = True) -> dict:
     """Run, then analyse; returns the metrics (also written to out_dir/metrics.json). With
-    ``progress``, a progress line is printed while the graph runs (``run_graph``)."""
+    ``progress``, a progress line is printed while the graph runs (``run_graph``). Without
+    ``plots`` no figure is drawn; without ``keep_bag`` the bag is deleted once analysed (the
+    run folder keeps scenario.yaml and params.yaml, from which the run is made again)."""
     from replan_ros.tools.run_analysis import analyse_run  # matplotlib only when needed
 
     config_dir = config_dir or Path(os.environ.get('REPLAN_CONFIG', 'config'))
@@ -253,10 +257,13 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                      progress=progress, event_times=event_times)
     wall = time.monotonic() - wall_start
     metrics = analyse_run(bag_dir, scenario, out_dir, launch_exit_code=code,
-                          dead_nodes=graph.failed, wall_time_total=wall)
+                          dead_nodes=graph.failed, wall_time_total=wall, plots=plots)
     metrics['launcher_real_time_factor'] = graph.real_time_factor
     metrics['peak_memory_mb'] = {k: round(v, 1) for k, v in graph.peak_memory_mb.items()}
     metrics['peak_memory_total_mb'] = round(sum(graph.peak_memory_mb.values()), 1)
+    if not keep_bag:
+        shutil.rmtree(bag_dir, ignore_errors=True)
+        metrics['bag'] = None
     (out_dir / 'metrics.json').write_text(json.dumps(metrics, indent=2))
     return metrics
 
@@ -272,6 +279,11 @@ def main(argv=None) -> int:
     parser.add_argument('--profile', metavar='NAME',
                         help='world profile (realistic | ideal | a YAML file), instead of the '
                              'scenario\'s profile: key (default realistic)')
+    parser.add_argument('--no-plots', action='store_true',
+                        help='metrics.json only, no figures (faster; experiments.sh uses it)')
+    parser.add_argument('--no-bag', action='store_true',
+                        help='delete the bag once analysed (scenario.yaml and params.yaml '
+                             'stay, and make the run again)')
     parser.add_argument('--quiet', action='store_true',
                         help='no progress line (sim time, real-time factor, distance, '
                              're-plans, events) while the graph runs')
@@ -298,7 +310,8 @@ def main(argv=None) -> int:
           f'{scenario.profile}, output in {out}')
     metrics = run_scenario(scenario, out, gui=args.gui, config_dir=config_dir,
                            extra_param_files=args.params,
-                           progress=None if args.quiet else ProgressLine())
+                           progress=None if args.quiet else ProgressLine(),
+                           plots=not args.no_plots, keep_bag=not args.no_bag)
     print(summary(metrics, out))
     return 0 if metrics.get('completed') else 1
 

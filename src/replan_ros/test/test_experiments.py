@@ -1,0 +1,126 @@
+"""The experiment runner's logic and the results page, without running graphs (the quick run
+of scripts/experiments.sh is a node-graph test in test/test_experiments.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from replan_ros.tools.experiment_page import compare, spread, write_page
+from replan_ros.tools.experiments import (
+    ExperimentError,
+    RunResult,
+    bisect_impulse,
+    load_plan,
+    planned_runs,
+    run_key,
+    variant,
+)
+
+CONFIG = Path(__file__).resolve().parents[3] / 'config'
+BASE = {'name': 'walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0.0, 0.0]}]}
+
+
+def test_variant_changes_only_what_it_is_asked_to():
+    doc = variant(BASE, seed=3, setpoint=(0.15, 0.0, 0.0), duration=9.0,
+                  params={'gait': {'replan_window': 2}},
+                  terrain={'type': 'rough', 'rough_amplitude': 0.04},
+                  push=(5.0, (0.0, 120.0, 0.0), 0.25))
+    assert doc['params'] == {'gait': {'replan_window': 2}, 'sim': {'noise_seed': 3}}
+    assert doc['terrain'] == {'type': 'rough', 'rough_amplitude': 0.04, 'seed': 3}
+    assert doc['events'][0] == {'t': 0.5, 'cmd_vel': [0.15, 0.0, 0.0]}
+    assert doc['events'][1] == {'t': 5.0, 'push': {'force': [0.0, 120.0, 0.0],
+                                                   'duration': 0.25}}
+    assert doc['duration'] == 9.0 and doc['profile'] == 'realistic'
+    assert BASE['events'][0]['cmd_vel'] == [0.1, 0.0, 0.0]          # the base is untouched
+    assert run_key(doc) == run_key(yaml.safe_load(yaml.safe_dump(doc)))
+    assert run_key(doc) != run_key(variant(BASE, seed=4))
+
+
+class ThresholdRunner:
+    """Stands in for the graph in the bisection's arithmetic: a push falls above ``limit``."""
+
+    def __init__(self, limit: float) -> None:
+        self.limit, self.impulses = limit, []
+
+    def run(self, doc: dict) -> RunResult:
+        push = next(e['push'] for e in doc['events'] if 'push' in e)
+        impulse = abs(push['force'][1]) * push['duration']
+        self.impulses.append(round(impulse, 6))
+        fell = impulse > self.limit
+        return RunResult('k', doc, {'sim_time_s': 9.0, 'fell': fell, 'pushes': [{}]}, Path())
+
+
+@pytest.mark.parametrize('limit, survived, fallen', [(50.0, 45.0, 52.5), (20.0, 18.75, 22.5),
+                                                     (100.0, 82.5, None)])
+def test_bisection_brackets_the_largest_impulse_survived(limit, survived, fallen):
+    cfg = {'direction': [0.0, 1.0], 'first_impulse': 30.0, 'max_impulse': 90.0, 'probes': 4,
+           'push_duration': 0.25, 'seed': 0, 'after_push': 3.5}
+    runner = ThresholdRunner(limit)
+    out = bisect_impulse(runner, BASE, cfg, {}, 5.0)
+    assert runner.impulses[0] == 30.0 and len(runner.impulses) == 4
+    assert out['survived_ns'] == pytest.approx(survived)
+    assert out['fallen_ns'] == (pytest.approx(fallen) if fallen else None)
+    assert out['survived_ns'] <= limit and (fallen is None or out['fallen_ns'] > limit)
+
+
+def test_compare_needs_the_difference_beyond_the_spread():
+    low = [0.010, 0.011, 0.009, 0.010, 0.012]
+    high = [0.020, 0.021, 0.019, 0.022, 0.020]
+    assert compare(low, high, 'lower')[0] == 'holds'
+    assert compare(high, low, 'lower')[0].startswith('does not hold')
+    assert compare(low, [0.011, 0.009, 0.010, 0.012, 0.010], 'lower')[0].startswith(
+        'not resolved')
+    assert compare([0.01], high, 'lower')[0] == 'not resolved (too few runs)'
+    assert spread([1.0, 2.0, 3.0], 1) == '2.0 ± 1.0 (1.0 to 3.0)' and spread([]) == '-'
+
+
+def test_shipped_plan_loads_and_rejects_unknown_names(tmp_path):
+    full, selected = load_plan(CONFIG / 'experiments.yaml', False, [])
+    quick, _ = load_plan(CONFIG / 'experiments.yaml', True, [])
+    assert planned_runs(full, selected) > 100 > planned_runs(quick, list(quick)) > 0
+    assert len(full['replan_window']['seeds']) * len(full['replan_window']['setpoints']) >= 10
+    for plan in (full, quick):                    # every scenario named exists
+        names = [plan[k]['scenario'] for k in plan if 'scenario' in plan[k]]
+        names += plan.get('velocity_changes', {}).get('scenarios', [])
+        assert all((CONFIG / 'scenarios' / f'{n}.yaml').is_file() for n in names), names
+    with pytest.raises(ExperimentError, match='not in the full plan'):
+        load_plan(CONFIG / 'experiments.yaml', False, ['replan_windw'])
+    bad = tmp_path / 'plan.yaml'
+    bad.write_text('full: {replan_windows: {}}\n')
+    with pytest.raises(ExperimentError, match='unknown experiments'):
+        load_plan(bad, False, [])
+
+
+def _row(**kw):
+    row = {'ok': True, 'fell': False, 'run': 'r', 'world': 'realistic'}
+    row.update(kw)
+    return row
+
+
+def test_page_from_results(tmp_path):
+    windows = [_row(window=w, seed=s, setpoint=0.15, linear_error_mps=0.01 * w + 0.001 * s,
+                    cop_margin_p5_m=0.03 - 0.005 * w + 0.001 * s, mpc_solve_ms_median=3.0,
+                    mpc_solve_ms_p99=6.0) for w in (1, 2) for s in range(5)]
+    results = {
+        'replan_window': windows,
+        'haptic': [_row(terrain='flat', haptic=h, seed=s, pitch_peak_mean_deg=(1.0 if h else 3.0)
+                        + 0.1 * s, touchdown_timing_median_abs_s=0.01, crossed=None)
+                   for h in (True, False) for s in range(3)],
+        'qp_timing': {'working_set': {'median_ms': 2.0, 'mean_ms': 2.1, 'std_ms': 0.3,
+                                      'p99_ms': 3.0, 'replans': 200}},
+    }
+    meta = {'command': 'scripts/experiments.sh', 'machine': 'test', 'revision': 'abc',
+            'date': 'today', 'wall_time_min': 1.0, 'runs': 16, 'failures': ['x: exit 1']}
+    page = tmp_path / 'results.md'
+    write_page(page, results, meta)
+    text = page.read_text()
+    assert '| replan window | 1 vs 2 | velocity error | 0.0120 vs 0.0220 | 10 |' in text
+    assert 'window 2 worse than 1 (model errors grow) | holds, p = ' in text
+    assert '| haptic | flat: off vs on | touchdown pitch peak (deg) | 3.10 vs 1.10 | 6 |' in text
+    assert 'faster than the paper (28x)' in text
+    assert '`x: exit 1`' in text
+    assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
+    assert (tmp_path / 'results_plots' / 'haptic_pitch.png').is_file()
