@@ -367,3 +367,39 @@ def support_inradius_after(times: np.ndarray, feet: np.ndarray, in_contact: np.n
     if len(chosen) == 0:
         return None
     return float(min(triangle_inradius(feet[i][in_contact[i]]) for i in chosen))
+
+
+def rise_time(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray, before: Segment,
+              after: Segment, window: float = 1.0, fraction: float = 0.9,
+              settle: float = 2.0) -> float | None:
+    """Seconds from a set-point change until the velocity, averaged over the trailing
+    ``window``, has covered ``fraction`` of the way from what was achieved before the change
+    to what is achieved after it: how promptly the change is followed, apart from any
+    steady-state offset of the achieved velocity from the set-point. Each component whose
+    set-point changed must have got there (vx, vy in m/s, wz in rad/s); None if one never
+    does before ``after`` ends, or if the achieved velocities cannot be measured.
+
+    Achieved before: the mean over the last ``settle`` s of ``before``; after: the mean from
+    ``settle`` s into ``after`` to its end.
+    """
+    v0 = achieved_velocity(times, positions, yaws, max(before.start, before.end - settle),
+                           before.end)
+    v1 = achieved_velocity(times, positions, yaws,
+                           min(after.start + settle, 0.5 * (after.start + after.end)), after.end)
+    if v0 is None or v1 is None:
+        return None
+    changed = [k for k in range(3) if abs(after.command[k] - before.command[k]) > 1e-9]
+    if not changed:
+        return None
+    goal = {k: v0[k] + fraction * (v1[k] - v0[k]) for k in changed}
+    rising = {k: v1[k] > v0[k] for k in changed}
+    inside = np.flatnonzero((times > after.start) & (times <= after.end))
+    for i in inside:
+        t = float(times[i])
+        if t - window < times[0]:
+            continue
+        v = achieved_velocity(times, positions, yaws, t - window, t)
+        if v is not None and all((v[k] >= goal[k]) if rising[k] else (v[k] <= goal[k])
+                                 for k in changed):
+            return t - after.start
+    return None

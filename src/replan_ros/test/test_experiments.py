@@ -117,7 +117,7 @@ def test_page_from_results(tmp_path):
     page = tmp_path / 'results.md'
     write_page(page, results, meta)
     text = page.read_text()
-    assert '| replan window | 1 vs 2 | velocity error | 0.0120 vs 0.0220 | 10 |' in text
+    assert '| replan window | 1 vs 2 | velocity error (m/s) | 0.0120 vs 0.0220 | 10 |' in text
     assert 'window 2 worse than 1 (model errors grow) | holds, p = ' in text
     assert '| haptic | flat: off vs on | touchdown pitch peak (deg) | 3.10 vs 1.10 | 6 |' in text
     assert 'faster than the paper (28x)' in text

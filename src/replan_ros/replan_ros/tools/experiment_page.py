@@ -145,13 +145,18 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
 
 
 def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
-    prompt = 4
+    prompt = rows[0].get('prompt_steps', 4) if rows else 4
     claim = 'a velocity change is followed promptly'
     lines = ['## Velocity changes', '',
              'The set-point changes at 8 s; the figure is the time and the touchdowns until '
              'the velocity averaged over the last second is within 10 % of the new set-point '
              '(`settle_time_s`, `settle_steps` in each run\'s metrics). The paper gives no '
-             f'figure for "promptly"; this page takes one crawl cycle ({prompt} steps).', '']
+             f'figure for "promptly"; this page takes one crawl cycle ({prompt} steps). The '
+             'realistic robot walks a few per cent slower than commanded (docs/realism.md), '
+             'which alone can keep it out of the 10 % band; so the page also gives the time '
+             'until the velocity has covered 90 % of the change it actually made (from the '
+             'velocity achieved before the change to the one achieved after it, '
+             '`rise_time_s`, `rise_steps`).', '']
     for scenario in sorted({r['scenario'] for r in rows}):
         for world in sorted({r['world'] for r in rows if r['scenario'] == scenario}):
             sel = [r for r in rows if r['scenario'] == scenario and r['world'] == world]
@@ -167,7 +172,16 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
             page.row('velocity change', setting, 'touchdowns until within 10 %',
                      spread(steps, 1), len(sel), claim, verdict)
             page.row('velocity change', setting, 'seconds until within 10 %',
-                     spread(values(sel, 'settle_time_s'), 2), len(sel), claim, '')
+                     spread(values(sel, 'settle_time_s'), 2), len(sel), '', '')
+            rise = values(sel, 'rise_steps')
+            prompt_rise = sum(1 for s in rise if s <= prompt)
+            page.row('velocity change', setting,
+                     'touchdowns until 90 % of the achieved change',
+                     spread(rise, 1), len(sel), claim + ' (apart from the steady offset)',
+                     'holds' if prompt_rise == len(sel) and not falls else
+                     f'does not hold ({len(sel) - prompt_rise} of {len(sel)} runs slower)')
+            page.row('velocity change', setting, 'seconds until 90 % of the achieved change',
+                     spread(values(sel, 'rise_time_s'), 2), len(sel), '', '')
             achieved = [r['achieved'] for r in sel if r.get('achieved')]
             if achieved:
                 mean = np.mean(achieved, axis=0)
@@ -265,6 +279,9 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
         page.row('replan window', f'{w} touchdown{"s" if w > 1 else ""}{suffix}',
                  'measured CoP margin, 5th percentile (cm)',
                  spread(values(runs, 'cop_margin_p5_m'), 2, 100.0), len(runs), '', '')
+        page.row('replan window', f'{w} touchdown{"s" if w > 1 else ""}{suffix}',
+                 'measured CoP minus planned ZMP, RMS (cm)',
+                 spread(values(runs, 'cop_zmp_deviation_rms_m'), 2, 100.0), len(runs), '', '')
     lines = [f'## Replan window{suffix}', '',
              'Straight walks at ' + ', '.join(f'{v:.2f}' for v in sorted(
                  {r['setpoint'] for r in sel})) + ' m/s, seeds '
@@ -272,11 +289,13 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
              + '; velocity error after 2 s of each set-point; CoP margin: the measured centre '
                'of pressure inside the polygon of the feet in contact (truth).', '']
     for w in windows[1:]:
-        for key, label, digits, scale in (('linear_error_mps', 'velocity error', 4, 1.0),
-                                          ('cop_margin_p5_m', 'CoP margin p5', 2, 100.0)):
+        for key, label, digits, scale in (
+                ('linear_error_mps', 'velocity error (m/s)', 4, 1.0),
+                ('cop_margin_p5_m', 'CoP margin p5 (cm)', 2, 100.0),
+                ('cop_zmp_deviation_rms_m', 'CoP minus planned ZMP, RMS (cm)', 2, 100.0)):
             one = values([r for r in sel if r['window'] == 1], key)
             other = values([r for r in sel if r['window'] == w], key)
-            verdict, p = compare(one, other, 'lower' if key == 'linear_error_mps' else 'higher')
+            verdict, p = compare(one, other, 'higher' if key == 'cop_margin_p5_m' else 'lower')
             page.row('replan window', f'1 vs {w}{suffix}', label,
                      f'{np.mean(one) * scale:.{digits}f} vs {np.mean(other) * scale:.{digits}f}'
                      if one and other else '-', len(one) + len(other), claim, verdict + _p(p))

@@ -157,7 +157,7 @@ class Runner:
         return result
 
     @contextlib.contextmanager
-    def _machine_lock(self):
+    def machine_lock(self):
         """Hold ``lock_file`` (flock) for the run, if one was given: graphs of other tools
         that take the same lock then never run at the same time as this one."""
         if self.lock_file is None:
@@ -195,7 +195,7 @@ class Runner:
         try:
             env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
             env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-            with open(folder / 'output.log', 'w') as output, self._machine_lock():
+            with open(folder / 'output.log', 'w') as output, self.machine_lock():
                 code = subprocess.run(
                     [sys.executable, '-m', 'replan_ros.tools.scenario', str(folder / 'input.yaml'),
                      '--out', str(folder), '--quiet', '--no-plots', '--no-bag'],
@@ -293,6 +293,8 @@ def _summary(result: RunResult, **extra) -> dict:
            'mpc_solve_ms_median': m.get('mpc_solve_ms_median'),
            'mpc_solve_ms_p99': m.get('mpc_solve_ms_p99'),
            'final_x_m': (m.get('final_position_m') or [None])[0],
+           'cop_zmp_deviation_rms_m': (m.get('cop_zmp_deviation_m') or {}).get('rms'),
+           'estimator_xy_error_end_m': (m.get('estimator') or {}).get('xy_error_end_m'),
            'real_time_factor': m.get('real_time_factor')}
     tracking = [s for s in m.get('velocity_tracking') or [] if any(s.get('commanded', []))]
     if tracking:
@@ -300,6 +302,7 @@ def _summary(result: RunResult, **extra) -> dict:
         row.update(linear_error_mps=last.get('linear_error_mps'),
                    achieved=last.get('achieved'), commanded=last.get('commanded'),
                    settle_time_s=last.get('settle_time_s'), settle_steps=last.get('settle_steps'),
+                   rise_time_s=last.get('rise_time_s'), rise_steps=last.get('rise_steps'),
                    yaw_rate_error_radps=last.get('yaw_rate_error_radps'))
     pitch = m.get('touchdown_pitch_peak_deg') or {}
     timing = m.get('touchdown_timing_error_s') or {}
@@ -319,7 +322,8 @@ def velocity_changes(ctx: Context, cfg: dict, world: str = 'realistic') -> list[
         def make():
             doc = variant(runner.scenario(name), world=world, seed=seed,
                           duration=cfg.get('duration'))
-            return _summary(runner.run(doc), scenario=name, seed=seed, world=world)
+            return _summary(runner.run(doc), scenario=name, seed=seed, world=world,
+                            prompt_steps=int(cfg.get('prompt_steps', 4)))
         return make
     return _parallel([one(n, s) for n, s in specs])
 
@@ -453,10 +457,12 @@ def qp_timing(ctx: Context, cfg: dict) -> dict:
     out = {}
     for formulation in cfg['formulations']:
         env = dict(os.environ, OMP_NUM_THREADS='1')
-        proc = subprocess.run(
-            [sys.executable, '-m', 'replan_core.bench.mpc_bench', '--formulation', formulation,
-             '--replans', str(cfg['replans'])], env=env, capture_output=True, text=True,
-            timeout=1800)
+        with ctx.runner.machine_lock():
+            proc = subprocess.run(
+                [sys.executable, '-m', 'replan_core.bench.mpc_bench', '--formulation',
+                 formulation,
+                 '--replans', str(cfg['replans'])], env=env, capture_output=True, text=True,
+                timeout=1800)
         lines = proc.stdout.strip().splitlines()
         try:
             out[formulation] = json.loads(lines[-1])

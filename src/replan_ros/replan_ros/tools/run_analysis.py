@@ -25,6 +25,7 @@ from replan_core.metrics import (
     interval_stats,
     peaks_around,
     planned_zmp_at,
+    rise_time,
     roll_pitch_yaw,
     settle_time,
     support_inradius_after,
@@ -195,14 +196,25 @@ def _add_response_metrics(metrics: dict, data, times, pos, rpy, segments, scenar
     stamps = np.array(sorted(contacts))
     touchdown_times = np.array([t for t in stamps for _ in np.flatnonzero(
         contacts[t].touchdown)])
-    by_start = {round(s.start, 6): s for s in segments}
+    by_start = {round(s.start, 6): (i, s) for i, s in enumerate(segments)}
+
+    def steps_within(start: float, seconds: float | None) -> int | None:
+        if seconds is None:
+            return None
+        return int(np.count_nonzero((touchdown_times > start)
+                                    & (touchdown_times <= start + seconds)))
+
     for row in metrics.get('velocity_tracking', []):
-        seg = by_start.get(round(row['start_s'], 6))
+        index, seg = by_start.get(round(row['start_s'], 6), (None, None))
         settle = settle_time(times, pos, rpy[:, 2], seg) if seg else None
         row['settle_time_s'] = _round(settle) if settle is not None else None
-        row['settle_steps'] = (int(np.count_nonzero((touchdown_times > seg.start)
-                                                    & (touchdown_times <= seg.start + settle)))
-                               if settle is not None else None)
+        row['settle_steps'] = steps_within(seg.start, settle) if seg else None
+        # After a change of a non-zero set-point: how promptly it is followed, apart from the
+        # steady-state offset (replan_core.metrics.rise_time).
+        if index and any(segments[index - 1].command):
+            rise = rise_time(times, pos, rpy[:, 2], segments[index - 1], seg)
+            row['rise_time_s'] = _round(rise) if rise is not None else None
+            row['rise_steps'] = steps_within(seg.start, rise)
     if not len(stamps):
         return
     feet = np.array([contacts[t].foot_position for t in stamps])
