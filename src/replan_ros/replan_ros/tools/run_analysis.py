@@ -171,6 +171,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     balance = _measured_balance(data, times, rpy, estimate[1] if estimate else None)
     metrics.update(balance[0])
     _add_response_metrics(metrics, data, times, pos, rpy, segments, scenario)
+    _add_push_velocity(metrics, times, np.array([b.linear_velocity for b in odom]))
     if not plots:
         return metrics
     try:
@@ -227,6 +228,24 @@ def _add_response_metrics(metrics: dict, data, times, pos, rpy, segments, scenar
         radius = support_inradius_after(stamps[earlier], feet[earlier], in_contact[earlier],
                                         push['t'] - 3.0, steps=3)
         push['support_inradius_before_m'] = _round(radius, 4) if radius is not None else None
+
+
+def _add_push_velocity(metrics: dict, times: np.ndarray, velocity: np.ndarray) -> None:
+    """Per push, the largest change of the base velocity (truth, world) along the push in the
+    second after it starts (``velocity_change_mps``): the part of the impulse the legs did not
+    take up at once (a free body of mass m would gain impulse / m)."""
+    for push in metrics.get('pushes', []):
+        force = np.asarray(push['force'][:2], dtype=float)
+        if not np.any(force) or not len(times):
+            continue
+        axis = force / np.linalg.norm(force)
+        t = push['t']
+        before = (times >= t - 0.5) & (times < t)
+        after = (times >= t) & (times <= t + 1.0)
+        if not before.any() or not after.any():
+            continue
+        along = velocity[:, :2] @ axis
+        push['velocity_change_mps'] = _round(along[after].max() - along[before].mean(), 4)
 
 
 def _first_per_stamp(states) -> list:
