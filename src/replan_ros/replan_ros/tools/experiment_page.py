@@ -228,6 +228,13 @@ def _lateral_push(page: Page, data: dict, _all) -> None:
                  f'pushes absorbed; target ≥ {target:.0f} N s at every phase', verdict)
         page.row('lateral push', name.replace('_', ' '), 'impulse survived, over phases (N s)',
                  spread(survived, 1), len(survived), '', '')
+        dv = [p['first']['velocity_change_mps'] for p in phases if p.get('first')
+              and p['first'].get('velocity_change_mps') is not None]
+        mass = data.get('robot_mass_kg')
+        page.row('lateral push', name.replace('_', ' '),
+                 f'base velocity left by a {cfg["first_impulse"]:.0f} N s push (m/s)',
+                 spread(dv, 3), len(dv),
+                 f'a free body: {cfg["first_impulse"] / mass:.3f} m/s' if mass else '', '')
         page.row('lateral push', name.replace('_', ' '),
                  f'support inradius after / before a {cfg["first_impulse"]:.0f} N s push',
                  spread(ratios, 2), len(ratios),

@@ -349,6 +349,7 @@ def bisect_impulse(runner: Runner, base: dict, cfg: dict, setting: dict, push_ti
             break
         push = (result.metrics.get('pushes') or [{}])[0]
         probes.append({'impulse_ns': impulse, 'fell': result.fell, 'run': result.key,
+                       'velocity_change_mps': push.get('velocity_change_mps'),
                        'support_inradius_min_m': push.get('support_inradius_min_m'),
                        'support_inradius_before_m': push.get('support_inradius_before_m')})
         if i == 0:
@@ -376,7 +377,20 @@ def lateral_push(ctx: Context, cfg: dict) -> dict:
     for (name, k, t), outcome in zip(keys, outcomes, strict=True):
         table[name].append({'phase': k, 'phase_fraction': k / phases, 'push_time_s': t,
                             **outcome})
-    return {'settings': table, 'config': cfg}
+    return {'settings': table, 'config': cfg, 'robot_mass_kg': _robot_mass(ctx.runner)}
+
+
+def _robot_mass(runner: Runner) -> float | None:
+    """Mass of the simulated realistic robot (kg): the model's URDF plus the profile's
+    payload; None if either cannot be read."""
+    try:
+        from replan_core.robot_model import RobotModel
+        urdf = os.environ.get('REPLAN_URDF', str(runner.config_dir.parent / 'urdf' / 'hyq.urdf'))
+        profile = yaml.safe_load((runner.config_dir / 'profiles' / 'realistic.yaml').read_text())
+        payload = float(profile['sim']['ros__parameters'].get('payload_mass', 0.0))
+        return RobotModel(urdf).total_mass + payload
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
+        return None
 
 
 def replan_window(ctx: Context, cfg: dict, world: str = 'realistic') -> list[dict]:
