@@ -1,18 +1,25 @@
 #!/usr/bin/env bash
 # The main job: set up if needed, then run the demo scenario headless (30 s of sim time:
 # forward, sideways, turn, stop) and print a summary with where the bag and plots are.
-# Usage: scripts/demo.sh [OUT_DIR]   (default runs/demo-<time>)
+# Usage: scripts/demo.sh [OUT_DIR] [--live [PORT]]   (default runs/demo-<time>)
+#   --live [PORT]: watch it in Foxglove/Lichtblick at ws://localhost:PORT (default 8765)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,5p' "$0" | sed 's/^# \{0,1\}//'; }
 # Options first, before any set-up: an option is never taken for the output folder.
-for arg in "$@"; do
-    case "$arg" in
+live=()
+positional=()
+while [ $# -gt 0 ]; do
+    case "$1" in
         -h|--help) usage; exit 0 ;;
-        -*) echo "demo.sh: unknown option $arg" >&2; usage >&2; exit 2 ;;
+        --live)
+            if [[ "${2:-}" =~ ^[0-9]+$ ]]; then live=(--live "$2"); shift; else live=(--live); fi ;;
+        -*) echo "demo.sh: unknown option $1" >&2; usage >&2; exit 2 ;;
+        *) positional+=("$1") ;;
     esac
+    shift
 done
 cd "$ROOT"
 ./scripts/setup.sh
-out="${1:-runs/demo-$(date +%Y%m%d-%H%M%S)}"
-exec ./scripts/scenario.sh config/scenarios/demo.yaml --out "$out"
+out="${positional[0]:-runs/demo-$(date +%Y%m%d-%H%M%S)}"
+exec ./scripts/scenario.sh config/scenarios/demo.yaml --out "$out" ${live[@]+"${live[@]}"}

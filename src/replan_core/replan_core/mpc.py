@@ -66,6 +66,11 @@ class MpcSettings:
     add_peaks_only: bool = True       # working set: add rows only where the violation peaks
     working_set_tol: float = 1e-6     # m, working set: a row violated by more is added
     dual_mu_in: float = 1e-1          # proxsuite mu_in of the working-set dual
+    # Working set: give up (and take the relaxed fallback) once the duals of one solve have
+    # used this many proxsuite iterations. A feasible re-plan uses 30-75 (bench_mpc.sh); the
+    # dual of an infeasible one is unbounded and each of its solves runs ~10000, so without
+    # the budget an infeasible re-plan took 4-11 s (test_bad_input.py) while the robot waited.
+    iteration_budget: int = 2000
 
     @property
     def n(self) -> int:
@@ -321,6 +326,10 @@ class LipMpc:
                 if lam is None:
                     self.rounds = rnd + 1
                     return False, np.zeros((n, 2)), iters, info
+                if iters > s.iteration_budget:
+                    self.rounds = rnd + 1
+                    return (False, np.zeros((n, 2)), iters,
+                            f'iteration budget {s.iteration_budget} spent in {rnd + 1} rounds')
                 z = zf + self._G[:, ks[work]] @ (lam[:, None] * np.column_stack(
                     [axr[work], ayr[work]]))
                 d = np.where(actr, axr * z[ks, 0] + ayr * z[ks, 1] + br, np.inf)

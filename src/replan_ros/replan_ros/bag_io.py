@@ -78,9 +78,24 @@ def split_type_name(type_name: str) -> tuple[str, str]:
     return match.group(1), match.group(2)
 
 
+# Definitions of types that the PyPI wheels do not install but the bags carry, verbatim from
+# Jazzy's interface packages: /tf (tf2_msgs/TFMessage) is written from its schema text and
+# CDR-encoded without a Python class (state_view.py). Installed files take precedence.
+EXTRA_DEFINITIONS = {
+    ('tf2_msgs', 'TFMessage'): 'geometry_msgs/TransformStamped[] transforms\n',
+}
+
+
 def _msg_text(package: str, name: str) -> str:
-    path = interface_share_dir(package) / 'msg' / f'{name}.msg'
+    try:
+        path = interface_share_dir(package) / 'msg' / f'{name}.msg'
+    except PackageNotFoundError:
+        if (package, name) in EXTRA_DEFINITIONS:
+            return EXTRA_DEFINITIONS[(package, name)]
+        raise FileNotFoundError(f'interface package {package} is not installed') from None
     if not path.is_file():
+        if (package, name) in EXTRA_DEFINITIONS:
+            return EXTRA_DEFINITIONS[(package, name)]
         raise FileNotFoundError(f'no interface definition {path}')
     return path.read_text()
 
@@ -460,6 +475,29 @@ def iter_decoded(path: str | Path, topics: Iterable[str] | None = None):
         for _schema, channel, message, decoded in reader.iter_decoded_messages(
                 topics=list(topics) if topics else None, log_time_order=True):
             yield channel.topic, message.log_time, message.publish_time, decoded
+
+
+def check_bag(path: str | Path) -> int:
+    """Read every message of a bag once (chunk CRCs checked) before a tool uses it; returns
+    the message count. A truncated or corrupt file raises ``McapError`` with one line saying
+    what is wrong, whatever the mcap library raised (a corrupt chunk can surface as a KeyError
+    or a decompression error deep in it, which would otherwise end the tool with a traceback).
+    """
+    count = 0
+    try:
+        with open(path, 'rb') as stream:
+            reader = make_reader(stream, validate_crcs=True)
+            if reader.get_summary() is None:
+                raise McapError('no summary (its recorder was killed?)')
+            for _ in reader.iter_messages():
+                count += 1
+    except OSError:
+        raise
+    except Exception as err:        # any library error: one line, not a traceback
+        what = str(err).splitlines()[0] if str(err) else ''
+        raise McapError(f'corrupt or truncated after {count} readable messages '
+                        f'({type(err).__name__}{": " + what if what else ""})') from None
+    return count
 
 
 # ----------------------------------------------------------------------------- recovery

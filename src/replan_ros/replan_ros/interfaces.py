@@ -250,13 +250,29 @@ def cloud_to_table(msg: PointCloud2, required: tuple[str, ...] = ()) -> np.ndarr
     """Unpack a PointCloud2 written by ``table_to_cloud`` (or any little-endian flat one)."""
     if msg.is_bigendian:
         raise ValueError('big-endian PointCloud2 tables are not supported')
-    dtype = _table_dtype(tuple((f.name, f.datatype, f.offset) for f in msg.fields),
-                         msg.point_step)
+    # A malformed layout must give one clear line, not numpy's or a KeyError's words.
+    unknown = [f.name for f in msg.fields if f.datatype not in _NUMPY_OF_FIELD or f.count > 1]
+    if unknown:
+        raise ValueError(f'table fields {unknown} have an unsupported datatype or count')
+    try:
+        dtype = _table_dtype(tuple((f.name, f.datatype, f.offset) for f in msg.fields),
+                             msg.point_step)
+    except (ValueError, TypeError) as err:
+        raise ValueError(f'table layout does not fit point_step {msg.point_step}: {err}') from None
     missing = [name for name in required if name not in dtype.names]
     if missing:
         raise ValueError(f'table misses fields {missing}')
     count = msg.width * msg.height
+    if len(msg.data) < count * msg.point_step:
+        raise ValueError(f'table of {count} rows of {msg.point_step} bytes holds only '
+                         f'{len(msg.data)} bytes')
     return np.frombuffer(bytes(msg.data), dtype=dtype, count=count)
+
+
+def _require_finite(table: np.ndarray, names: tuple[str, ...], what: str) -> None:
+    bad = [name for name in names if not np.all(np.isfinite(table[name]))]
+    if bad:
+        raise ValueError(f'{what} table holds non-finite {", ".join(bad)}')
 
 
 CONTACT_DTYPE = np.dtype([('x', '<f8'), ('y', '<f8'), ('z', '<f8'), ('leg', 'u1'),
@@ -298,6 +314,7 @@ def contacts_from_msg(msg: PointCloud2) -> ContactState:
     table = cloud_to_table(msg, CONTACT_DTYPE.names)
     if len(table) != 4 or sorted(table['leg']) != [0, 1, 2, 3]:
         raise ValueError(f'contacts table must have one row per leg, got legs {list(table["leg"])}')
+    _require_finite(table, ('x', 'y', 'z', 'fx', 'fy', 'fz'), 'contacts')
     table = table[np.argsort(table['leg'])]
     return ContactState(
         stamp=stamp_to_sec(msg.header.stamp),
@@ -310,6 +327,8 @@ def contacts_from_msg(msg: PointCloud2) -> ContactState:
 def contact_events_from_msg(msg: PointCloud2) -> list[tuple[int, str, np.ndarray, np.ndarray]]:
     """Events as (leg, 'touchdown' | 'liftoff', position (3,), force (3,))."""
     table = cloud_to_table(msg, CONTACT_DTYPE.names)
+    if np.any(table['leg'] > 3):
+        raise ValueError('contact_events table names a leg outside 0..3')
     events = []
     for row in table:
         kind = 'touchdown' if row['touchdown'] else 'liftoff'
@@ -345,8 +364,10 @@ def footholds_from_msg(msg: PointCloud2) -> FootholdPlan:
     initial = initial[np.argsort(initial['leg'])]
     steps_table = table[table['step'] >= 0]
     steps_table = steps_table[np.argsort(steps_table['step'], kind='stable')]
-    if not np.all(np.isfinite(table['x'])) or not np.all(np.isfinite(table['touchdown_time'])):
-        raise ValueError('footholds table holds non-finite values')
+    _require_finite(table, ('x', 'y', 'z', 'liftoff_time', 'touchdown_time', 'step_height',
+                            'yaw', 'min_swing_fraction', 'max_extension'), 'footholds')
+    if np.any(table['leg'] > 3):
+        raise ValueError('footholds table names a leg outside 0..3')
     steps = [Step(leg=int(r['leg']), liftoff_time=t0 + float(r['liftoff_time']),
                   touchdown_time=t0 + float(r['touchdown_time']),
                   target=np.array([r['x'], r['y'], r['z']], dtype=float),

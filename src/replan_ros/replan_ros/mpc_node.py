@@ -76,6 +76,7 @@ class MpcNode(Node):
         self.mpc = LipMpc(self.settings)                       # QP built once, here
         self.state_buffer = max(int(p['state_buffer']), 2)
         self.state_wait = max(float(p['state_wait']), 0.0)
+        self.fallback_window_ns = round(float(p['state_fallback_window']) * 1e9)
         self.warn_period = float(p['warn_period'])
         self._warned: dict[str, float] = {}
 
@@ -207,12 +208,39 @@ class MpcNode(Node):
         """The base and joint state stamped ``ns``, None while they are not (validly) here."""
         if not self.state_input.drain(lambda: ns in self.joints and ns in self.bases,
                                       timeout=self.state_wait):
-            return None
+            return self._lost_state(ns)
         try:
             return self.bases.get(ns), self.joints.get(ns)
         except ValueError as err:       # that tick's state is unusable: wait for a re-send
             self._warn('state', f'state at t={ns * 1e-9:.3f} s rejected: {err}')
             return None
+
+    def _lost_state(self, ns: int) -> tuple[BaseState, JointState] | None:
+        """The state stamped ``ns`` will never come when both buffers hold newer stamps
+        without it: its samples were dropped, or the sim ran on because the controller did not
+        wait for this plan (it stands after a planner died, or this node started after the
+        request). Then the oldest newer state in both, as the gait node does for odom; a run
+        without faults never gets here (the controller waits within the buffers' depth)."""
+        newer_joints = {s for s in self.joints.stamps() if s > ns}
+        newer_bases = {s for s in self.bases.stamps() if s > ns}
+        if not newer_joints or not newer_bases or not newer_joints & newer_bases:
+            return None                 # may still come
+        stamp = min(newer_joints & newer_bases)
+        if stamp - ns > self.fallback_window_ns:
+            # Too old to plan from a later state (e.g. the latched footholds of before this
+            # node started): drop it, the next footholds come at the next gait re-plan.
+            self._warn('state gone', f'no state stamped {ns * 1e-9:.3f} s will come and the '
+                       f'oldest newer one is {(stamp - ns) * 1e-9:.3f} s later: request dropped')
+            self.pending = None
+            return None
+        try:
+            state = self.bases.get(stamp), self.joints.get(stamp)
+        except ValueError as err:
+            self._warn('state', f'state at t={stamp * 1e-9:.3f} s rejected: {err}')
+            return None
+        self._warn('state lost', f'no state stamped {ns * 1e-9:.3f} s will come: planning from '
+                   f'the one of {stamp * 1e-9:.3f} s')
+        return state
 
     def _replan(self, ns: int, plan: FootholdPlan, base: BaseState, joints: JointState) -> None:
         t = ns * 1e-9

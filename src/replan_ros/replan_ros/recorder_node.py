@@ -16,6 +16,10 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
   the type has a header, else the receive time) or ``receive``.
 - Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s (checked at every take, so also
   when nothing is recorded). Everything runs in the executor's thread.
+- What a viewer needs to draw the robot (``state_view``, README "Watch the robot"):
+  ``/robot_description`` at the start, then ``/tf`` (``tf2_msgs``, written from its schema),
+  contact force markers and plottable figures, derived from the recorded topics as they are
+  taken; written, never subscribed over DDS.
 - The run's configuration goes in mcap metadata records: ``replan_run`` (git revision, recorder
   parameters, command line, ...), ``replan_config`` (path -> content of each ``config_files``
   entry), ``replan_scenario`` (``scenario_file``), ``replan_user`` (``metadata_json``).
@@ -57,8 +61,16 @@ from replan_ros.bag_io import (
 )
 from replan_ros.introspection import message_class
 from replan_ros.on_demand import OnDemandSubscriptions
-from replan_ros.qos import COMMAND, INTERNAL_PUB_EVENTS
+from replan_ros.qos import COMMAND, INTERNAL_PUB_EVENTS, LATCHED
 from replan_ros.stamped_buffer import cdr_header_stamp_ns
+from replan_ros.state_view import (
+    DERIVED_TOPICS,
+    DESCRIPTION_TOPIC,
+    INPUT_TOPICS,
+    Derived,
+    StateView,
+    definition,
+)
 
 _PUBLISH_TIME_SOURCES = ('source', 'header', 'receive')
 
@@ -152,6 +164,8 @@ class RecorderNode(Node):
         self._warned: set[str] = set()
         self._write_errors = 0
         self._closed = False
+        self._view_channels: dict[str, int] = {}
+        self._view = self._make_view()
 
         self._input = OnDemandSubscriptions(self)
         self._batch: list[tuple[int, int, _Topic, bytes, int]] = []
@@ -344,6 +358,8 @@ class RecorderNode(Node):
                 publish_time = cdr_header_stamp_ns(data)
             self._write_one(entry, data, log_time,
                             log_time if publish_time is None else publish_time)
+            if self._view is not None and entry.name in INPUT_TOPICS:
+                self._write_derived(self._view.feed(entry.name, data), log_time)
         count = len(self._batch)
         self._batch.clear()
         self._writer.poll()                  # close a chunk older than chunk_interval
@@ -358,6 +374,37 @@ class RecorderNode(Node):
         except Exception as err:  # one bad write must not stop the recording
             self._write_errors += 1
             self._warn_once('write', f'write failed: {err}')
+
+    def _make_view(self) -> StateView | None:
+        """What a viewer needs to draw the robot (state_view.py): the URDF at once, then the
+        transforms, forces and figures derived from the recorded topics. Written, never
+        subscribed: a DDS publisher of the same names (the live view's) is not recorded."""
+        self._skipped.update(DERIVED_TOPICS)
+        if not any(self._selected(t) for t in DERIVED_TOPICS):
+            return None
+        try:
+            view = StateView()
+        except (OSError, ValueError, RuntimeError) as err:
+            self.get_logger().error(f'no /tf nor /robot_description in the bag: {err}')
+            return None
+        self._write_derived([view.description()], 0)
+        return view
+
+    def _write_derived(self, items: list[Derived], log_time: int) -> None:
+        for item in items:
+            if not self._selected(item.topic):
+                continue
+            try:
+                if item.topic not in self._view_channels:
+                    profile = LATCHED if item.topic == DESCRIPTION_TOPIC else COMMAND
+                    self._view_channels[item.topic] = self._writer.add_channel(
+                        item.topic, item.type_name, qos_profiles_yaml([profile]),
+                        definition=definition(item.type_name))
+                self._writer.write(self._view_channels[item.topic], item.data, log_time,
+                                   item.stamp_ns or log_time)
+            except Exception as err:  # a viewer's topic must not stop the recording
+                self._write_errors += 1
+                self._warn_once('derived', f'{item.topic} not written: {err}')
 
     def _counts(self) -> tuple[int, int]:
         received = sum(t.received for t in self._recorded.values())

@@ -92,21 +92,25 @@ class SimNode(Node):
                 'using HyQ standing pose')
             standing = STANDING_POSE.copy()
         model_urdf = urdf
-        urdf = self._robot_urdf(urdf, p)
         actuator = ActuatorParams(
             time_constant=p['actuator_time_constant'], delay=p['actuator_delay'],
             viscous_damping=p['joint_viscous_damping'],
             coulomb_friction=p['joint_coulomb_friction'],
             torque_limit_scale=p['torque_limit_scale'])
-        self.world = SimWorld(
-            urdf, physics_dt=p['physics_dt'], control_period=p['control_period'],
-            actuator=actuator, contact_stiffness=p['contact_stiffness'],
-            contact_damping=p['contact_damping'],
-            initial_joint_positions=standing,
-            initial_base_height=p['initial_base_height'] or None,
-            terrain=p['terrain'], terrain_params=terrain_params,
-            contact_threshold=p['contact_threshold'], debounce_ticks=p['debounce_ticks'],
-            friction=p['friction'], gui=p['gui'], seed=p['seed'])
+        try:
+            urdf = self._robot_urdf(urdf, p)
+            self.world = SimWorld(
+                urdf, physics_dt=p['physics_dt'], control_period=p['control_period'],
+                actuator=actuator, contact_stiffness=p['contact_stiffness'],
+                contact_damping=p['contact_damping'],
+                initial_joint_positions=standing,
+                initial_base_height=p['initial_base_height'] or None,
+                terrain=p['terrain'], terrain_params=terrain_params,
+                contact_threshold=p['contact_threshold'], debounce_ticks=p['debounce_ticks'],
+                friction=p['friction'], gui=p['gui'], seed=p['seed'])
+        except Exception as err:   # a missing or malformed URDF (PyBullet, XML, OS errors)
+            self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')
+            raise SystemExit(1) from None
         dt = p['control_period']
         imu_noise = ImuNoiseParams(
             gyro_noise_density=p['imu_gyro_noise_density'],
@@ -161,6 +165,7 @@ class SimNode(Node):
         self._wrench_seq = 0
         self._rtf_samples: deque[tuple[float, float]] = deque()
         self._free_ref = (0.0, 0)                     # (wall, tick) where free-running began
+        self._damping_since = 0.0                     # sim s the last damping mode began
 
         self._clock_every = max(1, round(p['clock_period'] / p['control_period']))
         self.free_timer = self.create_timer(p['control_period'] / self.rtf_target,
@@ -255,6 +260,7 @@ class SimNode(Node):
         else:
             self.free_timer.cancel()
         if mode == DAMPING:
+            self._damping_since = self.world.time
             self.get_logger().error(
                 f'no joint_torque_cmd for {self.command_timeout} s (controller dead): '
                 f'free-running in real time with joint damping {self.damping_gain} N m s/rad '
@@ -379,7 +385,8 @@ class SimNode(Node):
     def _on_diagnostics(self) -> None:
         if self.mode == DAMPING:
             level = diagnostics.ERROR
-            message = 'controller dead: damping mode (free-running, robot sits down)'
+            message = (f'controller dead: no joint_torque_cmd (wbc) since '
+                       f't = {self._damping_since:.3f} s, damping mode (robot sits down)')
         elif self.mode == WAITING:
             level, message = diagnostics.OK, 'waiting for the first joint_torque_cmd'
         else:
@@ -387,6 +394,7 @@ class SimNode(Node):
         values = {'mode': self.mode, 'sim_time': self.world.time, 'tick': self.world.tick,
                   'real_time_factor': self._rtf(), 'commands_rejected': self.rejected,
                   'commands_ignored': self.ignored,
+                  'damping_since_s': self._damping_since if self.mode == DAMPING else '',
                   'wall_s_since_command': time.monotonic() - self.last_command_wall}
         self.diag_pub.publish(diagnostics.array(
             ns_to_stamp(self.now_ns), diagnostics.status('sim', level, message, values)))

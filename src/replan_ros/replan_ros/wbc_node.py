@@ -83,6 +83,8 @@ _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead 
 _KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
 _KEEP_STATES = 50        # ticks of inputs kept per topic while waiting for the rest
 _STATE_WAIT = 0.01       # wall s to wait for the imu / ground truth of a joint_states tick
+_LOW_STAND = 0.05        # m: a stand entered with the CoM this far below the last plan's rises
+_STAND_ADOPT_AGE_NS = 500_000_000   # a stand ends only with plans at most 0.5 sim s old
 
 
 class WbcNode(Node):
@@ -104,6 +106,7 @@ class WbcNode(Node):
             touchdown_depth=float(p['touchdown_depth']),
             fallback_kp=float(p['fallback_kp']), fallback_kd=float(p['fallback_kd']))
         self.plan_timeout = float(p['plan_timeout'])
+        self.missed_replans_to_stand = int(p['missed_replans_to_stand'])
         self.first_plan_timeout = float(p['first_plan_timeout'])
         self.plan_max_age = float(p['plan_max_age'])
         self.stale_gap_ns = sec_to_ns(int(p['stale_ticks']) / float(p['control_rate']))
@@ -112,6 +115,8 @@ class WbcNode(Node):
         self.state_estimation = bool(p['state_estimation'])
         self.contact_estimation = bool(p['contact_estimation'])
         period_ns = sec_to_ns(1.0 / float(p['control_rate']))
+        # A stand entered sitting rises this much per tick (m) before plans are adopted.
+        self.rise_step = float(p['stand_up_speed']) * period_ns / _NS
         latency = float(p['plan_latency'])         # within [0, 0.99] s (params.WBC)
         self.latency_ns = math.ceil(sec_to_ns(latency) / period_ns - 1e-9) * period_ns
         self.first_command_waits_for = set(p['first_command_waits_for'])
@@ -119,7 +124,12 @@ class WbcNode(Node):
 
         urdf = p['urdf_path'] or os.environ.get('REPLAN_URDF') or str(
             Path(__file__).resolve().parents[3] / 'urdf' / 'hyq.urdf')
-        self.robot = RobotModel(urdf)
+        try:
+            self.robot = RobotModel(urdf)
+        except Exception as err:   # any load error: without a model there is nothing to control
+            # with; exit non-zero so that the launcher reports it (and respawns, up to a limit)
+            self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')
+            raise SystemExit(1) from None
         self.wbc = WholeBodyController(self.robot, params)
         self.estimator: StateEstimator | None = None
         if self.state_estimation or self.contact_estimation:
@@ -149,6 +159,8 @@ class WbcNode(Node):
         self._plan_stamp: int | None = None       # stamp of the active plan pair
         self._stand: StandHold | None = None
         self._stand_reason = 'no plan yet'
+        self._stand_since = 0.0                   # sim s the current stand began
+        self._rise_to: float | None = None        # CoM height (m) a stand entered low rises to
         self._waiting: int | None = None          # tick (ns) held until its plans arrive
         self._waiting_first = False               # the wait is the first tick's
         self._wait_timer = None
@@ -159,6 +171,10 @@ class WbcNode(Node):
         self._last_result = None
         self._plan_timeouts = 0
         self._period_timeouts = 0
+        # Due re-plans in a row whose plans never came, and what was missing at the last one
+        # (a planner that is gone, not slow: issue 15, "faults while walking").
+        self._missed_replans = 0
+        self._missing = ''
         self._fallbacks = 0
         self._period_fallbacks = 0
         self._ticks = 0
@@ -364,7 +380,10 @@ class WbcNode(Node):
         if not self._started:
             self._started = True
             pairs = [s for s in self._pair_stamps() if s <= stamp]
-            if pairs:
+            if pairs and self._sat_down(stamp):
+                # Started (again) on a robot that sat down in the sim's damping mode.
+                self._enter_stand(stamp, 'started on a robot sitting: standing up first')
+            elif pairs:
                 self._adopt(pairs[-1], stamp)
             else:
                 self._wait(stamp, first=True)
@@ -378,7 +397,14 @@ class WbcNode(Node):
         # While a re-plan is pending its plans are not adopted before their time.
         newer = [s for s in self._pair_stamps()
                  if s <= stamp and (self._plan_stamp is None or s > self._plan_stamp)]
-        if newer and self._pending is None and (self._stand is not None
+        if self._stand is not None:
+            # Leave a stand only for a plan made for about now: one that waited while the sim
+            # ran on (a slow or restarted planner) would start seconds into its schedule.
+            newer = [s for s in newer if stamp - s <= _STAND_ADOPT_AGE_NS]
+        # A robot that sat down (the sim's damping mode) stands up before it walks: a plan
+        # from the low posture asks the MPC for a CoM it cannot keep in the support.
+        rising = self._stand is not None and self._rise_to is not None
+        if newer and self._pending is None and not rising and (self._stand is not None
                                                 or self._follower is not None):
             self._adopt(newer[-1], stamp)
         if self._follower is not None and self._stand is None:
@@ -437,11 +463,30 @@ class WbcNode(Node):
                 f'at t = {stamp / _NS:.3f}: standing')
             self._enter_stand(stamp, 'no plan yet (plan_timeout)')
         else:
+            plan_stamp = self._pending[0] if self._pending is not None else stamp
             self._pending = None
-            self.get_logger().warning(
-                f're-plan due at t = {stamp / _NS:.3f} s: footholds/com_plan not there after '
-                f'{self.plan_timeout} s, going on with the old plans')
+            self._missed_replans += 1
+            self._missing = self._missing_plans(plan_stamp)
+            if self._missed_replans >= self.missed_replans_to_stand:
+                # The feet are all down at a re-plan touchdown: the safest moment to stop.
+                self.get_logger().error(
+                    f're-plan due at t = {stamp / _NS:.3f} s: {self._missing} missing '
+                    f'{self._missed_replans} re-plans in a row (after {self.plan_timeout} s '
+                    'each): a planner is gone')
+                self._enter_stand(stamp, f'no {self._missing} for {self._missed_replans} '
+                                         're-plans')
+            else:
+                self.get_logger().warning(
+                    f're-plan due at t = {stamp / _NS:.3f} s: {self._missing} not there after '
+                    f'{self.plan_timeout} s, going on with the old plans')
         self._answer(stamp)
+
+    def _missing_plans(self, plan_stamp: int) -> str:
+        """Which plans stamped ``plan_stamp`` never came, with the node that sends them."""
+        missing = [f'{topic} ({node})' for topic, node, buffer in
+                   (('footholds', 'gait', self._footholds), ('com_plan', 'mpc', self._com_plans))
+                   if plan_stamp not in buffer]
+        return ' and '.join(missing) or 'footholds/com_plan'
 
     def _adopt(self, plan_stamp: int, stamp: int, announced: bool = False) -> None:
         """Make the pair stamped ``plan_stamp`` active at tick ``stamp`` (``announced``: the
@@ -460,9 +505,18 @@ class WbcNode(Node):
                            'four-feet phase: the first swing of the plan stamped '
                            f'{plan_stamp / _NS:.3f} s starts late')
         self._plan_stamp = plan_stamp
+        self._missed_replans = 0
+        self._missing = ''
         if self._stand is not None:
             self.get_logger().info(f'plans stamped {plan_stamp / _NS:.3f} s: leaving the stand')
         self._stand = None
+
+    def _sat_down(self, stamp: int) -> bool:
+        """The CoM is more than _LOW_STAND below the newest plan's height."""
+        if not self._com_plans:
+            return False
+        com, _ = self.robot.com_state(self._odom[stamp], self._joints[stamp])
+        return com[2] < self._com_plans[max(self._com_plans)].position[0, 2] - _LOW_STAND
 
     def _enter_stand(self, stamp: int, reason: str) -> None:
         base, joints = self._odom[stamp], self._joints[stamp]
@@ -470,6 +524,14 @@ class WbcNode(Node):
         self._stand = StandHold(stamp / _NS, com, yaw_of(base.quaternion), self._contacts[stamp],
                                 self.haptic_velocity)
         self._stand_reason = reason
+        self._stand_since = stamp / _NS
+        self._rise_to = None
+        heights = [self._com_plans[s].position[0, 2] for s in sorted(self._com_plans)[-1:]]
+        if heights and com[2] < heights[0] - _LOW_STAND:
+            self._rise_to = float(heights[0])
+            self.get_logger().warning(
+                f'standing up at t = {stamp / _NS:.3f} s: CoM {com[2]:.3f} m, the last plan\'s '
+                f'{self._rise_to:.3f} m')
         self._follower = None
         self._pending = None
         self.get_logger().warning(f'standing at t = {stamp / _NS:.3f} s: {reason}')
@@ -484,6 +546,11 @@ class WbcNode(Node):
         if self._stand is None and self._follower is None:
             self._enter_stand(stamp, self._stand_reason)
         if self._stand is not None:
+            if self._rise_to is not None:
+                self._stand.com[2] = min(self._stand.com[2] + self.rise_step, self._rise_to)
+                if self._stand.com[2] >= self._rise_to:
+                    self._rise_to = None          # up: the next plan pair may be adopted
+                    self.get_logger().info(f'stood up at t = {t:.3f} s')
             com_ref, yaw, stance, swing = self._stand.references(t, contacts)
             yaw_rate = 0.0
         else:
@@ -522,6 +589,7 @@ class WbcNode(Node):
             values = {
                 'mode': mode,
                 'stand_reason': self._stand_reason if self._stand is not None else '',
+                'stand_since_s': self._stand_since if self._stand is not None else '',
                 'compute_time_ms': times[-1],
                 'compute_time_median_ms': float(np.median(times)),
                 'compute_time_max_ms': float(times.max()),
@@ -536,6 +604,8 @@ class WbcNode(Node):
                 'last_tick': self._last_answered / _NS,
                 'ticks': self._ticks,
                 'plan_timeouts': self._plan_timeouts,
+                'missed_replans': self._missed_replans,
+                'missing_plans': self._missing,
                 'state_estimation': self.state_estimation,
                 'contact_estimation': self.contact_estimation,
                 'plan_latency_s': self.latency_ns / _NS,
@@ -545,8 +615,12 @@ class WbcNode(Node):
             }
             if self._period_fallbacks:
                 level, message = diagnostics.ERROR, f'{self._period_fallbacks} fallback ticks'
+            elif self._stand is not None and self._missed_replans:
+                level, message = diagnostics.ERROR, f'standing: {self._stand_reason}'
             elif self._period_timeouts:
-                level, message = diagnostics.WARN, 'plan timeout: went on with the old plans'
+                level, message = (diagnostics.WARN, f'plan timeout: no '
+                                  f'{self._missing or "footholds/com_plan"} in time, went on '
+                                  'with the old plans')
             elif self._stand is not None:
                 level, message = diagnostics.WARN, f'standing: {self._stand_reason}'
             else:

@@ -32,6 +32,7 @@ import math
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -74,6 +75,8 @@ EXIT_DONE, EXIT_DIED, EXIT_CONFIG, EXIT_WALL_TIME, EXIT_RESPAWN_LIMIT = 0, 1, 2,
 PROGRESS_TTY_PERIOD = 1.0      # s, wall: refresh of the in-place progress line on a terminal
 PROGRESS_PLAIN_PERIOD = 5.0    # s, wall: one progress line per period otherwise (CI logs)
 PROGRESS_RTF_WINDOW = 5.0      # s, wall: window of the recent real-time factor
+LIVE_DEFAULT_PORT = 8765       # Foxglove's default WebSocket port
+LIVE_HOST = '127.0.0.1'        # config/live_view.yaml's host: this machine only (ssh -L)
 
 
 def _executable(name: str) -> str:
@@ -171,9 +174,11 @@ class Graph:
                  profile: str | None = DEFAULT_PROFILE,
                  record_dir: Path | None = None, gui: bool = False, respawn: bool = True,
                  extra_params: dict[str, dict[str, str]] | None = None,
-                 env: dict[str, str] | None = None, log=print) -> None:
+                 env: dict[str, str] | None = None, log=print,
+                 live_port: int | None = None) -> None:
         """ConfigError (nothing started, nothing written) when a parameter file of the run
-        does not pass ``params.check_run``."""
+        does not pass ``params.check_run``. With ``live_port`` the live view
+        (``replan_ros.live_view``, a Foxglove WebSocket on that port) runs with the graph."""
         extra_params = extra_params or {}
         if profile is not None:
             param_files = [profile_file(config_dir, profile), *param_files]
@@ -209,6 +214,19 @@ class Graph:
             for key, value in extra_params.get(name, {}).items():
                 cmd += ['-p', f'{key}:={value}']
             self.nodes.append(ManagedNode(name, cmd, self.log_dir / f'{name}.log', respawn))
+        if live_port is not None:
+            # First, so that viewers see the graph from its start; it publishes nothing the
+            # graph waits for (README, "Watch the robot").
+            cmd = [sys.executable, '-m', 'replan_ros.live_view', '--ros-args',
+                   '-r', '__node:=live_view',
+                   '--params-file', str(config_dir / 'live_view.yaml')]
+            for extra in param_files:
+                cmd += ['--params-file', str(extra)]
+            cmd += ['-p', f'port:={live_port}']
+            for key, value in extra_params.get('live_view', {}).items():
+                cmd += ['-p', f'{key}:={value}']
+            self.nodes.insert(0, ManagedNode('live_view', cmd, self.log_dir / 'live_view.log',
+                                             respawn))
         self.failed: list[str] = []
         self.peak_memory_mb: dict[str, float] = {}     # filled by run_graph before stopping
         self.real_time_factor: float | None = None     # sim s per wall s from the first tick
@@ -639,6 +657,30 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
     return code
 
 
+def add_live_option(parser: argparse.ArgumentParser) -> None:
+    """``--live [PORT]``, shared by launch.sh and scenario.sh."""
+    parser.add_argument('--live', nargs='?', const=LIVE_DEFAULT_PORT, type=int, metavar='PORT',
+                        help='serve the run to Foxglove/Lichtblick: a WebSocket on '
+                             f'{LIVE_HOST}:PORT (default {LIVE_DEFAULT_PORT}); from another '
+                             f'machine: ssh -L {LIVE_DEFAULT_PORT}:localhost:{LIVE_DEFAULT_PORT} '
+                             'HOST')
+
+
+def check_live_port(parser: argparse.ArgumentParser, port: int | None) -> None:
+    """Refuse (usage error, nothing started) a port out of range or already taken: the live
+    view would die at start and stop the graph."""
+    if port is None:
+        return
+    if not 1 <= port <= 65535:
+        parser.error(f'--live {port}: a port is 1..65535')
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((LIVE_HOST, port))
+        except OSError as err:
+            parser.error(f'--live {port}: port not free on {LIVE_HOST} ({err.strerror})')
+
+
 def default_run_dir(root: Path) -> Path:
     return root / 'runs' / datetime.datetime.now().strftime('%Y%m%d-%H%M%S')
 
@@ -664,10 +706,12 @@ def main(argv=None) -> int:
     parser.add_argument('--quiet', action='store_true',
                         help='no progress line (sim time, real-time factor, distance, '
                              're-plans) while the graph runs')
+    add_live_option(parser)
     args = parser.parse_args(argv)
     for path in args.params:
         if not path.is_file():
             parser.error(f'parameter file {path} does not exist')
+    check_live_port(parser, args.live)
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     run_dir = args.run_dir or default_run_dir(root)
     try:
@@ -677,12 +721,15 @@ def main(argv=None) -> int:
     try:
         graph = Graph(run_dir, config_dir=args.config_dir, param_files=args.params,
                       profile=args.profile, record_dir=args.record, gui=args.gui,
-                      respawn=not args.no_respawn)
+                      respawn=not args.no_respawn, live_port=args.live)
     except ConfigError as err:
         print(f'config error: {err}', file=sys.stderr)
         return EXIT_CONFIG
     print(f'[launch] run folder {run_dir} (domain {os.environ.get("ROS_DOMAIN_ID", "0")}), '
           f'profile {args.profile}')
+    if args.live is not None:
+        print(f'[launch] live view: open ws://localhost:{args.live} in Foxglove or Lichtblick '
+              '(layout config/foxglove/replan.json)')
     return run_graph(graph, args.duration,
                      progress=None if args.quiet else ProgressLine())
 

@@ -25,7 +25,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 
-from replan_ros.bag_io import iter_raw, qos_from_yaml, summarize
+from replan_ros.bag_io import check_bag, iter_raw, qos_from_yaml, summarize
 from replan_ros.introspection import message_class
 
 CLOCK_TOPIC = '/clock'
@@ -75,7 +75,11 @@ class ReplayNode(Node):
             try:
                 msg_type = message_class(info.type_name)
             except ValueError as err:
-                self.get_logger().error(f'not replaying {topic}: {err}')
+                # tf2_msgs is not in the installed wheels: /tf lives in bags and in the live
+                # view only (README, "Watch the robot"); a viewer reads it from the bag.
+                log = (self.get_logger().info if info.type_name.startswith('tf2_msgs/')
+                       else self.get_logger().error)
+                log(f'not replaying {topic}: {err}')
                 continue
             self.publishers_by_topic[topic] = self.create_publisher(
                 msg_type, topic, replay_qos(info.offered_qos_profiles))
@@ -181,6 +185,7 @@ def main(args=None):
     opts = parser.parse_args(argv)
     try:
         info = format_info(opts.bag)   # also checks that the bag is readable before init
+        check_bag(opts.bag)            # every chunk: a corrupt one must not end in a traceback
     except (McapError, OSError) as err:
         print(f'replay: cannot read {opts.bag}: {err}\n(if its recorder was killed: '
               f'python -m replan_ros.tools.bag_recover {opts.bag})', file=sys.stderr)

@@ -27,10 +27,12 @@ from pathlib import Path
 
 import numpy as np
 from geometry_msgs.msg import TwistStamped, WrenchStamped
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 
+from replan_ros.bag_io import check_bag
 from replan_ros.interfaces import stamp_to_ns, stamp_to_sec
 from replan_ros.params import ConfigError
 from replan_ros.tools.launch_graph import NODES
@@ -77,6 +79,11 @@ def odom_positions(messages) -> dict[int, np.ndarray]:
 
 def load_run(bag: str | Path) -> RecordedRun:
     """Inputs, configuration and trajectory of a recorded bag."""
+    try:
+        check_bag(bag)          # a truncated or corrupt bag: one line, not a traceback
+    except McapError as err:
+        raise RerunError(f'cannot read {bag}: {err} (if its recorder was killed: '
+                         f'python -m replan_ros.tools.bag_recover {bag})') from None
     run = RecordedRun()
     odom: dict[str, list[Odometry]] = {ODOM_TOPIC: [], LEGACY_ODOM_TOPIC: []}
     with open(bag, 'rb') as stream:

@@ -48,6 +48,8 @@ from replan_ros.tools.launch_graph import (
     Graph,
     ProgressLine,
     ScheduledInputs,
+    add_live_option,
+    check_live_port,
     check_run_files,
     profile_file,
     run_graph,
@@ -224,7 +226,7 @@ def scenario_inputs(scenario: Scenario) -> ScheduledInputs:
 def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                  config_dir: Path | None = None, extra_param_files: list[Path] = (),
                  log=print, progress: ProgressLine | None = None, plots: bool = True,
-                 keep_bag: bool = True) -> dict:
+                 keep_bag: bool = True, live_port: int | None = None) -> dict:
     """Run, then analyse; returns the metrics (also written to out_dir/metrics.json). With
     ``progress``, a progress line is printed while the graph runs (``run_graph``). Without
     ``plots`` no figure is drawn; without ``keep_bag`` the bag is deleted once analysed (the
@@ -242,7 +244,7 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                   param_files=[params_file, *extra_param_files], record_dir=bag_dir,
                   gui=gui, respawn=False,
                   extra_params={'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}},
-                  log=log)
+                  log=log, live_port=live_port)
     inputs = scenario_inputs(scenario)
 
     def publish_events(node) -> list:
@@ -287,7 +289,9 @@ def main(argv=None) -> int:
     parser.add_argument('--quiet', action='store_true',
                         help='no progress line (sim time, real-time factor, distance, '
                              're-plans, events) while the graph runs')
+    add_live_option(parser)
     args = parser.parse_args(argv)
+    check_live_port(parser, args.live)
     config_dir = Path(os.environ.get('REPLAN_CONFIG', 'config'))
     for path in args.params:
         if not path.is_file():
@@ -311,7 +315,8 @@ def main(argv=None) -> int:
     metrics = run_scenario(scenario, out, gui=args.gui, config_dir=config_dir,
                            extra_param_files=args.params,
                            progress=None if args.quiet else ProgressLine(),
-                           plots=not args.no_plots, keep_bag=not args.no_bag)
+                           plots=not args.no_plots, keep_bag=not args.no_bag,
+                           live_port=args.live)
     print(summary(metrics, out))
     return 0 if metrics.get('completed') else 1
 

@@ -1,0 +1,77 @@
+"""Unit tests of replan_core.frames: the link transforms chain up to the feet that the
+controller's free-flyer model computes, and the tree is the URDF's."""
+
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from replan_core.frames import LinkFrames, base_transform, compose
+from replan_core.robot_model import RobotModel
+from replan_core.rotations import quaternion_to_matrix
+from replan_core.types import FOOT_FRAMES, BaseState, JointState
+
+ROOT = Path(__file__).resolve().parents[3]
+URDF = os.environ.get('REPLAN_URDF') or str(ROOT / 'urdf' / 'hyq.urdf')
+STAND_Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
+
+
+@pytest.fixture(scope='module')
+def frames():
+    return LinkFrames(URDF)
+
+
+def test_one_transform_per_urdf_joint_parent_to_child(frames):
+    joints = ET.parse(URDF).getroot().findall('joint')
+    expected = {(j.find('parent').get('link'), j.find('child').get('link')) for j in joints}
+    got = frames.link_transforms(STAND_Q)
+    assert {(t.parent, t.child) for t in got} == expected
+    assert len(got) == len(joints) == 16
+    assert frames.links[0] == 'base_link' and len(set(frames.links)) == 17
+    for t in got:
+        assert abs(np.linalg.norm(t.rotation) - 1.0) < 1e-12
+
+
+def test_chain_to_each_foot_matches_the_free_flyer_model(frames):
+    rng = np.random.default_rng(3)
+    model = RobotModel(URDF)
+    for _ in range(5):
+        quat = rng.normal(size=4)
+        quat /= np.linalg.norm(quat)
+        position = rng.normal(size=3)
+        q = STAND_Q + 0.3 * rng.normal(size=12)
+        expected = model.foot_positions(BaseState(0.0, position, quat, np.zeros(3), np.zeros(3)),
+                                        JointState(0.0, q, np.zeros(12), np.zeros(12)))
+        by_child = {t.child: t for t in frames.link_transforms(q)}
+        for leg, foot in enumerate(FOOT_FRAMES):
+            chain = []
+            link = foot
+            while link in by_child:
+                chain.append(by_child[link])
+                link = by_child[link].parent
+            assert link == 'base_link' and len(chain) == 4
+            current = base_transform(position, quat)
+            translation, rotation = np.asarray(current.translation), quaternion_to_matrix(quat)
+            for step in reversed(chain):
+                translation = translation + rotation @ np.asarray(step.translation)
+                rotation = rotation @ quaternion_to_matrix(np.asarray(step.rotation))
+            np.testing.assert_allclose(translation, expected[leg], atol=1e-9)
+
+
+def test_joint_angle_rotates_only_its_child(frames):
+    q = STAND_Q.copy()
+    before = {t.child: t for t in frames.link_transforms(q)}
+    q[2] += 0.5                                   # lf_kfe_joint
+    after = {t.child: t for t in frames.link_transforms(q)}
+    changed = {c for c in before if not np.allclose(before[c].rotation, after[c].rotation)}
+    assert changed == {'lf_lowerleg'}
+
+
+def test_compose_and_base_transform():
+    a = base_transform((1.0, 0.0, 0.0), (0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)))
+    b = base_transform((1.0, 0.0, 0.0), (0.0, 0.0, 0.0, 2.0), 'base_link', 'x')  # normalised
+    assert b.rotation == (0.0, 0.0, 0.0, 1.0)
+    translation, _ = compose(a, b)
+    np.testing.assert_allclose(translation, [1.0, 1.0, 0.0], atol=1e-12)

@@ -1,0 +1,168 @@
+"""state_view + bag_io: /tf (tf2_msgs, no Python class) and /robot_description written into an
+mcap bag decode with an independent reader (rosbags), and the derived markers and figures
+say what they should. No DDS."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.highlevel import AnyReader
+from std_msgs.msg import Float64
+from visualization_msgs.msg import Marker, MarkerArray
+
+from replan_core.frames import LinkFrames, base_transform
+from replan_core.types import BaseState, ContactState, JointState
+from replan_ros.bag_io import BagWriter, qos_profiles_yaml
+from replan_ros.interfaces import contacts_to_msg, joint_state_to_msg, odom_from_base_state
+from replan_ros.qos import LATCHED
+from replan_ros.state_view import (
+    COP_MARGIN_TOPIC,
+    DERIVED_TOPICS,
+    FORCES_TOPIC,
+    TF_TOPIC,
+    TF_TYPE,
+    VELOCITY_ERROR_TOPIC,
+    StateView,
+    default_urdf_path,
+    definition,
+    encode_tf,
+)
+
+STAND_Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
+DT = 0.004
+
+
+@pytest.fixture(scope='module')
+def view():
+    return StateView(period=0.02)
+
+
+def state(t: float, x: float = 0.1) -> tuple[bytes, bytes]:
+    joints = JointState(t, STAND_Q + 0.01 * t, np.zeros(12), np.zeros(12))
+    base = BaseState(t, np.array([x + 0.1 * t, -0.05, 0.6]),
+                     np.array([0.0, 0.0, np.sin(0.1), np.cos(0.1)]), np.zeros(3), np.zeros(3))
+    return (bytes(serialize_message(joint_state_to_msg(joints))),
+            bytes(serialize_message(odom_from_base_state(base))))
+
+
+def test_tf_pairs_odom_and_joints_by_stamp_in_any_order_once_per_period():
+    view = StateView(period=0.02)
+    out = []
+    for k in range(50):                         # 0.2 s of ticks
+        joints, odom = state(k * DT)
+        first, second = (('/odom', odom), ('/joint_states', joints)) if k % 2 else (
+            ('/joint_states', joints), ('/odom', odom))
+        out += view.feed(*first) + view.feed(*second)
+    tf = [d for d in out if d.topic == TF_TOPIC]
+    assert [d.stamp_ns for d in tf] == [round(k * DT * 1e9) for k in range(0, 50, 5)]
+    assert len([d for d in out if d.topic == VELOCITY_ERROR_TOPIC]) == len(tf)
+    # Only one of the two: nothing to pair.
+    lonely = StateView(period=0.02)
+    assert lonely.feed('/odom', state(0.0)[1]) == []
+
+
+def test_bag_tf_and_description_decode_with_rosbags(tmp_path, view):
+    path = tmp_path / 'view.mcap'
+    writer = BagWriter(path)
+    items = [view.description()]
+    for k in range(25):
+        joints, odom = state(1.0 + k * DT)
+        items += view.feed('/joint_states', joints) + view.feed('/odom', odom)
+    channels = {}
+    for item in items:
+        if item.topic not in channels:
+            channels[item.topic] = writer.add_channel(
+                item.topic, item.type_name, qos_profiles_yaml([LATCHED]),
+                definition=definition(item.type_name))
+        writer.write(channels[item.topic], item.data, item.stamp_ns, item.stamp_ns)
+    writer.close()
+
+    with AnyReader([Path(path)]) as reader:
+        by_topic = {c.topic: c for c in reader.connections}
+        assert by_topic['/tf'].msgtype == 'tf2_msgs/msg/TFMessage'
+        (description,) = [reader.deserialize(raw, c.msgtype) for c, _t, raw in
+                          reader.messages(connections=[by_topic['/robot_description']])]
+        assert description.data == Path(default_urdf_path()).read_text()
+        messages = [reader.deserialize(raw, c.msgtype) for c, _t, raw in
+                    reader.messages(connections=[by_topic['/tf']])]
+    assert len(messages) == 5
+    msg = messages[-1]
+    base = msg.transforms[0]
+    assert (base.header.frame_id, base.child_frame_id) == ('odom', 'base_link')
+    t = 1.0 + 20 * DT
+    assert base.header.stamp.sec == 1 and abs(base.header.stamp.nanosec - 80_000_000) < 2
+    np.testing.assert_allclose([base.transform.translation.x, base.transform.rotation.z],
+                               [0.1 + 0.1 * t, np.sin(0.1)], atol=1e-12)
+    expected = LinkFrames(default_urdf_path()).link_transforms(STAND_Q + 0.01 * t)
+    assert [(m.header.frame_id, m.child_frame_id) for m in msg.transforms[1:]] == [
+        (e.parent, e.child) for e in expected]
+    for got, want in zip(msg.transforms[1:], expected, strict=True):
+        np.testing.assert_allclose([got.transform.translation.x, got.transform.translation.y,
+                                    got.transform.translation.z], want.translation, atol=1e-12)
+
+
+def test_force_markers_cop_and_polygon(view):
+    feet = np.array([[0.4, 0.3, 0.0], [0.4, -0.3, 0.0], [-0.4, 0.3, 0.0], [-0.4, -0.3, 0.0]])
+    forces = np.array([[0.0, 0.0, 300.0], [0.0, 0.0, 300.0], [0.0, 0.0, 300.0],
+                       [0.0, 0.0, 0.0]])                     # rh in swing
+    contacts = ContactState(3.0, feet, forces, np.array([1, 1, 1, 0], bool),
+                            np.zeros(4, bool), np.zeros(4, bool))
+    out = {d.topic: d for d in view.feed('/ground_truth/contacts',
+                                         bytes(serialize_message(contacts_to_msg(contacts))))}
+    markers = deserialize_message(out[FORCES_TOPIC].data, MarkerArray).markers
+    assert markers[0].action == Marker.DELETEALL
+    arrows = [m for m in markers if m.type == Marker.ARROW and m.action == Marker.ADD]
+    assert sorted(m.id for m in arrows) == [0, 1, 2]
+    assert arrows[0].points[1].z == pytest.approx(300.0 * view.force_scale)
+    (polygon,) = [m for m in markers if m.type == Marker.LINE_STRIP]
+    assert len(polygon.points) == 4 and polygon.points[0] == polygon.points[-1]   # closed
+    (cop,) = [m for m in markers if m.type == Marker.SPHERE]
+    assert (cop.pose.position.x, cop.pose.position.y) == pytest.approx((0.4 / 3, 0.1))
+    margin = deserialize_message(out[COP_MARGIN_TOPIC].data, Float64).data
+    # The nearest edge of the triangle lf, rf, lh is rf-lh (0.6 x + 0.8 y = 0): 0.16 m.
+    assert margin == pytest.approx(0.6 * 0.4 / 3 + 0.8 * 0.1)
+    assert cop.color.g > cop.color.r                       # inside: green
+
+
+def test_malformed_input_is_skipped(view):
+    assert view.feed('/ground_truth/contacts', b'\x00\x01\x00\x00garbage') == []
+    assert view.feed('/diagnostics', b'') == []
+
+
+def test_shipped_layout_names_only_topics_that_exist():
+    layout = json.loads((Path(__file__).resolve().parents[3] / 'config' / 'foxglove'
+                         / 'replan.json').read_text())
+    graph = {'/odom', '/velocity_setpoint', '/gait_markers', '/com_path', '/zmp_plan',
+             '/contacts', '/footholds', '/diagnostics', '/cmd_vel'}
+    known = graph | set(DERIVED_TOPICS)
+    panels = layout['configById']
+    used = set(panels['3D!robot']['topics'])
+    for name, config in panels.items():
+        if name.startswith('Plot!'):
+            used |= {re.match(r'(/[\w/]+)\.', p['value']).group(1) for p in config['paths']}
+    used |= {panels['Teleop!teleop']['topic'], panels['DiagnosticSummary!diag']['topicToRender']}
+    assert used <= known, used - known
+    assert {'/robot_description', '/view/contact_forces', '/view/cop_margin',
+            '/view/mpc_solve_time_ms'} <= used
+
+
+def test_tf_encoder_writes_the_bytes_of_the_generic_encoder(view):
+    from mcap_ros2._dynamic import serialize_dynamic
+
+    generic = serialize_dynamic(TF_TYPE, definition(TF_TYPE))[TF_TYPE]
+    transforms = [base_transform((1.0, -2.0, 0.5), (0.0, 0.0, 0.6, 0.8), 'odom', 'base_link'),
+                  *view.frames.link_transforms(STAND_Q)]
+    stamp = 12_345_678_901
+    expected = generic({'transforms': [{
+        'header': {'stamp': {'sec': 12, 'nanosec': 345_678_901}, 'frame_id': t.parent},
+        'child_frame_id': t.child,
+        'transform': {'translation': dict(zip('xyz', t.translation, strict=True)),
+                      'rotation': dict(zip('xyzw', t.rotation, strict=True))}}
+        for t in transforms]})
+    assert encode_tf(stamp, transforms) == bytes(expected)
+    assert encode_tf(0, []) == bytes(generic({'transforms': []}))
