@@ -28,8 +28,8 @@ def test_variant_changes_only_what_it_is_asked_to():
                   params={'gait': {'replan_window': 2}},
                   terrain={'type': 'rough', 'rough_amplitude': 0.04},
                   push=(5.0, (0.0, 120.0, 0.0), 0.25))
-    assert doc['params'] == {'gait': {'replan_window': 2}, 'sim': {'noise_seed': 3}}
-    assert doc['terrain'] == {'type': 'rough', 'rough_amplitude': 0.04, 'seed': 3}
+    assert doc['params'] == {'gait': {'replan_window': 2}, 'sim': {'noise_seed': 3, 'seed': 3}}
+    assert doc['terrain'] == {'type': 'rough', 'rough_amplitude': 0.04}
     assert doc['events'][0] == {'t': 0.5, 'cmd_vel': [0.15, 0.0, 0.0]}
     assert doc['events'][1] == {'t': 5.0, 'push': {'force': [0.0, 120.0, 0.0],
                                                    'duration': 0.25}}
@@ -124,3 +124,33 @@ def test_page_from_results(tmp_path):
     assert '`x: exit 1`' in text
     assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
     assert (tmp_path / 'results_plots' / 'haptic_pitch.png').is_file()
+
+
+class RecordingRunner:
+    """Collects the scenario documents an experiment plan makes (every run survives)."""
+
+    def __init__(self) -> None:
+        self.config_dir = CONFIG
+        self.docs: list[dict] = []
+
+    def scenario(self, name: str) -> dict:
+        return yaml.safe_load((CONFIG / 'scenarios' / f'{name}.yaml').read_text())
+
+    def run(self, doc: dict) -> RunResult:
+        self.docs.append(doc)
+        return RunResult('k', doc, {'sim_time_s': doc['duration'], 'fell': False,
+                                    'pushes': [{}]}, Path())
+
+
+@pytest.mark.parametrize('quick', [False, True])
+def test_every_run_of_the_plan_passes_the_scenario_checks(quick):
+    """The runs are checked like any scenario before they start: a setting the nodes refuse
+    (a misnamed terrain key, say) must fail here, not an hour into a full run."""
+    from replan_ros.tools.experiments import run_all
+    from replan_ros.tools.scenario import check_scenario, parse_scenario
+    plan, selected = load_plan(CONFIG / 'experiments.yaml', quick, [])
+    runner = RecordingRunner()
+    run_all(plan, [n for n in selected if n != 'qp_timing'], runner)
+    assert len(runner.docs) >= (3 if quick else 100)
+    for doc in {run_key(d): d for d in runner.docs}.values():
+        check_scenario(parse_scenario(yaml.safe_dump(doc), doc['name']), CONFIG)

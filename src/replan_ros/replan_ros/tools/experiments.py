@@ -236,7 +236,7 @@ def variant(base: dict, *, name: str | None = None, params: dict | None = None,
     if terrain is not None:
         doc['terrain'] = dict(terrain)
         if terrain.get('type') == 'rough' and seed is not None:
-            doc['terrain']['seed'] = int(seed)
+            merged.setdefault('sim', {})['seed'] = int(seed)       # the heightfield's seed
     if merged:
         doc['params'] = merged
     events = list(doc.get('events') or [])
