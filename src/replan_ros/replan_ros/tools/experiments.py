@@ -485,7 +485,9 @@ def qp_timing(ctx: Context, cfg: dict) -> dict:
     return out
 
 
-def fastest_crawl(ctx: Context, cfg: dict) -> list[dict]:
+def fastest_crawl(ctx: Context, cfg: dict) -> dict:
+    """Set-points tried in turn up to the first fall, and the speed bound of the gait's step
+    length clamp: max_step_length_x per crawl cycle (each leg steps once per cycle)."""
     runner = ctx.runner
     base = runner.scenario(cfg['scenario'])
     clamp = float(cfg['velocity_clamp'])
@@ -496,7 +498,16 @@ def fastest_crawl(ctx: Context, cfg: dict) -> list[dict]:
         rows.append(_summary(runner.run(doc), setpoint=v))
         if rows[-1]['fell'] or not rows[-1]['ok']:
             break
-    return rows
+    bound = None
+    try:
+        gait = yaml.safe_load((runner.config_dir / 'gait.yaml').read_text())
+        g = gait['gait']['ros__parameters']
+        cycle = 4.0 * (float(g['swing_duration']) + float(g['four_feet_duration']))
+        bound = {'max_step_length_x_m': float(g['max_step_length_x']), 'cycle_s': cycle,
+                 'speed_mps': float(g['max_step_length_x']) / cycle}
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
+        pass
+    return {'runs': rows, 'step_length_bound': bound}
 
 
 def ideal_world(ctx: Context, cfg: dict, plan: dict) -> dict:
@@ -579,7 +590,26 @@ def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
     names = [n for n in makers if n in selected]
     for name, value in zip(names, _parallel([makers[n] for n in names]), strict=True):
         results[name] = value
+    results['settings'] = node_settings(runner.config_dir)
     return results
+
+
+def node_settings(config_dir: Path) -> dict:
+    """The few node parameters the page's explanations quote, from the node files (the
+    realistic profile does not change them)."""
+    out: dict = {}
+    try:
+        gait = yaml.safe_load((config_dir / 'gait.yaml').read_text())['gait']['ros__parameters']
+        wbc = yaml.safe_load((config_dir / 'wbc.yaml').read_text())['wbc']['ros__parameters']
+        out['max_extension_s'] = float(gait['max_extension'])
+        out['correction_threshold_m'] = float(gait['correction_threshold'])
+        out['touchdown_depth_m'] = float(wbc['touchdown_depth'])
+        out['haptic_velocity_mps'] = float(wbc['haptic_velocity'])
+        out['haptic_search_m'] = (out['touchdown_depth_m']
+                                  + out['haptic_velocity_mps'] * out['max_extension_s'])
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
+        pass
+    return out
 
 
 def machine_description() -> str:

@@ -666,6 +666,20 @@ def add_live_option(parser: argparse.ArgumentParser) -> None:
                              'HOST')
 
 
+def live_argv(argv: list[str] | None) -> list[str]:
+    """``argv`` with a bare ``--live`` that is followed by something other than a port given
+    its default port, so that ``scenario.sh --live FILE`` does not take FILE for the port
+    (argparse's optional value would)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    out = []
+    for i, arg in enumerate(args):
+        following = args[i + 1] if i + 1 < len(args) else None
+        if arg == '--live' and following is not None and not following.isdigit():
+            arg = f'--live={LIVE_DEFAULT_PORT}'
+        out.append(arg)
+    return out
+
+
 def check_live_port(parser: argparse.ArgumentParser, port: int | None) -> None:
     """Refuse (usage error, nothing started) a port out of range or already taken: the live
     view would die at start and stop the graph."""
@@ -707,7 +721,7 @@ def main(argv=None) -> int:
                         help='no progress line (sim time, real-time factor, distance, '
                              're-plans) while the graph runs')
     add_live_option(parser)
-    args = parser.parse_args(argv)
+    args = parser.parse_args(live_argv(argv))
     for path in args.params:
         if not path.is_file():
             parser.error(f'parameter file {path} does not exist')

@@ -51,6 +51,7 @@ from replan_ros.tools.launch_graph import (
     add_live_option,
     check_live_port,
     check_run_files,
+    live_argv,
     profile_file,
     run_graph,
 )
@@ -290,7 +291,7 @@ def main(argv=None) -> int:
                         help='no progress line (sim time, real-time factor, distance, '
                              're-plans, events) while the graph runs')
     add_live_option(parser)
-    args = parser.parse_args(argv)
+    args = parser.parse_args(live_argv(argv))
     check_live_port(parser, args.live)
     config_dir = Path(os.environ.get('REPLAN_CONFIG', 'config'))
     for path in args.params:
