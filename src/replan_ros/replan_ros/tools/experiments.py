@@ -702,6 +702,10 @@ def main(argv=None) -> int:
             'revision': git_revision(root), 'date': time.strftime('%Y-%m-%d %H:%M UTC',
                                                                   time.gmtime()),
             'wall_time_min': round(wall / 60.0, 1), 'runs': made,
+            'reused': progress.reused,
+            'run_time_min': round(sum(
+                r.metrics.get('wall_time_total_s') or 0.0 for r in runner.results.values()
+                if isinstance(r, RunResult)) / 60.0, 1),
             'quick': args.quick, 'failures': runner.failures, 'plan_file': str(plan_file)}
     (out / 'results.json').write_text(json.dumps({'meta': meta, 'results': results},
                                                  indent=1, default=str))
