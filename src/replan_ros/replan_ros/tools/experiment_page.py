@@ -360,7 +360,7 @@ def _haptic(page: Page, rows: list[dict], _all, world: str = 'realistic') -> Non
              'ends at the planned time; everything else is the same (both aim 1.5 cm below the '
              'foothold). Pitch peak: the peak-to-peak pitch in [-0.1, +0.3] s around each '
              'touchdown; timing: |actual - planned touchdown|. Crossed: no fall and the base '
-             '0.5 m past the feature.', '']
+             '0.5 m past the feature before the run ends.', '']
     for terrain in dict.fromkeys(r['terrain'] for r in sel):
         on = [r for r in sel if r['terrain'] == terrain and r['haptic']]
         off = [r for r in sel if r['terrain'] == terrain and not r['haptic']]

@@ -423,7 +423,8 @@ def haptic(ctx: Context, cfg: dict, world: str = 'realistic',
             for seed in cfg['seeds']:
                 def make(terrain_name=terrain_name, terrain=terrain, mode=mode, seed=seed):
                     doc = variant(base, world=world, seed=seed, terrain=terrain,
-                                  duration=cfg.get('duration'),
+                                  duration=(cfg.get('durations') or {}).get(
+                                      terrain_name, cfg.get('duration')),
                                   params=None if mode else {'gait': {'haptic': False}})
                     result = runner.run(doc)
                     crossed = None

@@ -195,8 +195,11 @@ def _add_response_metrics(metrics: dict, data, times, pos, rpy, segments, scenar
             continue
         contacts.setdefault(state.stamp, state)
     stamps = np.array(sorted(contacts))
-    touchdown_times = np.array([t for t in stamps for _ in np.flatnonzero(
-        contacts[t].touchdown)])
+    # Steps, not contact edges: a stance foot whose load flickers around the threshold has
+    # edges too, so the touchdowns counted are those of executed steps (metrics.executed_steps).
+    edges = [(float(t), int(leg)) for t in stamps for leg in np.flatnonzero(contacts[t].touchdown)]
+    touchdown_times = np.array([actual for _, _, _, actual in
+                                executed_steps(edges, planned_steps(data)) if actual is not None])
     by_start = {round(s.start, 6): (i, s) for i, s in enumerate(segments)}
 
     def steps_within(start: float, seconds: float | None) -> int | None:
