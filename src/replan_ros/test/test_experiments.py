@@ -92,6 +92,12 @@ def test_shipped_plan_loads_and_rejects_unknown_names(tmp_path):
     bad.write_text('full: {replan_windows: {}}\n')
     with pytest.raises(ExperimentError, match='unknown experiments'):
         load_plan(bad, False, [])
+    bad.write_text('full: {haptic: {seeds: [0], durration: 9.0}}\n')
+    with pytest.raises(ExperimentError, match=r"full.haptic: unknown keys \['durration'\]"):
+        load_plan(bad, False, [])
+    bad.write_text('full: {ideal_world: {haptic: {terains: [flat]}}}\n')
+    with pytest.raises(ExperimentError, match=r"full.ideal_world.haptic: unknown keys"):
+        load_plan(bad, False, [])
 
 
 def _row(**kw):

@@ -293,7 +293,7 @@ def _plot_push(plt, table: dict):
         x = np.arange(len(phases)) + i * width
         ax.bar(x, [p['survived_ns'] for p in phases], width, label=name.replace('_', ' '))
     ax.axhline(30.0, color='tab:red', lw=0.8, label='target 30 N s')
-    ax.set_xlabel('push phase (eighths of the crawl cycle)')
+    ax.set_xlabel(f'push phase (1/{len(next(iter(table.values()), []))} of the crawl cycle)')
     ax.set_ylabel('largest impulse survived [N s]')
     ax.legend(fontsize=7)
     return fig

@@ -29,7 +29,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -37,9 +37,21 @@ import yaml
 
 from replan_ros.tools.experiment_page import write_page
 
-EXPERIMENTS = ('velocity_changes', 'lateral_push', 'replan_window', 'haptic', 'velocity_term',
-               'qp_timing', 'fastest_crawl', 'ideal_world')
 DEFAULT_DOMAIN_BASE = 150      # the node tests reserve 2..101 (test/harness.py)
+# The keys each experiment reads: a misspelt one in the plan file is an error, not a default.
+PLAN_KEYS = {
+    'velocity_changes': {'scenarios', 'seeds', 'prompt_steps', 'duration'},
+    'lateral_push': {'scenario', 'phases', 'first_push', 'after_push', 'push_duration',
+                     'direction', 'first_impulse', 'max_impulse', 'probes', 'seed', 'settings',
+                     'duration'},
+    'replan_window': {'scenario', 'windows', 'seeds', 'setpoints', 'duration'},
+    'haptic': {'scenario', 'seeds', 'duration', 'durations', 'terrains'},
+    'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration'},
+    'qp_timing': {'replans', 'formulations'},
+    'fastest_crawl': {'scenario', 'setpoints', 'velocity_clamp', 'seed'},
+    'ideal_world': {'replan_window', 'haptic', 'velocity_changes'},
+}
+EXPERIMENTS = tuple(PLAN_KEYS)
 
 
 class ExperimentError(ValueError):
@@ -76,8 +88,8 @@ class Progress:
     """One line: runs done, running, left (an upper bound where a bisection may stop early)
     and the time to go at the pace so far."""
 
-    def __init__(self, total: int, jobs: int, stream=sys.stdout, quiet: bool = False) -> None:
-        self.total, self.jobs, self.stream, self.quiet = total, jobs, stream, quiet
+    def __init__(self, total: int, stream=sys.stdout, quiet: bool = False) -> None:
+        self.total, self.stream, self.quiet = total, stream, quiet
         self.done = self.running = self.reused = 0
         self.start = time.monotonic()
         self.lock = threading.Lock()
@@ -111,11 +123,11 @@ class Runner:
 
     def __init__(self, out_dir: Path, config_dir: Path, *, jobs: int = 1,
                  domain_base: int = DEFAULT_DOMAIN_BASE, fresh: bool = False,
-                 progress: Progress | None = None, log=print,
+                 progress: Progress | None = None,
                  lock_file: Path | None = None) -> None:
         self.out_dir, self.config_dir = out_dir, config_dir
         self.lock_file = lock_file
-        self.fresh, self.progress, self.log = fresh, progress, log
+        self.fresh, self.progress = fresh, progress
         self.slots = [domain_base + i for i in range(jobs)]
         self.free = threading.Condition()
         self.results: dict[str, RunResult | threading.Event] = {}
@@ -217,7 +229,7 @@ class Runner:
 # -- scenario documents ----------------------------------------------------------------------
 
 
-def variant(base: dict, *, name: str | None = None, params: dict | None = None,
+def variant(base: dict, *, params: dict | None = None,
             world: str = 'realistic', seed: int | None = None, terrain: dict | None = None,
             setpoint: tuple[float, float, float] | None = None, duration: float | None = None,
             push: tuple[float, tuple[float, float, float], float] | None = None) -> dict:
@@ -225,8 +237,6 @@ def variant(base: dict, *, name: str | None = None, params: dict | None = None,
     node), the world profile, the seed (sim ``noise_seed``; the terrain seed too), the terrain,
     the first set-point, the duration and one push (t, force, duration)."""
     doc = json.loads(json.dumps(base))
-    if name:
-        doc['name'] = name
     doc['profile'] = world
     merged: dict = doc.get('params') or {}
     for node, values in (params or {}).items():
@@ -260,8 +270,7 @@ def variant(base: dict, *, name: str | None = None, params: dict | None = None,
 @dataclass
 class Context:
     runner: Runner
-    plan: dict
-    results: dict = field(default_factory=dict)    # experiment -> its data for the page
+    settings: dict          # node_settings(): the node parameters the experiments derive from
 
 
 def _parallel(jobs: list[Callable[[], object]]) -> list:
@@ -366,7 +375,8 @@ def bisect_impulse(runner: Runner, base: dict, cfg: dict, setting: dict, push_ti
 def lateral_push(ctx: Context, cfg: dict) -> dict:
     base = ctx.runner.scenario(cfg['scenario'])
     phases = int(cfg['phases'])
-    times = [cfg['first_push'] + cfg['cycle'] * k / phases for k in range(phases)]
+    cycle = ctx.settings['crawl_cycle_s']
+    times = [cfg['first_push'] + cycle * k / phases for k in range(phases)]
     jobs, keys = [], []
     for name, setting in cfg['settings'].items():
         for k, t in enumerate(times):
@@ -377,7 +387,8 @@ def lateral_push(ctx: Context, cfg: dict) -> dict:
     for (name, k, t), outcome in zip(keys, outcomes, strict=True):
         table[name].append({'phase': k, 'phase_fraction': k / phases, 'push_time_s': t,
                             **outcome})
-    return {'settings': table, 'config': cfg, 'robot_mass_kg': _robot_mass(ctx.runner)}
+    return {'settings': table, 'config': {**cfg, 'cycle': cycle},
+            'robot_mass_kg': _robot_mass(ctx.runner)}
 
 
 def _robot_mass(runner: Runner) -> float | None:
@@ -499,16 +510,9 @@ def fastest_crawl(ctx: Context, cfg: dict) -> dict:
         rows.append(_summary(runner.run(doc), setpoint=v))
         if rows[-1]['fell'] or not rows[-1]['ok']:
             break
-    bound = None
-    try:
-        gait = yaml.safe_load((runner.config_dir / 'gait.yaml').read_text())
-        g = gait['gait']['ros__parameters']
-        cycle = 4.0 * (float(g['swing_duration']) + float(g['four_feet_duration']))
-        bound = {'max_step_length_x_m': float(g['max_step_length_x']), 'cycle_s': cycle,
-                 'speed_mps': float(g['max_step_length_x']) / cycle}
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
-        pass
-    return {'runs': rows, 'step_length_bound': bound}
+    step, cycle = ctx.settings['max_step_length_x_m'], ctx.settings['crawl_cycle_s']
+    return {'runs': rows, 'step_length_bound': {'max_step_length_x_m': step, 'cycle_s': cycle,
+                                                'speed_mps': step / cycle}}
 
 
 def ideal_world(ctx: Context, cfg: dict, plan: dict) -> dict:
@@ -566,6 +570,16 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
     if unknown:
         raise ExperimentError(f'{path}: {section}: unknown experiments {sorted(unknown)} '
                               f'(known: {", ".join(EXPERIMENTS)})')
+    entries = [(name, cfg) for name, cfg in plan.items()]
+    entries += [(f'ideal_world.{k}', v) for k, v in (plan.get('ideal_world') or {}).items()]
+    for where, entry in entries:
+        keys = PLAN_KEYS.get(where.split('.')[-1], set())   # ideal_world: the realistic keys
+        if not isinstance(entry, dict):
+            raise ExperimentError(f'{path}: {section}.{where} must be a mapping')
+        unknown = set(entry) - keys
+        if unknown:
+            raise ExperimentError(f'{path}: {section}.{where}: unknown keys {sorted(unknown)} '
+                                  f'(known: {", ".join(sorted(keys))})')
     bad = set(only) - set(plan)
     if bad:
         raise ExperimentError(f'--only: {sorted(bad)} not in the {section} plan '
@@ -575,7 +589,8 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
 
 def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
     """The ``selected`` experiments of ``plan``; returns their data for the page."""
-    ctx = Context(runner, plan)
+    settings = node_settings(runner.config_dir)        # ExperimentError: nothing run
+    ctx = Context(runner, settings)
     results: dict = {}
     if 'qp_timing' in selected:       # before any graph loads the cores
         results['qp_timing'] = qp_timing(ctx, plan['qp_timing'])
@@ -591,25 +606,29 @@ def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
     names = [n for n in makers if n in selected]
     for name, value in zip(names, _parallel([makers[n] for n in names]), strict=True):
         results[name] = value
-    results['settings'] = node_settings(runner.config_dir)
+    results['settings'] = settings
     return results
 
 
 def node_settings(config_dir: Path) -> dict:
-    """The few node parameters the page's explanations quote, from the node files (the
-    realistic profile does not change them)."""
-    out: dict = {}
+    """The node parameters the experiments derive from (the push phases from the crawl cycle)
+    and the page's explanations quote, from the node files (the realistic profile does not
+    change them); ExperimentError if a file or key is missing."""
     try:
         gait = yaml.safe_load((config_dir / 'gait.yaml').read_text())['gait']['ros__parameters']
         wbc = yaml.safe_load((config_dir / 'wbc.yaml').read_text())['wbc']['ros__parameters']
-        out['max_extension_s'] = float(gait['max_extension'])
-        out['correction_threshold_m'] = float(gait['correction_threshold'])
-        out['touchdown_depth_m'] = float(wbc['touchdown_depth'])
-        out['haptic_velocity_mps'] = float(wbc['haptic_velocity'])
-        out['haptic_search_m'] = (out['touchdown_depth_m']
-                                  + out['haptic_velocity_mps'] * out['max_extension_s'])
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
-        pass
+        out = {'crawl_cycle_s': 4.0 * (float(gait['swing_duration'])
+                                       + float(gait['four_feet_duration'])),
+               'max_step_length_x_m': float(gait['max_step_length_x']),
+               'max_extension_s': float(gait['max_extension']),
+               'correction_threshold_m': float(gait['correction_threshold']),
+               'touchdown_depth_m': float(wbc['touchdown_depth']),
+               'haptic_velocity_mps': float(wbc['haptic_velocity'])}
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
+        raise ExperimentError(f'cannot read the gait and wbc settings in {config_dir}: '
+                              f'{err!r}') from err
+    out['haptic_search_m'] = (out['touchdown_depth_m']
+                              + out['haptic_velocity_mps'] * out['max_extension_s'])
     return out
 
 
@@ -684,7 +703,7 @@ def main(argv=None) -> int:
     total = planned_runs(plan, selected)
     print(f'[experiments] {", ".join(selected)}: up to {total} runs, {args.jobs} at a time, '
           f'in {out}; page {page}')
-    progress = Progress(total, args.jobs, quiet=args.quiet)
+    progress = Progress(total, quiet=args.quiet)
     runner = Runner(out, config_dir, jobs=args.jobs, domain_base=args.domain_base,
                     fresh=args.fresh, progress=progress, lock_file=args.lock)
     started = time.monotonic()

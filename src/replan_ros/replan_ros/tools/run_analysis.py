@@ -168,9 +168,11 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
         read_errors=[e for _, e in data.get('_errors', [])])
     estimate = (_estimate_against_truth(data, odom) if truth_topic == TRUTH_TOPIC else None)
     metrics['estimator'] = estimate[0] if estimate else None
-    balance = _measured_balance(data, times, rpy, estimate[1] if estimate else None)
+    contacts = _true_contacts(data)
+    balance = _measured_balance(data, contacts, times, rpy, estimate[1] if estimate else None)
     metrics.update(balance[0])
-    _add_response_metrics(metrics, data, times, pos, rpy, segments, scenario)
+    _add_response_metrics(metrics, contacts, balance[1].get('touchdowns', np.zeros(0)), times,
+                          pos, rpy, segments)
     _add_push_velocity(metrics, times, np.array([b.linear_velocity for b in odom]))
     if not plots:
         return metrics
@@ -183,10 +185,8 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     return metrics
 
 
-def _add_response_metrics(metrics: dict, data, times, pos, rpy, segments, scenario) -> None:
-    """Per set-point segment, the time and the touchdowns until the velocity is within 10 % of
-    the set-point (``settle_time_s``, ``settle_steps``); per push, the least support-triangle
-    inradius over the 3 steps after it (``support_inradius_min_m``), from the truth."""
+def _true_contacts(data) -> dict:
+    """The simulator's contact states by stamp (/ground_truth/contacts, one per stamp)."""
     contacts = {}
     for _, msg in data.get('/ground_truth/contacts', []):
         try:
@@ -194,12 +194,17 @@ def _add_response_metrics(metrics: dict, data, times, pos, rpy, segments, scenar
         except ValueError:
             continue
         contacts.setdefault(state.stamp, state)
+    return contacts
+
+
+def _add_response_metrics(metrics: dict, contacts: dict, touchdown_times: np.ndarray, times,
+                          pos, rpy, segments) -> None:
+    """Per set-point segment, the time and the touchdowns until the velocity is within 10 % of
+    the set-point (``settle_time_s``, ``settle_steps``; rise likewise); per push, the least
+    support-triangle inradius over the 3 steps after and before it, from the truth.
+    ``touchdown_times``: the actual touchdowns of executed steps (not contact edges: a stance
+    foot whose load flickers around the threshold has edges too)."""
     stamps = np.array(sorted(contacts))
-    # Steps, not contact edges: a stance foot whose load flickers around the threshold has
-    # edges too, so the touchdowns counted are those of executed steps (metrics.executed_steps).
-    edges = [(float(t), int(leg)) for t in stamps for leg in np.flatnonzero(contacts[t].touchdown)]
-    touchdown_times = np.array([actual for _, _, _, actual in
-                                executed_steps(edges, planned_steps(data)) if actual is not None])
     by_start = {round(s.start, 6): (i, s) for i, s in enumerate(segments)}
 
     def steps_within(start: float, seconds: float | None) -> int | None:
@@ -278,19 +283,14 @@ def _estimate_against_truth(data, truth: list) -> tuple[dict, dict] | None:
     return errors, {'times': times, 'estimated': est, 'true': true}
 
 
-def _measured_balance(data, times: np.ndarray, rpy: np.ndarray,
+def _measured_balance(data, contacts: dict, times: np.ndarray, rpy: np.ndarray,
                       estimate: dict | None) -> tuple[dict, dict]:
     """Measured CoP margin (true forces, feet in contact), the CoP's deviation from the planned
     ZMP, touchdown timing and the attitude excursions around touchdowns, from
     /ground_truth/contacts, /zmp_plan and /footholds. ``estimate``: the estimated and true base
-    series; the plans live in the estimated frame and are moved by the estimation error."""
-    contacts = {}
-    for _, msg in data.get('/ground_truth/contacts', []):
-        try:
-            state = contacts_from_msg(msg)
-        except ValueError:
-            continue
-        contacts.setdefault(state.stamp, state)
+    series; the plans live in the estimated frame and are moved by the estimation error.
+    ``contacts``: ``_true_contacts(data)``. The second dict holds the series to plot and the
+    actual touchdown times of the executed steps (``touchdowns``)."""
     if not contacts:
         return {}, {}
     stamps = np.array(sorted(contacts))
@@ -336,7 +336,7 @@ def _measured_balance(data, times: np.ndarray, rpy: np.ndarray,
         'touchdown_roll_peak_deg': _peak_stats(roll_peaks),
         'touchdown_pitch_peak_deg': _peak_stats(pitch_peaks),
     }
-    return out, {'times': stamps, 'margin': margin}
+    return out, {'times': stamps, 'margin': margin, 'touchdowns': events}
 
 
 def _peak_stats(peaks: np.ndarray) -> dict | None:
