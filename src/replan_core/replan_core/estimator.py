@@ -180,6 +180,15 @@ class StateEstimator:
         """(4, 3) m, world: the filter's foot positions (anchors of stance legs), a copy."""
         return self._x[6:].reshape(N_LEGS, 3).copy()
 
+    def restart(self) -> None:
+        """Start the position filter over at the next update, as at spawn: the robot at rest
+        on its stance feet, those on the plane z = 0, at the current x, y estimate. The attitude
+        (an IMU filter of its own) is kept. For a robot that stood up from sitting, whose feet
+        carried nothing while the legs moved, so that their anchors and the base drifted."""
+        if self.initialized and np.all(np.isfinite(self._x[0:2])):
+            self._initial_xy = self._x[0:2].copy()
+        self.initialized = False
+
     def update(self, imu: ImuReading, joints: JointState) -> tuple[BaseState, ContactState]:
         """Fuse one IMU sample and the joint states of the same tick; never raises on bad data.
 

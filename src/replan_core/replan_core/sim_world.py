@@ -34,13 +34,17 @@ import pybullet
 from pybullet_utils import bullet_client
 
 from replan_core import rotations
-from replan_core.types import FOOT_FRAMES, JOINT_NAMES, BaseState, ContactState, JointState
+from replan_core.types import (
+    FOOT_FRAMES,
+    JOINT_NAMES,
+    STANDING_POSE,
+    BaseState,
+    ContactState,
+    JointState,
+)
 
 GRAVITY = 9.81                    # m/s^2
 TERRAINS = ('flat', 'step_down', 'step_up', 'rough')
-# HyQ's standing pose (rad, JOINT_NAMES order), as config/sim.yaml; used when none is given.
-STANDING_POSE = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5,
-                          -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
 _TERRAIN_DEFAULTS = {
     'step_x': 0.6,            # m, x of the step edge (step_down, step_up)
     'step_height': 0.1,       # m, drop (step_down) or rise (step_up)

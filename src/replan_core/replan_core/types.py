@@ -21,6 +21,10 @@ JOINT_NAMES: tuple[str, ...] = tuple(
 FOOT_FRAMES: tuple[str, ...] = tuple(f'{leg}_foot' for leg in LEGS)
 WORLD_FRAME = 'odom'
 BASE_FRAME = 'base_link'
+# HyQ's standing pose (rad, JOINT_NAMES order), as config/sim.yaml: the sim spawns in it when
+# none is given, and a controller stands a robot that sat down back up into it.
+STANDING_POSE = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5,
+                          -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
 
 
 @dataclass

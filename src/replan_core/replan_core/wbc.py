@@ -31,7 +31,16 @@ from replan_core.contact import StepEvent, StepTracker
 from replan_core.robot_model import GRAVITY, RobotModel
 from replan_core.rotations import quaternion_to_matrix, yaw_of
 from replan_core.swing import swing_reference as swing_trajectory
-from replan_core.types import LEGS, BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
+from replan_core.types import (
+    LEGS,
+    STANDING_POSE,
+    BaseState,
+    ComPlan,
+    ContactState,
+    FootholdPlan,
+    JointState,
+    Step,
+)
 
 N_LEGS = len(LEGS)
 _INF = 1e20  # proxsuite's "no bound"
@@ -62,6 +71,12 @@ class WbcParams:
     touchdown_depth: float = 0.015
     fallback_kp: float = 300.0      # N m/rad, joint PD of the safe stand
     fallback_kd: float = 10.0       # N m s/rad
+    # Stand-up of a robot that sat down (the sim's damping mode): joint PD along a minimum-jerk
+    # path from the sitting posture to the standing one, plus the weight carried by the feet.
+    stand_up_time: float = 1.5      # s, sitting -> standing posture
+    stand_up_hold: float = 0.5      # s, then held before the base estimate is started over
+    stand_up_kp: float = 400.0      # N m/rad
+    stand_up_kd: float = 15.0       # N m s/rad
     qp_max_iter: int = 200
     qp_eps_abs: float = 1e-6
 
@@ -234,6 +249,41 @@ class StandHold:
         swing = tuple(haptic_reference(self.feet[i], self.start_time, t, self.haptic_velocity, i)
                       for i in range(N_LEGS) if not stance[i])
         return (self.com, np.zeros(3), np.zeros(3)), self.yaw, stance, swing
+
+
+class JointStandUp:
+    """Stand-up of a robot that sat down, in joint space.
+
+    A robot that sat down in the sim's damping mode rests on its trunk with the legs folded to
+    their limits, and its feet are not where a base estimate started on it puts them: forces
+    distributed over such "stance" feet only swing the legs (and drag the estimate away). So it
+    stands up without the base state: the joints follow a minimum-jerk path from the sitting
+    posture to ``standing`` in ``duration`` s, with the robot's weight on the feet fading in
+    along the path, then hold it for ``hold`` s. Then the estimate is started over and the
+    force-based stand takes over.
+    """
+
+    def __init__(self, t: float, sitting: np.ndarray, standing: np.ndarray = STANDING_POSE,
+                 duration: float = 1.5, hold: float = 0.5) -> None:
+        if not (duration > 0.0 and hold >= 0.0):
+            raise ValueError('duration must be positive and hold non-negative (s)')
+        self.start_time = float(t)
+        self.sitting = np.array(sitting, dtype=float)
+        self.standing = np.array(standing, dtype=float)
+        self.duration = float(duration)
+        self.hold = float(hold)
+
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """Joint positions (rad) and velocities (rad/s) at ``t``, and the share of the weight
+        the feet carry (0 sitting .. 1 standing)."""
+        tau = min(max((t - self.start_time) / self.duration, 0.0), 1.0)
+        s = tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau ** 2)             # minimum jerk
+        ds = 30.0 * tau ** 2 * (1.0 - tau) ** 2 / self.duration         # 1/s
+        delta = self.standing - self.sitting
+        return self.sitting + s * delta, ds * delta, s
+
+    def done(self, t: float) -> bool:
+        return t >= self.start_time + self.duration + self.hold
 
 
 class WholeBodyController:
@@ -445,6 +495,44 @@ class WholeBodyController:
             orientation_error=orientation_error, swing_error=swing_error, stance=stance,
             active_contacts=contact, qp_status=qp_status, qp_iterations=qp_iter,
             fallback=False, message='', compute_time=0.0, saturated=saturated)
+
+    def leg_heights(self, joints: JointState) -> np.ndarray:
+        """(4,) m: base_link above each foot along the trunk's z axis (joint kinematics only)."""
+        origin = BaseState(0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
+                           np.zeros(3))
+        return -self.robot.foot_positions(origin, joints)[:, 2]
+
+    def stand_up(self, joints: JointState, stand_up: JointStandUp, t: float,
+                 contact: np.ndarray) -> WbcResult:
+        """Torques of a joint-space stand-up tick (``JointStandUp``): PD on the path plus
+        ``-J^T f`` with f the weight share on each foot, trunk taken level."""
+        start = time.perf_counter()
+        p = self.params
+        q = np.asarray(joints.position, dtype=float)
+        qd = np.asarray(joints.velocity, dtype=float)
+        q_ref, qd_ref, load = stand_up.reference(t)
+        origin = BaseState(0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
+                           np.zeros(3))
+        jacobians = self.robot.foot_jacobians(origin, joints)          # (4, 3, nv)
+        foot_force = np.array([0.0, 0.0, load * self.mass * GRAVITY / N_LEGS])   # N, each foot
+        weight = np.zeros(len(self._limit))
+        for i in range(N_LEGS):
+            weight[3 * i:3 * i + 3] = -jacobians[i][:, self._leg_v[i]].T @ foot_force
+        torque = weight + p.stand_up_kp * (q_ref - q) + p.stand_up_kd * (qd_ref - qd)
+        if not np.all(np.isfinite(torque)):
+            return self._fallback(joints, np.asarray(contact, bool), np.ones(N_LEGS, bool),
+                                  'non-finite stand-up torque')
+        clipped = np.clip(torque, -self._limit, self._limit)
+        self._hold_q = q_ref.copy()          # a failure meanwhile holds the path, not the sit
+        self._hold_torque = weight
+        self._qp_initialized = False
+        return WbcResult(
+            torque=clipped, forces=np.tile(foot_force, (N_LEGS, 1)), com_error=np.zeros(3),
+            com_velocity_error=np.zeros(3), orientation_error=np.zeros(3),
+            swing_error=np.zeros(N_LEGS), stance=np.ones(N_LEGS, bool),
+            active_contacts=np.asarray(contact, bool), qp_status='stand_up', qp_iterations=0,
+            fallback=False, message='', compute_time=time.perf_counter() - start,
+            saturated=int(np.count_nonzero(clipped != torque)))
 
     def _fallback(self, joints: JointState, contact: np.ndarray, stance: np.ndarray,
                   message: str) -> WbcResult:

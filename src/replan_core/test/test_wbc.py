@@ -11,8 +11,9 @@ from replan_core.robot_model import RobotModel
 from replan_core.rotations import yaw_of
 from replan_core.sim_world import SimWorld
 from replan_core.swing import swing_reference as swing_trajectory
-from replan_core.types import BaseState, JointState, Step
+from replan_core.types import STANDING_POSE, BaseState, JointState, Step
 from replan_core.wbc import (
+    JointStandUp,
     PlanFollower,
     StandHold,
     SwingReference,
@@ -317,3 +318,46 @@ def test_plan_follower_yaw_ramps_through_the_planned_touchdowns():
         assert follower.references(t)[1] == pytest.approx(expected, abs=1e-9)
         assert follower.yaw_rate(t) == pytest.approx(0.2, abs=1e-9)
     assert follower.yaw_rate(4.0) == 0.0 and follower.yaw_rate(9.0) == 0.0
+
+
+def test_joint_stand_up_path_starts_sitting_ends_standing_at_rest():
+    sitting = STANDING_POSE + 0.7
+    stand_up = JointStandUp(2.0, sitting, STANDING_POSE, duration=1.5, hold=0.5)
+    q, qd, load = stand_up.reference(1.0)               # before its start: the sitting pose
+    np.testing.assert_allclose(q, sitting)
+    assert load == 0.0 and not qd.any()
+    q, qd, load = stand_up.reference(2.75)              # half way: half the path, fastest
+    np.testing.assert_allclose(q, sitting - 0.35)
+    assert load == pytest.approx(0.5)
+    np.testing.assert_allclose(qd, -0.7 * 1.875 / 1.5)  # min-jerk peak rate 15/8 per duration
+    q, qd, load = stand_up.reference(3.6)
+    np.testing.assert_allclose(q, STANDING_POSE)
+    assert load == 1.0 and not qd.any()
+    assert not stand_up.done(3.99) and stand_up.done(4.0)
+    with pytest.raises(ValueError):
+        JointStandUp(0.0, sitting, duration=0.0)
+
+
+def test_joint_stand_up_raises_a_robot_that_sat_down(world, robot):
+    """The sim's damping mode sits the robot down on its trunk; the stand-up needs no base
+    state and ends standing, level, on all four feet, where it sat."""
+    wbc = WholeBodyController(robot, WbcParams())
+    standing = np.median(wbc.leg_heights(JointState(0.0, STANDING_POSE, np.zeros(12),
+                                                    np.zeros(12))))
+    for _ in range(round(3.0 / DT)):
+        world.step(world.damping_torques(40.0))
+    sat = world.base_state().position.copy()
+    assert sat[2] < 0.4
+    assert np.median(wbc.leg_heights(world.joint_state())) < standing - 0.1
+    stand_up = JointStandUp(world.time, world.joint_state().position, STANDING_POSE, 1.5, 0.5)
+    while not stand_up.done(world.time):
+        result = wbc.stand_up(world.joint_state(), stand_up, world.time,
+                              world.contact_state().contact)
+        assert not result.fallback and result.qp_status == 'stand_up'
+        world.step(result.torque)
+    base = world.base_state()
+    assert base.position[2] > 0.58                     # standing: 0.599 m at spawn
+    assert np.linalg.norm(base.position[:2] - sat[:2]) < 0.05
+    assert abs(base.quaternion[0]) < 0.02 and abs(base.quaternion[1]) < 0.02    # level
+    assert world.contact_state().contact.all()
+    np.testing.assert_allclose(wbc.leg_heights(world.joint_state()), standing, atol=0.02)

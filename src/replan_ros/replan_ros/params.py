@@ -279,9 +279,16 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
         _p('missed_replans_to_stand', 2, 'this many due re-plans in a row without their plans '
            '(each after plan_timeout) mean a planner is gone, not slow: stand with the feet in '
            'place until a new plan pair arrives', 're-plans', min=1, max=1000),
-        _p('stand_up_speed', 0.2, 'a stand entered with the CoM more than 5 cm below the last '
-           "plan's (the robot sat down: the sim's damping mode) first raises it to that height "
-           'at this speed; plans are adopted once it is up', 'm/s', min=0.01, max=2.0),
+        _p('stand_up_time', _W.stand_up_time, 'a robot that sat down (legs folded: the sim\'s '
+           'damping mode) stands up in joint space along a minimum-jerk path to the standing '
+           'pose in this time', 's', min=0.2, max=10.0),
+        _p('stand_up_hold', _W.stand_up_hold, 'then holds the standing pose this long before '
+           'the base estimate starts over and plans made from then on are adopted', 's',
+           min=0.0, max=10.0),
+        _p('stand_up_kp', _W.stand_up_kp, 'joint PD stiffness of the stand-up', 'N m/rad',
+           min=0.0, max=5000.0),
+        _p('stand_up_kd', _W.stand_up_kd, 'joint PD damping of the stand-up', 'N m s/rad',
+           min=0.0, max=500.0),
         _p('first_plan_timeout', 30.0, 'wait this long for the very first plans before standing',
            'wall s', min=0.0, max=3600.0),
         _p('plan_max_age', 6.0, 'a plan pair older than this (or past its horizon) -> stand',

@@ -48,8 +48,8 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 from replan_core.estimator import EstimatorParams, StateEstimator
 from replan_core.robot_model import RobotModel
 from replan_core.rotations import yaw_of
-from replan_core.types import ComPlan, ContactState, FootholdPlan
-from replan_core.wbc import PlanFollower, StandHold, WbcParams, WholeBodyController
+from replan_core.types import STANDING_POSE, ComPlan, ContactState, FootholdPlan, JointState
+from replan_core.wbc import JointStandUp, PlanFollower, StandHold, WbcParams, WholeBodyController
 from replan_ros import diagnostics
 from replan_ros.interfaces import (
     base_state_from_odom,
@@ -83,7 +83,9 @@ _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead 
 _KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
 _KEEP_STATES = 50        # ticks of inputs kept per topic while waiting for the rest
 _STATE_WAIT = 0.01       # wall s to wait for the imu / ground truth of a joint_states tick
-_LOW_STAND = 0.05        # m: a stand entered with the CoM this far below the last plan's rises
+# m: legs this much shorter (median over the four, base above foot) than in the standing pose
+# mean the robot sat down (the sim's damping mode): it stands up in joint space first.
+_SAT_DOWN = 0.1
 _STAND_ADOPT_AGE_NS = 500_000_000   # a stand ends only with plans at most 0.5 sim s old
 
 
@@ -104,7 +106,9 @@ class WbcNode(Node):
             regularization=float(p['regularization']),
             haptic_velocity=float(p['haptic_velocity']),
             touchdown_depth=float(p['touchdown_depth']),
-            fallback_kp=float(p['fallback_kp']), fallback_kd=float(p['fallback_kd']))
+            fallback_kp=float(p['fallback_kp']), fallback_kd=float(p['fallback_kd']),
+            stand_up_time=float(p['stand_up_time']), stand_up_hold=float(p['stand_up_hold']),
+            stand_up_kp=float(p['stand_up_kp']), stand_up_kd=float(p['stand_up_kd']))
         self.plan_timeout = float(p['plan_timeout'])
         self.missed_replans_to_stand = int(p['missed_replans_to_stand'])
         self.first_plan_timeout = float(p['first_plan_timeout'])
@@ -115,8 +119,7 @@ class WbcNode(Node):
         self.state_estimation = bool(p['state_estimation'])
         self.contact_estimation = bool(p['contact_estimation'])
         period_ns = sec_to_ns(1.0 / float(p['control_rate']))
-        # A stand entered sitting rises this much per tick (m) before plans are adopted.
-        self.rise_step = float(p['stand_up_speed']) * period_ns / _NS
+        self.period_ns = period_ns
         latency = float(p['plan_latency'])         # within [0, 0.99] s (params.WBC)
         self.latency_ns = math.ceil(sec_to_ns(latency) / period_ns - 1e-9) * period_ns
         self.first_command_waits_for = set(p['first_command_waits_for'])
@@ -131,6 +134,8 @@ class WbcNode(Node):
             self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')
             raise SystemExit(1) from None
         self.wbc = WholeBodyController(self.robot, params)
+        standing = JointState(0.0, STANDING_POSE.copy(), np.zeros(12), np.zeros(12))
+        self._standing_leg_height = float(np.median(self.wbc.leg_heights(standing)))
         self.estimator: StateEstimator | None = None
         if self.state_estimation or self.contact_estimation:
             fields = {item.name: p[f'estimator.{item.name}']
@@ -160,7 +165,8 @@ class WbcNode(Node):
         self._stand: StandHold | None = None
         self._stand_reason = 'no plan yet'
         self._stand_since = 0.0                   # sim s the current stand began
-        self._rise_to: float | None = None        # CoM height (m) a stand entered low rises to
+        self._stand_up: JointStandUp | None = None   # a robot that sat down standing up
+        self._stand_floor = 0                     # ns: a stand ends with plans from here on
         self._waiting: int | None = None          # tick (ns) held until its plans arrive
         self._waiting_first = False               # the wait is the first tick's
         self._wait_timer = None
@@ -380,7 +386,7 @@ class WbcNode(Node):
         if not self._started:
             self._started = True
             pairs = [s for s in self._pair_stamps() if s <= stamp]
-            if pairs and self._sat_down(stamp):
+            if self._sat_down(stamp):
                 # Started (again) on a robot that sat down in the sim's damping mode.
                 self._enter_stand(stamp, 'started on a robot sitting: standing up first')
             elif pairs:
@@ -400,12 +406,13 @@ class WbcNode(Node):
         if self._stand is not None:
             # Leave a stand only for a plan made for about now: one that waited while the sim
             # ran on (a slow or restarted planner) would start seconds into its schedule.
-            newer = [s for s in newer if stamp - s <= _STAND_ADOPT_AGE_NS]
+            # After a stand-up, only plans made from the estimate started over then.
+            newer = [s for s in newer
+                     if stamp - s <= _STAND_ADOPT_AGE_NS and s >= self._stand_floor]
         # A robot that sat down (the sim's damping mode) stands up before it walks: a plan
         # from the low posture asks the MPC for a CoM it cannot keep in the support.
-        rising = self._stand is not None and self._rise_to is not None
-        if newer and self._pending is None and not rising and (self._stand is not None
-                                                or self._follower is not None):
+        if newer and self._pending is None and self._stand_up is None and (
+                self._stand is not None or self._follower is not None):
             self._adopt(newer[-1], stamp)
         if self._follower is not None and self._stand is None:
             if self._pending is None:
@@ -512,11 +519,10 @@ class WbcNode(Node):
         self._stand = None
 
     def _sat_down(self, stamp: int) -> bool:
-        """The CoM is more than _LOW_STAND below the newest plan's height."""
-        if not self._com_plans:
-            return False
-        com, _ = self.robot.com_state(self._odom[stamp], self._joints[stamp])
-        return com[2] < self._com_plans[max(self._com_plans)].position[0, 2] - _LOW_STAND
+        """The legs are folded (joint kinematics alone: the base estimate of a robot that
+        sat down is not to be trusted)."""
+        height = float(np.median(self.wbc.leg_heights(self._joints[stamp])))
+        return height < self._standing_leg_height - _SAT_DOWN
 
     def _enter_stand(self, stamp: int, reason: str) -> None:
         base, joints = self._odom[stamp], self._joints[stamp]
@@ -525,13 +531,15 @@ class WbcNode(Node):
                                 self.haptic_velocity)
         self._stand_reason = reason
         self._stand_since = stamp / _NS
-        self._rise_to = None
-        heights = [self._com_plans[s].position[0, 2] for s in sorted(self._com_plans)[-1:]]
-        if heights and com[2] < heights[0] - _LOW_STAND:
-            self._rise_to = float(heights[0])
+        if self._stand_up is None and self._sat_down(stamp):
+            p = self.wbc.params
+            self._stand_up = JointStandUp(stamp / _NS, joints.position, STANDING_POSE,
+                                          p.stand_up_time, p.stand_up_hold)
             self.get_logger().warning(
-                f'standing up at t = {stamp / _NS:.3f} s: CoM {com[2]:.3f} m, the last plan\'s '
-                f'{self._rise_to:.3f} m')
+                f'standing up at t = {stamp / _NS:.3f} s: the legs are folded (median '
+                f'{np.median(self.wbc.leg_heights(joints)):.3f} m, standing '
+                f'{self._standing_leg_height:.3f} m); joint-space stand-up in '
+                f'{p.stand_up_time + p.stand_up_hold:.1f} s')
         self._follower = None
         self._pending = None
         self.get_logger().warning(f'standing at t = {stamp / _NS:.3f} s: {reason}')
@@ -545,12 +553,10 @@ class WbcNode(Node):
                 self._enter_stand(stamp, f'plan stamped {plan.start_time:.3f} s is too old')
         if self._stand is None and self._follower is None:
             self._enter_stand(stamp, self._stand_reason)
+        if self._stand_up is not None:
+            self._answer_stand_up(stamp, joints, contacts)
+            return
         if self._stand is not None:
-            if self._rise_to is not None:
-                self._stand.com[2] = min(self._stand.com[2] + self.rise_step, self._rise_to)
-                if self._stand.com[2] >= self._rise_to:
-                    self._rise_to = None          # up: the next plan pair may be adopted
-                    self.get_logger().info(f'stood up at t = {t:.3f} s')
             com_ref, yaw, stance, swing = self._stand.references(t, contacts)
             yaw_rate = 0.0
         else:
@@ -558,6 +564,27 @@ class WbcNode(Node):
             yaw_rate = self._follower.yaw_rate(t)
         result = self.wbc.compute(base, joints, contacts.contact, com_ref, yaw, stance, swing,
                                   yaw_rate_reference=yaw_rate)
+        self._command(stamp, result)
+
+    def _answer_stand_up(self, stamp: int, joints, contacts: ContactState) -> None:
+        """A tick of the joint-space stand-up; its last tick starts the base estimate over
+        and the force-based stand takes over at the next tick, from the new estimate."""
+        t = stamp / _NS
+        result = self.wbc.stand_up(joints, self._stand_up, t, contacts.contact)
+        self._command(stamp, result)
+        if self._stand_up.done(t):
+            self._stand_up = None
+            if self.estimator is not None:
+                self.estimator.restart()
+            self._stand = None
+            self._stand_reason = 'stood up: waiting for plans made from here on'
+            self._stand_floor = stamp + self.period_ns
+            self.get_logger().info(f'stood up at t = {t:.3f} s: the base estimate starts over, '
+                                   'plans stamped from the next tick on are adopted')
+
+    def _command(self, stamp: int, result) -> None:
+        """Publish and keep the torques answering tick ``stamp``; the per-tick bookkeeping."""
+        t = stamp / _NS
         msg = torque_cmd_to_msg(t, result.torque)
         msg.header.stamp = ns_to_stamp(stamp)        # exactly the stamp answered
         self.cmd_pub.publish(msg)
@@ -585,7 +612,8 @@ class WbcNode(Node):
             # Figures over the period; a period without ticks (waiting) repeats the last one.
             times = np.array(self._times or [result.compute_time]) * 1e3
             errors = np.array(self._com_errors or [float(np.linalg.norm(result.com_error))])
-            mode = 'stand' if self._stand is not None else 'plan'
+            mode = ('stand_up' if self._stand_up is not None
+                    else 'stand' if self._stand is not None else 'plan')
             values = {
                 'mode': mode,
                 'stand_reason': self._stand_reason if self._stand is not None else '',

@@ -50,8 +50,12 @@ How each fault is handled:
   walks on; the others are not restarted.
 - **wbc killed**: the sim gets no `joint_torque_cmd` for `command_timeout` (3 wall s) and goes
   to damping mode (the robot sits down), ERROR on `/diagnostics`. The wbc back, the sim
-  returns to lock-step; the wbc finds the robot sitting (CoM more than 5 cm below the last
-  plan's), stands it up at `stand_up_speed` (0.2 m/s) and only then adopts the next plans.
+  returns to lock-step; the wbc finds the robot sitting (legs folded: median base-above-foot
+  height more than 10 cm under the standing pose's, from the joints alone, since a base
+  estimate started on a sitting robot is not to be trusted) and stands it up in joint space
+  (a minimum-jerk path to the standing pose in `stand_up_time`, 1.5 s, held `stand_up_hold`,
+  0.5 s, with the weight fading in on the feet). Then the base estimate starts over, and only
+  plans made after that are adopted.
 - **recorder killed**: the robot does not notice (the recorder is not in the loop); the bag has
   no summary, replay and rerun refuse it with one line naming `bag_recover`, which keeps every
   finished chunk (one closes every `chunk_interval`).
