@@ -220,6 +220,11 @@ def _planner_killed(walk: Walk, name: str, topic: str) -> None:
                             mark)
     assert back is not None, walk.logs()
     t_back = walk.t
+    # A restarted gait node plans from the latched set-point once DDS discovery brings it
+    # (1-3 wall s for a new process); until then it steps in place (setpoint_source 'none').
+    steered = walk.wait_status('gait', lambda s: values_of(s).get('setpoint_source')
+                               == 'cmd_vel_stamped', mark)
+    assert steered is not None, walk.logs()
     walked = walk.walks()
     assert walked > 0.4 * SPEED * 3.0, (walked, walk.logs())
     assert walk.min_z(t_kill) > STANDING_Z

@@ -215,6 +215,7 @@ class SimWorld:
 
         q0 = STANDING_POSE if initial_joint_positions is None else np.asarray(
             initial_joint_positions, dtype=float).reshape(len(JOINT_NAMES))
+        self._abduction_hold = q0[0::3].copy()      # rad, HAA of the spawn pose
         for j, q in zip(self._joints, q0, strict=True):
             p.resetJointState(self._robot, j, float(q), 0.0)
         if initial_base_height is None:
@@ -417,9 +418,15 @@ class SimWorld:
             raise ValueError('wrench contains NaN or inf')
         self._wrench_force, self._wrench_torque = f.copy(), t.copy()
 
-    def damping_torques(self, gain: float) -> np.ndarray:
-        """Joint damping torques -gain * qd (N m) for the controller-dead mode."""
-        return -gain * self.joint_state().velocity
+    def damping_torques(self, gain: float, abduction_stiffness: float = 0.0) -> np.ndarray:
+        """Torques (N m) of the controller-dead mode: joint damping -gain * qd, and the
+        abduction (HAA) joints held at the spawn pose's angle with ``abduction_stiffness``
+        (N m/rad). Damping alone lets the legs splay sideways as the robot sits down: caught
+        with one foot in the air and a sideways velocity, it rolled over onto its back."""
+        joints = self.joint_state()
+        torques = -gain * joints.velocity
+        torques[0::3] += abduction_stiffness * (self._abduction_hold - joints.position[0::3])
+        return torques
 
     def close(self) -> None:
         """Disconnect from the physics server (idempotent)."""

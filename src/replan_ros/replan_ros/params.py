@@ -405,6 +405,10 @@ SIM = (
        "controller's plan_timeout)", 'wall s', min=0.01, max=600.0),
     _p('damping_gain', 40.0, 'controller-dead joint damping', 'N m s/rad', min=0.0, max=1000.0,
        read_only=False),
+    _p('damping_abduction_stiffness', 200.0, 'controller-dead: the abduction (HAA) joints are '
+       'held at the standing pose\'s angle with this stiffness, so that the legs fold under '
+       'the trunk instead of splaying (damping alone let the robot roll over)', 'N m/rad',
+       min=0.0, max=5000.0, read_only=False),
     _p('real_time_factor', 1.0, 'free-run/damping: sim s per wall s to aim for', min=0.001,
        max=1000.0),
     _p('gui', False, 'open the PyBullet GUI'),

@@ -132,6 +132,7 @@ class SimNode(Node):
         self.republish_period: float = p['republish_period']
         self.command_timeout: float = p['command_timeout']
         self.damping_gain: float = p['damping_gain']
+        self.damping_abduction_stiffness: float = p['damping_abduction_stiffness']
         self.rtf_target: float = max(p['real_time_factor'], 1e-3)
 
         self.clock_pub = self.create_publisher(Clock, '/clock', qos.CLOCK,
@@ -198,6 +199,8 @@ class SimNode(Node):
         """A run-time change of one of the writable parameters (params.SIM)."""
         if name == 'damping_gain':
             self.damping_gain = float(value)
+        elif name == 'damping_abduction_stiffness':
+            self.damping_abduction_stiffness = float(value)
 
     # ------------------------------------------------------------------ helpers
     def _log_throttled(self, level: str, key: str, text: str) -> None:
@@ -365,8 +368,9 @@ class SimNode(Node):
         due = tick0 + int((time.monotonic() - wall0) * self.rtf_target / period)
         todo = due - self.world.tick
         for _ in range(min(todo, _MAX_CATCH_UP_TICKS)):
-            torques = (self.world.damping_torques(self.damping_gain) if self.mode == DAMPING
-                       else self.command)
+            torques = (self.world.damping_torques(self.damping_gain,
+                                                  self.damping_abduction_stiffness)
+                       if self.mode == DAMPING else self.command)
             self._advance(torques)
             if self.mode not in (FREE_RUN, DAMPING):
                 return

@@ -60,7 +60,8 @@ def test_nearly_everything_is_read_only():
     writable = {(n, s.name) for n in NODES for s in params.TABLES[n] if not s.read_only}
     assert writable <= {('gait', 'cmd_vel_timeout'), ('gait', 'cmd_vel_reject_above'),
                         ('gait', 'warn_period'), ('mpc', 'warn_period'),
-                        ('sim', 'damping_gain'), ('wbc', 'plan_timeout')}
+                        ('sim', 'damping_gain'), ('sim', 'damping_abduction_stiffness'),
+                        ('wbc', 'plan_timeout')}
 
 
 def test_sim_literals_agree_with_the_core():
