@@ -2,7 +2,7 @@
 # Benchmark of the LIP-ZMP re-planner: 200 consecutive re-plans of a crawl at the paper's size
 # (8 s horizon, 40 ms samples, 8 footholds). Prints progress-free; the last line is one JSON
 # object (n_per_axis, n_constraints, cold_ms, median_ms, p99_ms, max_zmp_violation_m, ...).
-# Extra arguments go to the benchmark, e.g. --formulation dense, --no-warm, --replans 50.
+# Extra arguments go to the benchmark, e.g. --formulation dense, --no-warm, --proxsuite-dual.
 # Usage: scripts/bench_mpc.sh [--formulation F] [--no-warm] [--replans N] ...  (--help: all)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"

@@ -85,6 +85,7 @@ def test_dead_node_is_reported_and_respawned_and_cmd_vel_steers(ros_domain, tmp_
             [str(REPO_ROOT / 'scripts' / 'cmd_vel.sh'), '0.1', '0', '0', '--for', '3'],
             env=graph_env(ros_domain), capture_output=True, text=True, timeout=120)
         assert steer.returncode == 0, steer.stdout + steer.stderr
+        assert 'cmd_vel: gait subscribes' in steer.stdout, steer.stdout
         assert probe.spin_until(lambda: any(abs(m.twist.linear.x - 0.1) < 1e-9
                                             for m in setpoints), 30), launch.output
         os.kill(int(started.group(1)), signal.SIGKILL)

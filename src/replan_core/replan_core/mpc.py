@@ -1,8 +1,10 @@
 """LIP-ZMP re-planner: the jerk QP of eq. (6) with the coupled support-polygon rows of eq. (7).
 
-Two formulations of the same QP, both solved with proxsuite and both built once:
+Three formulations of the same QP, all built once: ``working_set`` (default), the dual
+restricted to a working set of polygon rows, solved exactly by a small active-set method (see
+``_solve_working_set`` and ``_nnqp``; docs/mpc.md), and two full ones solved with proxsuite:
 
-- ``sparse`` (default): the decision vector holds the states and the jerks of every sample,
+- ``sparse``: the decision vector holds the states and the jerks of every sample,
   time-major ``[s_0, u_0, s_1, u_1, ..., s_N]`` with ``s_k = (x, xd, xdd, y, yd, ydd)`` and
   ``u_k = (jerk_x, jerk_y)``; eq. (3) enters as equality rows, so the KKT matrix is banded and
   every polygon row touches only the 4 state entries of its own sample. Between re-plans only
@@ -25,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import proxsuite
 import scipy.sparse as sp
+from scipy.linalg.lapack import dposv as _dposv
 
 from replan_core.lip import lift, lip_matrices
 from replan_core.support import MAX_ROWS, SupportSchedule, support_schedule
@@ -67,10 +70,16 @@ class MpcSettings:
     working_set_tol: float = 1e-6     # m, working set: a row violated by more is added
     dual_mu_in: float = 1e-1          # proxsuite mu_in of the working-set dual
     # Working set: give up (and take the relaxed fallback) once the duals of one solve have
-    # used this many proxsuite iterations. A feasible re-plan uses 30-75 (bench_mpc.sh); the
-    # dual of an infeasible one is unbounded and each of its solves runs ~10000, so without
-    # the budget an infeasible re-plan took 4-11 s (test_bad_input.py) while the robot waited.
+    # used this many iterations (active-set iterations of _nnqp, proxsuite's with
+    # exact_dual=False). A feasible re-plan uses 5-65 active-set iterations (30-75 proxsuite
+    # ones; bench_mpc.sh); the dual of an infeasible one is unbounded and each proxsuite solve
+    # of it runs ~10000, so without the budget an infeasible re-plan took 4-11 s
+    # (test_bad_input.py) while the robot waited.
     iteration_budget: int = 2000
+    # Working set: solve each restricted dual exactly by an active-set method (a few small
+    # LAPACK Cholesky solves, see _nnqp) instead of proxsuite; False: proxsuite + KKT polish
+    # (the previous default, kept for comparison: bench_mpc.sh --proxsuite-dual).
+    exact_dual: bool = True
 
     @property
     def n(self) -> int:
@@ -87,7 +96,8 @@ class MpcResult:
     plan: ComPlan | None
     zmp: np.ndarray                   # (N+1, 2) m, predicted ZMP at the samples (row 0: now)
     solve_time_ms: float              # wall time of the whole re-plan call
-    iterations: int                   # proxsuite iterations (hard + relaxed solves)
+    iterations: int                   # QP iterations (hard + relaxed solves): active-set
+                                      # ones of the working-set dual, else proxsuite's
     min_zmp_margin_m: float           # smallest distance of the ZMP inside its polygon (k>=1)
     max_zmp_violation_m: float        # largest violation of a polygon row (margin included)
     jerk: np.ndarray | None = None    # (N, 2) m/s^3
@@ -260,6 +270,7 @@ class LipMpc:
         self._ws_fresh: set[int] = set()              # capacities not initialised yet
         self._initialized = True
         self.rounds = 0
+        self._dual_exact = False
 
     def _ws_qp(self, size: int):
         """Dual QP of at least ``size`` variables: one per power-of-two capacity, built once."""
@@ -282,34 +293,38 @@ class LipMpc:
         The dual of the jerk QP is ``min 1/2 lam' M lam + lam' d_free, lam >= 0`` with
         ``M_ij = (a_i . a_j) G[k_i, k_j]`` and ``d_free`` the row values of the unconstrained
         plan. Only a few rows bind (the ZMP leaning on the edge of a triangle), so the dual is
-        solved (proxsuite, dense, box constraints) on a working set: the rows active in the
-        previous plan shifted in time, plus, each round, the most violated row of every
-        violated sample, until no row of the full problem is violated. A solution of the
-        restricted problem that satisfies every row is the optimum of the full QP.
+        solved (exactly, ``_nnqp``; or proxsuite, dense, box constraints) on a working set: the
+        rows active in the previous plan shifted in time, plus, each round, the most violated
+        row of every violated sample, until no row of the full problem is violated. A solution
+        of the restricted problem that satisfies every row is the optimum of the full QP.
         ``relaxed`` solves the soft version (rows violated at a cost ``slack_weight`` per m^2,
         i.e. ``M + I / slack_weight``), which is always feasible.
         """
         s, n = self.settings, self.n
-        axr = sched.A[:, :, 0].reshape(-1)
-        ayr = sched.A[:, :, 1].reshape(-1)
-        br = sched.b.reshape(-1)
-        actr = sched.active.reshape(-1)
+        nk = n + 1 if self.n_terminal else n            # row blocks: samples 1..N (+ terminal)
         if self.n_terminal:
-            axr = np.concatenate([axr, sched.A[-1, :, 0]])
-            ayr = np.concatenate([ayr, sched.A[-1, :, 1]])
-            br = np.concatenate([br, sched.b[-1]])
-            actr = np.concatenate([actr, sched.active[-1]])
+            Ab = np.concatenate([sched.A, sched.A[-1:]])                 # (nk, MAX_ROWS, 2)
+            bb = np.concatenate([sched.b, sched.b[-1:]])
+            actb = np.concatenate([sched.active, sched.active[-1:]])
+        else:
+            Ab, bb, actb = sched.A, sched.b, sched.active
+        bb = np.where(actb, bb, np.inf)                  # padding rows: never violated
+        Ab = np.where(actb[:, :, None], Ab, 0.0)
+        ax, ay = Ab[:, :, 0], Ab[:, :, 1]
+        arows = Ab.reshape(-1, 2)                        # (n_in, 2): a of every row
         ks = self._row_sample
         u_free = np.zeros((n, 2))
         if s.velocity_weight > 0.0:
             L = self.lifted
-            for a in range(2):
-                g = s.velocity_weight * L.Vu.T @ (L.V0 @ x0[3 * a:3 * a + 3] - v_ref[a])
-                u_free[:, a] = -self._Hinv @ g
-        zf = np.column_stack([self._Z0ext @ x0[:3] + self._Zext @ u_free[:, 0],
-                              self._Z0ext @ x0[3:] + self._Zext @ u_free[:, 1]])  # (N+1, 2)
-        d_free = axr * zf[ks, 0] + ayr * zf[ks, 1] + br
-        d_free = np.where(actr, d_free, np.inf)
+            x03 = x0.reshape(2, 3).T                                      # (3, 2)
+            g = s.velocity_weight * L.Vu.T @ (L.V0 @ x03 - v_ref[None, :])
+            u_free = -self._Hinv @ g
+        zf = self._Z0ext @ x0.reshape(2, 3).T + self._Zext @ u_free        # (N+1, 2)
+
+        def rows_at(z):                                  # row values (n_in,) of ZMP/CP z
+            return (ax * z[:nk, 0:1] + ay * z[:nk, 1:2] + bb).reshape(-1)
+
+        d_free = rows_at(zf)
         add_tol = s.working_set_tol
 
         if s.warm_start:
@@ -319,9 +334,12 @@ class LipMpc:
         d = d_free
         iters = 0
         info = ''
+        in_work = np.zeros(self.n_in, dtype=bool)
         for rnd in range(s.max_rounds):
             if len(work):
-                lam, it, info = self._dual(work, axr, ayr, d_free, relaxed, lam)
+                aw = arows[work]
+                kw = ks[work]
+                lam, it, info = self._dual(kw, aw, d_free[work], relaxed, lam)
                 iters += it
                 if lam is None:
                     self.rounds = rnd + 1
@@ -330,9 +348,7 @@ class LipMpc:
                     self.rounds = rnd + 1
                     return (False, np.zeros((n, 2)), iters,
                             f'iteration budget {s.iteration_budget} spent in {rnd + 1} rounds')
-                z = zf + self._G[:, ks[work]] @ (lam[:, None] * np.column_stack(
-                    [axr[work], ayr[work]]))
-                d = np.where(actr, axr * z[ks, 0] + ayr * z[ks, 1] + br, np.inf)
+                d = rows_at(zf + self._G[:, kw] @ (lam[:, None] * aw))
             if relaxed:
                 new = np.flatnonzero(d < -add_tol)
             else:
@@ -340,15 +356,20 @@ class LipMpc:
                 # the violation along the horizon: one multiplier moves a whole stretch of
                 # the ZMP trajectory, so rows are added where the violation peaks.
                 dm = d.reshape(-1, MAX_ROWS)
-                worst = np.argmin(dm, axis=1)
-                dw = dm[np.arange(len(dm)), worst]
+                worst = dm.argmin(axis=1)
+                dw = dm.min(axis=1)
                 peak = dw < -add_tol
-                if s.add_peaks_only:
-                    padded = np.concatenate([[np.inf], dw[:n], [np.inf]])
-                    peak[:n] &= (padded[1:-1] <= padded[:-2]) & (padded[1:-1] <= padded[2:])
+                if s.add_peaks_only and peak.any():
+                    dn = dw[:n]
+                    pk = peak[:n]
+                    pk[1:] &= dn[1:] <= dn[:-1]
+                    pk[:-1] &= dn[:-1] <= dn[1:]
                 bad = np.flatnonzero(peak)
                 new = bad * MAX_ROWS + worst[bad]
-            new = np.setdiff1d(new, work, assume_unique=False)
+            if len(new):
+                in_work[:] = False
+                in_work[work] = True
+                new = new[~in_work[new]]
             if len(new) == 0:
                 self.rounds = rnd + 1
                 break
@@ -357,35 +378,33 @@ class LipMpc:
                 work, lam = work[keep], lam[keep]
             work = np.concatenate([work, new])
             lam = np.concatenate([lam, np.zeros(len(new))])
-            order = np.argsort(work)
-            work, lam = work[order], lam[order]
         else:
             self.rounds = s.max_rounds
             return False, np.zeros((n, 2)), iters, f'working set not converged in {rnd + 1} rounds'
-        if len(work) and not relaxed:
-            work, lam = self._polish(work, lam, axr, ayr, br, actr, d_free, zf, d)
+        if len(work) and not relaxed and not self._dual_exact:
+            work, lam = self._polish(work, lam, arows, rows_at, d_free, zf, d)
         jerk = u_free.copy()
         if len(work):
-            jerk += self._W[:, ks[work]] @ (lam[:, None] * np.column_stack(
-                [axr[work], ayr[work]]))
+            jerk += self._W[:, ks[work]] @ (lam[:, None] * arows[work])
         keep = lam > 0.0
-        self._ws_prev = (work[keep], lam[keep],
-                         np.column_stack([axr[work[keep]], ayr[work[keep]]]))
+        order = np.argsort(work[keep])
+        self._ws_prev = (work[keep][order], lam[keep][order], arows[work[keep]][order])
         return True, jerk, iters, info
 
-    def _polish(self, work, lam, axr, ayr, br, actr, d_free, zf, d):
+    def _polish(self, work, lam, arows, rows_at, d_free, zf, d):
         """Solve the KKT system of the binding rows exactly (a small dense solve).
 
-        proxsuite stops at ``eps_abs`` on the scaled dual, which for rows late in the horizon is
-        a few micrometres of ZMP; with the binding rows known, the exact multipliers follow from
-        one linear solve. Kept only if they stay >= 0 and violate no row more than before.
+        Only after a proxsuite dual (``_nnqp`` is exact already): proxsuite stops at
+        ``eps_abs`` on the scaled dual, which for rows late in the horizon is a few micrometres
+        of ZMP; with the binding rows known, the exact multipliers follow from one linear solve.
+        Kept only if they stay >= 0 and violate no row more than before.
         """
         ks = self._row_sample
         bind = lam > 1e-9 * max(float(lam.max()), 1e-300)
         if not np.any(bind):
             return work, lam          # no row binds (e.g. standing deep inside the polygon)
         wa = work[bind]
-        A = np.column_stack([axr[wa], ayr[wa]])
+        A = arows[wa]
         M = (A @ A.T) * self._G[np.ix_(ks[wa], ks[wa])]
         try:
             la = np.linalg.solve(M, -d_free[wa])
@@ -393,8 +412,7 @@ class LipMpc:
             return work, lam
         if not np.all(np.isfinite(la)) or la.min() < 0.0:
             return work, lam
-        z = zf + self._G[:, ks[wa]] @ (la[:, None] * A)
-        dp = np.where(actr, axr * z[ks, 0] + ayr * z[ks, 1] + br, np.inf)
+        dp = rows_at(zf + self._G[:, ks[wa]] @ (la[:, None] * A))
         if dp.min() >= min(d.min(), 0.0):
             return wa, la
         return work, lam
@@ -423,23 +441,48 @@ class LipMpc:
         new, idx = np.unique(k * MAX_ROWS + r, return_index=True)
         return new, lam[idx]
 
-    def _dual(self, work: np.ndarray, axr, ayr, d_free, relaxed: bool, lam0: np.ndarray):
-        """Solve the restricted dual with proxsuite; returns (lambda, iterations, status)."""
+    def _dual(self, ks: np.ndarray, aw: np.ndarray, d0: np.ndarray, relaxed: bool,
+              lam0: np.ndarray):
+        """Solve the dual restricted to the rows of samples ``ks`` with normals ``aw`` (m, 2)
+        and unconstrained values ``d0``; returns (lambda, iterations, status).
+
+        By the exact active-set method ``_nnqp`` (a few small Cholesky solves, the working
+        set has 7-15 rows) unless ``exact_dual`` is off. If it fails on the hard dual (dual
+        unbounded: the problem is infeasible; or dependent rows it could not resolve within
+        its iterations) the failure is returned (relaxed fallback); on the relaxed dual
+        (positive definite, so this should not happen) and with ``exact_dual`` off, proxsuite
+        solves it.
+        """
         s = self.settings
-        ks = self._row_sample[work]
-        A = np.column_stack([axr[work], ayr[work]])
-        M = (A @ A.T) * self._G[np.ix_(ks, ks)]
+        M = (aw @ aw.T) * self._G.take(ks, 0).take(ks, 1)
         if relaxed:
             M[np.diag_indices_from(M)] += 1.0 / s.slack_weight
         # Jacobi scaling: rows far in the horizon move by metres per unit jerk, the first ones
         # by millimetres; unit diagonal keeps the dual well scaled (mu = sqrt(M_ii) lambda).
-        dsc = 1.0 / np.sqrt(np.maximum(np.diag(M), 1e-300))
-        m = len(work)
+        dsc = 1.0 / np.sqrt(np.maximum(M.diagonal(), 1e-300))
+        Ms = M * dsc[:, None] * dsc[None, :]
+        gs = d0 * dsc
+        mu0 = lam0 / dsc
+        m = len(ks)
+        it = 0
+        if s.exact_dual:
+            mu, it, why = _nnqp(Ms, gs, mu0, 3 * m + 10)
+            if mu is not None:
+                self._dual_exact = True
+                return mu * dsc, it, ''
+            if not relaxed:
+                # Dependent rows the active-set steps could not resolve, or a direction along
+                # which the dual decreases without bound (no jerk keeps every row: the problem
+                # is infeasible). proxsuite would iterate for seconds on such a dual (it did
+                # before the iteration budget): report it, the relaxed fallback follows.
+                self._dual_exact = True
+                return None, it, f'working-set dual {why} with {m} rows (infeasible?)'
+        self._dual_exact = False
         cap, qp = self._ws_qp(m)
         Hd = np.eye(cap)
-        Hd[:m, :m] = M * dsc[:, None] * dsc[None, :]
+        Hd[:m, :m] = Ms
         gd = np.ones(cap)                 # padding variables: cost +mu, mu >= 0 -> mu = 0
-        gd[:m] = d_free[work] * dsc
+        gd[:m] = gs
         lb = np.zeros(cap)
         ub = np.full(cap, _INF)
         if cap in self._ws_fresh:
@@ -448,14 +491,15 @@ class LipMpc:
         else:
             qp.update(H=Hd, g=gd, l_box=lb, u_box=ub)
         x0 = np.zeros(cap)
-        x0[:m] = lam0 / dsc
+        x0[:m] = mu0
         qp.settings.initial_guess = _PQ.InitialGuess.WARM_START
         qp.solve(x0, None, None)
         st = qp.results.info.status
+        it += int(qp.results.info.iter)
         if st != _PQ.QPSolverOutput.PROXQP_SOLVED:
-            return None, int(qp.results.info.iter), str(st).split('.')[-1]
+            return None, it, str(st).split('.')[-1]
         lam = np.maximum(qp.results.x[:m], 0.0) * dsc
-        return lam, int(qp.results.info.iter), ''
+        return lam, it, ''
 
     # ------------------------------------------------------------------ per re-plan data
 
@@ -537,9 +581,8 @@ class LipMpc:
         L = self.lifted
         out = np.empty((self.n + 1, 6))
         out[0] = x0
-        for a in range(2):
-            out[1:, 3 * a:3 * a + 3] = (L.S0 @ x0[3 * a:3 * a + 3]
-                                        + L.Su @ jerk[:, a]).reshape(self.n, 3)
+        xs = L.S0 @ x0.reshape(2, 3).T + L.Su @ jerk                 # (3N, 2): both axes
+        out[1:] = xs.reshape(self.n, 3, 2).transpose(0, 2, 1).reshape(self.n, 6)
         return out
 
     # ------------------------------------------------------------------ solving
@@ -693,7 +736,7 @@ class LipMpc:
                         self._prev = {'t0': start_time, 'jerk': jerk, 'z': qres.z.copy(),
                                       'y': qres.y.copy() if self.n_eq else None}
                     res = self._result(STATUS_SOLVED, FALLBACK_NONE, '', start_time, states,
-                                       jerk, com_z, sched, t_start, iters)
+                                       jerk, com_z, sched, t_start, iters, viol)
                     self._last_plan = res.plan
                     return res
                 why = self._first_violation(sched, viol, solver_status='')
@@ -741,7 +784,7 @@ class LipMpc:
                 f'{len(bad)} rows, worst {worst:.4f} m')
 
     def _result(self, status, fallback, reason, t0, states, jerk, com_z, sched, t_start,
-                iters) -> MpcResult:
+                iters, viol=None) -> MpcResult:
         s = self.settings
         n = self.n
         pos = np.column_stack([states[:, 0], states[:, 3], np.full(n + 1, com_z)])
@@ -752,7 +795,8 @@ class LipMpc:
         zmp = np.column_stack([states[:, 0] - self._hg * states[:, 2],
                                states[:, 3] - self._hg * states[:, 5]])
         if sched is not None:
-            viol = self._violations(sched, states)
+            if viol is None:
+                viol = self._violations(sched, states)
             margins = sched.margins(zmp[1:]) + s.zmp_margin     # distance to the real edges
             min_margin = float(np.min(margins))
             max_viol = float(viol.max(initial=0.0))
@@ -811,6 +855,109 @@ class LipMpc:
                          solve_time_ms=(time.perf_counter() - t_start) * 1e3,
                          iterations=iters, min_zmp_margin_m=math.nan,
                          max_zmp_violation_m=math.nan)
+
+
+def _nnqp(M: np.ndarray, g: np.ndarray, x0: np.ndarray, max_iter: int, tol: float = 1e-10,
+          min_pivot: float = 1e-6) -> tuple[np.ndarray | None, int, str]:
+    """``min 1/2 x' M x + g' x, x >= 0`` (``M`` PSD, unit diagonal) by a primal active-set
+    method (Lawson-Hanson style), exact to rounding.
+
+    Warm start: every variable free from ``x0`` (>= 0); if that first free-set matrix is
+    singular, the positive entries of ``x0`` only, then none. Each iteration solves the
+    problem on the free set exactly (LAPACK ``dposv``, Cholesky) and either steps to it (then
+    frees the variable of most negative gradient, if any) or stops where the first free
+    variables reach 0 and fixes those at 0. If freeing a variable makes the free-set matrix
+    singular (its row depends on the free ones: rows of one sample, an infeasible problem),
+    the objective decreases linearly along the null direction: a step to the first blocking
+    variable, or, if none blocks, the dual is unbounded below (the primal is infeasible).
+
+    Returns ``(x, iterations, '')`` at the optimum (free variables > 0 with zero gradient to
+    rounding, fixed ones with gradient >= -tol: the KKT conditions), else ``(None, iterations,
+    why)`` with why ``'unbounded'``, ``'singular'`` or ``'max_iter'``.
+    """
+    m = len(g)
+    if m == 0:
+        return np.zeros(0), 1, ''
+    x0 = np.maximum(x0, 0.0)
+    it = 0
+    for free in (np.ones(m, dtype=bool), x0 > 0.0, np.zeros(m, dtype=bool)):
+        x, k, why = _nnqp_from(M, g, np.where(free, x0, 0.0), free, max_iter - it, tol,
+                               min_pivot)
+        it += k
+        if why != 'singular_start':
+            return x, it, why
+    return None, it, 'singular'
+
+
+def _nnqp_from(M, g, x, free, max_iter, tol, min_pivot):
+    """The iterations of ``_nnqp`` from ``x`` with the free set ``free`` (modified)."""
+    m = len(g)
+    P = np.flatnonzero(free)
+    added = -1                     # variable freed last; the free set without it is PD
+    for it in range(1, max_iter + 1):
+        y = np.zeros(m)
+        if len(P):
+            c, yP, info = _dposv(M.take(P, 0).take(P, 1), -g.take(P), lower=1)
+            if info != 0 or c.diagonal().min() < min_pivot:
+                if added < 0:
+                    return None, it, 'singular_start'
+                # Null direction v: v[added] = 1, M_QQ v_Q = -M_Q,added on Q = P - {added}.
+                Q = P[added != P]
+                v = np.zeros(m)
+                v[added] = 1.0
+                if len(Q):
+                    _, vQ, info = _dposv(M.take(Q, 0).take(Q, 1), -M[Q, added], lower=1)
+                    if info != 0:
+                        return None, it, 'singular'
+                    v[Q] = vQ
+                dec = Q[v[Q] < -1e-9]
+                if len(dec) == 0:
+                    return None, it, 'unbounded'
+                ratio = x[dec] / -v[dec]
+                b = int(dec[ratio.argmin()])
+                x = np.maximum(x + ratio.min() * v, 0.0)
+                x[b] = 0.0
+                free[b] = False
+                x[~free] = 0.0
+                P = np.flatnonzero(free)
+                continue
+            y[P] = yP
+            ymin = yP.min()
+        else:
+            ymin = np.inf
+        if ymin > 0.0:
+            x = y
+            w = M @ x + g
+            w[P] = np.inf
+            j = int(w.argmin())
+            if w[j] >= -tol:
+                return x, it, ''
+            free[j] = True
+            added = j
+            P = np.flatnonzero(free)
+            continue
+        # Step from x towards y until the first free variable reaches 0; plain Python on the
+        # few free variables (numpy's per-call overhead dominates at this size).
+        pl = P.tolist()
+        xl = x.take(P).tolist()
+        yl = yP.tolist()
+        alpha = 1.0
+        for xi, yi in zip(xl, yl, strict=True):
+            if yi <= 0.0:
+                alpha = min(alpha, xi / (xi - yi) if xi - yi > 0.0 else 0.0)
+        x = np.zeros(m)
+        keep = []
+        for p, xi, yi in zip(pl, xl, yl, strict=True):
+            v_ = xi + alpha * (yi - xi)
+            if v_ > 0.0 and not (yi <= 0.0 and (xi / (xi - yi) if xi - yi > 0.0 else 0.0)
+                                 <= alpha):
+                x[p] = v_
+                keep.append(p)
+            else:
+                free[p] = False
+        P = np.array(keep, dtype=np.int64)
+        added = -1
+    return None, max_iter, 'max_iter'
 
 
 def _pattern(rows: list[int], cols: list[int], shape: tuple[int, int]

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from itertools import combinations
+from itertools import combinations, pairwise
 
 import numpy as np
 
@@ -49,9 +49,22 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
     Plain Python on purpose: the hulls here have at most 4 points, where numpy's per-call
     overhead would dominate (this runs for every stance of every re-plan).
     """
-    pts = sorted({(float(p[0]), float(p[1])) for p in np.asarray(points, dtype=float)})
+    return np.array(_hull_list(_xy_list(points)), dtype=float).reshape(-1, 2)
+
+
+def _xy_list(points) -> list:
+    """(x, y) float pairs of points (k, 2 or 3)."""
+    arr = np.asarray(points, dtype=float)
+    if arr.size == 0:
+        return []
+    return [(p[0], p[1]) for p in arr.reshape(len(arr), -1).tolist()]
+
+
+def _hull_list(points: list) -> list:
+    """``convex_hull`` on a list of (x, y) float pairs, returning a list of pairs."""
+    pts = sorted(set(points))
     if len(pts) <= 2:
-        return np.array(pts, dtype=float).reshape(-1, 2)
+        return pts
 
     def cross(o, a, b):
         return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
@@ -66,33 +79,31 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
         while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 1e-12:
             upper.pop()
         upper.append(p)
-    return np.array(lower[:-1] + upper[:-1], dtype=float)
+    return lower[:-1] + upper[:-1]
 
 
 def _chebyshev_radius(normals: np.ndarray, offsets: np.ndarray) -> float:
     """Largest r with a disc of radius r inside ``normals @ z + offsets >= 0``.
 
     A 2-D LP in (z, r): its optimum sits where three edges are equidistant, so enumerating the
-    triples of edges is exact (1 triple for a triangle, 4 for a quadrilateral). Cramer's rule
-    in plain Python: these systems are 3x3.
+    triples of edges is exact (1 triple for a triangle, 4 for a quadrilateral). Equidistance
+    from edges i, j, k is 2 linear equations in z, ``(n_j - n_i) z = o_i - o_j`` (same for k),
+    solved by Cramer's rule in plain Python.
     """
-    nl = normals.tolist()
-    ol = offsets.tolist()
+    nl = normals.tolist() if isinstance(normals, np.ndarray) else list(normals)
+    ol = offsets.tolist() if isinstance(offsets, np.ndarray) else list(offsets)
     m = len(ol)
     best = -math.inf
     for i, j, k in combinations(range(m), 3):
-        # [a_x a_y -1] [z_x z_y r]' = -b for the three rows
-        a = (nl[i], nl[j], nl[k])
-        rhs = (-ol[i], -ol[j], -ol[k])
-        det = (a[0][0] * (a[1][1] * -1 - -1 * a[2][1]) - a[0][1] * (a[1][0] * -1 - -1 * a[2][0])
-               + -1 * (a[1][0] * a[2][1] - a[1][1] * a[2][0]))
+        (nix, niy), oi = nl[i], ol[i]
+        d1x, d1y, e1 = nl[j][0] - nix, nl[j][1] - niy, oi - ol[j]
+        d2x, d2y, e2 = nl[k][0] - nix, nl[k][1] - niy, oi - ol[k]
+        det = d1x * d2y - d1y * d2x
         if abs(det) < 1e-12:
             continue
-        zx = (rhs[0] * (a[1][1] * -1 - -1 * a[2][1]) - a[0][1] * (rhs[1] * -1 - -1 * rhs[2])
-              + -1 * (rhs[1] * a[2][1] - a[1][1] * rhs[2])) / det
-        zy = (a[0][0] * (rhs[1] * -1 - -1 * rhs[2]) - rhs[0] * (a[1][0] * -1 - -1 * a[2][0])
-              + -1 * (a[1][0] * rhs[2] - rhs[1] * a[2][0])) / det
-        r = min(nl[q][0] * zx + nl[q][1] * zy + ol[q] for q in range(m))
+        zx = (e1 * d2y - d1y * e2) / det
+        zy = (d1x * e2 - e1 * d2x) / det
+        r = min(n[0] * zx + n[1] * zy + o for n, o in zip(nl, ol, strict=True))
         best = max(best, r)
     return best
 
@@ -119,17 +130,22 @@ def polygon(points: np.ndarray, margin: float = 0.0) -> SupportPolygon:
     Degenerate (flagged, never raised): fewer than 3 distinct feet, collinear feet (area below
     ``MIN_AREA``), or nothing left inside once the margin is applied.
     """
-    hull = convex_hull(points)
+    return _polygon(_xy_list(points), margin)
+
+
+def _polygon(pl: list, margin: float) -> SupportPolygon:
+    """``polygon`` of a list of (x, y) float pairs."""
+    hl = _hull_list(pl)
+    hull = np.array(hl, dtype=float).reshape(-1, 2)
     if len(hull) == 0:
         return SupportPolygon(np.zeros((0, 2)), np.zeros(0), hull, 0.0, -np.inf, True,
                               'no stance foot')
     if len(hull) < 3:
         normals, offsets = _segment_rows(hull[0], hull[-1], margin)
-        n_pts = len({(float(p[0]), float(p[1])) for p in np.asarray(points)})
+        n_pts = len(set(pl))
         why = ('collinear stance feet' if n_pts >= 3
                else f'{n_pts} distinct stance feet (need 3)')
         return SupportPolygon(normals, offsets, hull, 0.0, -np.inf, True, why)
-    hl = hull.tolist()
     nv = len(hl)
     area = 0.5 * sum(hl[i][0] * hl[(i + 1) % nv][1] - hl[(i + 1) % nv][0] * hl[i][1]
                      for i in range(nv))
@@ -153,7 +169,7 @@ def polygon(points: np.ndarray, margin: float = 0.0) -> SupportPolygon:
         perimeter = sum(math.dist(hl[i], hl[(i + 1) % 3]) for i in range(3))
         radius = 2.0 * area / perimeter - margin
     else:
-        radius = _chebyshev_radius(normals, offsets)
+        radius = _chebyshev_radius(nrm, off)
     if radius <= 0.0:
         return SupportPolygon(normals, offsets, hull, area, radius, True,
                               f'empty after the {margin:.3f} m margin')
@@ -216,10 +232,11 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     """Support polygons at the samples ``start_time + k dt``, k = 1..N, from a foothold plan.
 
     After the last planned step the final stance is kept to the end of the horizon. The stance
-    of every sample is computed with array operations (one pass per step); polygons are built
-    once per distinct stance and kept in ``cache`` (a dict owned by the caller) across calls,
-    since consecutive re-plans share all but one foothold. A swinging leg is out of the stance
-    on the closed interval [liftoff, touchdown] (see ``stance_at``).
+    of every sample is computed with array operations (one pass per step); the samples then
+    fall into runs of one stance (a crawl horizon has ~17), whose rows are written as slices.
+    Polygons are built once per distinct stance and kept in ``cache`` (a dict owned by the
+    caller) across calls, since consecutive re-plans share all but one foothold. A swinging leg
+    is out of the stance on the closed interval [liftoff, touchdown] (see ``stance_at``).
     """
     times = start_time + dt * np.arange(1, n + 1)
     nleg = len(LEGS)
@@ -227,41 +244,46 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     # src[k, leg]: -1 = initial foot, j = target of step j; swing[k, leg]: in the air.
     src = np.full((n, nleg), -1, dtype=np.int64)
     swing = np.zeros((n, nleg), dtype=bool)
-    for j, st in enumerate(plan.steps):
-        swing[:, st.leg] |= (times >= st.liftoff_time) & (times <= st.touchdown_time)
-        src[times > st.touchdown_time, st.leg] = j
-    targets = np.array([st.target for st in plan.steps], dtype=float).reshape(-1, 3)
+    if plan.steps:                      # times ascend: the comparisons become index ranges
+        i_lo = np.searchsorted(times, [st.liftoff_time for st in plan.steps], 'left').tolist()
+        i_td = np.searchsorted(times, [st.touchdown_time for st in plan.steps], 'right').tolist()
+        for j, st in enumerate(plan.steps):
+            swing[i_lo[j]:i_td[j], st.leg] = True      # liftoff <= t <= touchdown
+            src[i_td[j]:, st.leg] = j                    # t > touchdown
     code = np.where(swing, -2, src)                      # what defines each leg's contribution
-    uniq, inverse = np.unique(code, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
+    # Runs of samples with the same stance: [bounds[i], bounds[i + 1]).
+    bounds = np.flatnonzero((code[1:] != code[:-1]).any(axis=1)) + 1
+    bounds = [0, *bounds.tolist(), n]
+    feet_xy = feet0[:, :2].tolist()
+    targets_xy = [(float(st.target[0]), float(st.target[1])) for st in plan.steps]
     A = np.zeros((n, MAX_ROWS, 2))
     b = np.zeros((n, MAX_ROWS))
     active = np.zeros((n, MAX_ROWS), dtype=bool)
     n_feet = np.zeros(n, dtype=int)
     degenerate = np.zeros(n, dtype=bool)
     polys: list[SupportPolygon] = []
+    reasons: list[str] = []
     if cache is None:
         cache = {}
-    for u, row in enumerate(uniq):
-        pts = np.array([(feet0[leg] if c == -1 else targets[c])[:2]
-                        for leg, c in enumerate(row) if c != -2]).reshape(-1, 2)
-        key = pts.tobytes() + np.float64(margin).tobytes()
+    for (k0, k1), row in zip(pairwise(bounds), code[bounds[:-1]].tolist(), strict=True):
+        pts = tuple((feet_xy[leg][0], feet_xy[leg][1]) if c == -1 else targets_xy[c]
+                    for leg, c in enumerate(row) if c != -2)
+        key = (pts, margin)
         poly = cache.get(key)
         if poly is None:
-            poly = polygon(pts, margin)
+            poly = _polygon(list(pts), margin)
             cache[key] = poly
-        polys.append(poly)
-        sel = inverse == u
+        polys.extend([poly] * (k1 - k0))
         m = min(len(poly.offsets), MAX_ROWS)
-        A[sel, :m] = poly.normals[:m]
-        b[sel, :m] = poly.offsets[:m]
-        active[sel, :m] = True
-        n_feet[sel] = len(pts)
-        degenerate[sel] = poly.degenerate
-    reasons = [f'sample {k + 1} (t={times[k]:.3f} s): {polys[inverse[k]].reason}'
-               for k in np.flatnonzero(degenerate)]
-    return SupportSchedule(times, A, b, active, n_feet, degenerate, reasons,
-                           [polys[i] for i in inverse])
+        A[k0:k1, :m] = poly.normals[:m]
+        b[k0:k1, :m] = poly.offsets[:m]
+        active[k0:k1, :m] = True
+        n_feet[k0:k1] = len(pts)
+        if poly.degenerate:
+            degenerate[k0:k1] = True
+            reasons += [f'sample {k + 1} (t={times[k]:.3f} s): {poly.reason}'
+                        for k in range(k0, k1)]
+    return SupportSchedule(times, A, b, active, n_feet, degenerate, reasons, polys)
 
 
 def implied_velocity(plan: FootholdPlan) -> np.ndarray:

@@ -17,6 +17,7 @@ from replan_core.mpc import (
     STATUS_SOLVED,
     LipMpc,
     MpcSettings,
+    _nnqp,
 )
 from replan_core.support import support_schedule
 from replan_core.types import FootholdPlan, Step
@@ -203,5 +204,68 @@ def test_polish_keeps_a_working_set_whose_multipliers_are_all_zero():
     fell back to the relaxed plan)."""
     mpc = LipMpc()
     work, lam = np.array([3, 7]), np.zeros(2)
-    out_work, out_lam = mpc._polish(work, lam, None, None, None, None, None, None, None)
+    out_work, out_lam = mpc._polish(work, lam, None, None, None, None, None)
     assert out_work is work and out_lam is lam
+
+
+def test_exact_dual_matches_proxsuite_dual_and_a_cold_solve():
+    """The active-set dual (default) gives the plan of the proxsuite dual (within the latter's
+    tolerance), and a re-plan seeded with the previous plan's rows (shifted in time) the same
+    plan as a cold one, to rounding."""
+    exact = LipMpc(MpcSettings(zmp_margin=0.02))
+    prox = LipMpc(MpcSettings(zmp_margin=0.02, exact_dual=False))
+    cold = LipMpc(MpcSettings(zmp_margin=0.02, warm_start=False))
+    for plan, res in crawl(exact, 11, 25):
+        args = (res.plan.start_time, res.plan.position[0], res.plan.velocity[0],
+                res.plan.acceleration[0], plan)
+        ref = prox.solve(*args)
+        cold.reset()
+        fresh = cold.solve(*args)
+        assert res.status == ref.status == fresh.status == STATUS_SOLVED
+        assert res.max_zmp_violation_m <= 1e-6
+        np.testing.assert_allclose(res.jerk, fresh.jerk, atol=1e-8)
+        np.testing.assert_allclose(res.zmp, ref.zmp, atol=1e-5)
+        assert res.cost == pytest.approx(ref.cost, rel=1e-6)
+
+
+def test_nnqp_meets_the_kkt_conditions_or_reports_unboundedness():
+    """Random non-negative QPs, full-rank and rank-deficient (rows of one sample), warm and
+    cold: the active-set solver returns a KKT point, or says the dual is unbounded."""
+    rng = np.random.default_rng(0)
+    for trial in range(300):
+        m = int(rng.integers(1, 20))
+        r = int(rng.integers(1, m + 4))
+        B = rng.normal(size=(m, r))
+        M = B @ B.T
+        dg = np.sqrt(np.diag(M))
+        M = M / dg[:, None] / dg[None, :]
+        if trial % 3:              # bounded: g'v >= 0 on every v >= 0 with M v = 0
+            g = -M @ rng.normal(size=m) + np.abs(rng.normal(size=m)) * (rng.random(m) < 0.5)
+        else:
+            g = rng.normal(size=m)
+        x0 = np.maximum(rng.normal(size=m), 0.0) * (trial % 2)
+        x, _, why = _nnqp(M, g, x0, 3 * m + 10)
+        if r >= m or trial % 3:
+            assert why == '', (trial, why)
+        if why == '':
+            w = M @ x + g
+            assert x.min() >= 0.0 and w.min() >= -1e-6 and abs(x @ w) < 1e-6
+        else:
+            assert why == 'unbounded'
+    # Two opposite rows of one sample that cannot both hold: unbounded.
+    x, _, why = _nnqp(np.array([[1.0, -1.0], [-1.0, 1.0]]), np.array([-1.0, -1.0]),
+                      np.zeros(2), 10)
+    assert x is None and why == 'unbounded'
+
+
+def test_infeasible_replan_fails_fast_to_the_relaxed_plan():
+    """The infeasible problem of test_bad_input.py: the exact dual reports it (unbounded or
+    dependent rows) within the iteration budget instead of handing it to proxsuite, which
+    iterated for seconds on it."""
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0))
+    mpc = LipMpc()
+    res = mpc.solve(0.0, np.array([1.5, 0.0, 0.55]), np.array([1.0, 0.0, 0.0]), np.zeros(3),
+                    plan)
+    assert res.status == STATUS_INFEASIBLE and res.fallback == FALLBACK_RELAXED
+    assert 'working-set dual' in res.reason or 'iteration budget' in res.reason, res.reason
+    assert res.iterations < 3 * mpc.settings.iteration_budget

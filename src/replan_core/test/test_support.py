@@ -97,3 +97,23 @@ def test_implied_velocity_is_the_stride_rate_not_the_catch_up():
     short = FootholdPlan(10.0, feet, 0.0, steps[:3])
     assert implied_velocity(short)[0] > 0
     assert np.all(implied_velocity(FootholdPlan(10.0, feet, 0.0, [])) == 0)
+
+
+@pytest.mark.parametrize('shift', [0.0, 0.013, -1])
+def test_schedule_matches_the_per_sample_stance_everywhere(shift):
+    """Every sample (runs of one stance written as slices) against ``stance_at`` + ``polygon``,
+    including horizons that start exactly one sample before a lift-off (closed swing interval)."""
+    feet = np.column_stack([HIP, np.zeros(4)])
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, feet, 2, np.array([0.1, 0.02]),
+                      np.random.default_rng(5))
+    t0 = plan.steps[1].liftoff_time - 0.04 if shift == -1 else shift
+    sched = support_schedule(plan, t0, 0.04, 120, margin=0.02)
+    assert len(sched.polygons) == 120
+    for k in range(120):
+        f, st = stance_at(plan, sched.times[k])
+        ref = polygon(f[st, :2], 0.02)
+        m = len(ref.offsets)
+        assert sched.n_feet[k] == st.sum() and sched.active[k].sum() == m
+        np.testing.assert_allclose(sched.A[k, :m], ref.normals, atol=1e-12)
+        np.testing.assert_allclose(sched.b[k, :m], ref.offsets, atol=1e-12)
+        assert sched.polygons[k].chebyshev_radius == pytest.approx(ref.chebyshev_radius)

@@ -369,11 +369,13 @@ def _roll_deg(quaternion) -> float:
     return float(np.degrees(np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))))
 
 
-@pytest.mark.parametrize('abduction_stiffness', [0.0, 200.0])
-def test_damping_mode_sits_down_without_rolling_over(urdf, robot, abduction_stiffness):
-    """The controller dies while rh is in the air and the trunk moves sideways (the realistic
-    robot: payload, leg mass errors, actuators, compliant feet). Damping alone lets the legs
-    splay and the robot rolls over; with the abduction joints held it sits down upright."""
+@pytest.mark.parametrize('lifted_leg, sideways', [(3, 0.3), (0, -0.3), (2, 0.3), (1, -0.3)])
+def test_damping_mode_sits_down_without_rolling_over(urdf, robot, lifted_leg, sideways):
+    """The controller dies while a leg is in the air and the trunk moves sideways (the
+    realistic robot: payload, leg mass errors, actuators, compliant feet). With the abduction
+    joints held the robot sits down upright. (With damping alone the first case rolled over,
+    110 deg, in the graph 2 of 9 times; here it is chaotic: 9 to 110 deg depending on rounding.)
+    """
     variant = perturbed_urdf(urdf, payload_mass=5.0, payload_offset=(0.10, 0.05, 0.05),
                              leg_mass_error=0.10)
     world = SimWorld(variant, physics_dt=0.001, control_period=DT,
@@ -383,22 +385,21 @@ def test_damping_mode_sits_down_without_rolling_over(urdf, robot, abduction_stif
         wbc = WholeBodyController(robot)
         com0 = initial_com(world, robot)
         feet0 = world.contact_state().foot_position.copy()
+        stance = np.ones(4, bool)
+        stance[lifted_leg] = False
         goal = com0.copy()
-        goal[:2] += 0.6 * (feet0[[0, 1, 2], :2].mean(axis=0) - com0[:2])
-        lifted = (SwingReference(3, feet0[3] + [0.0, 0.0, 0.08], np.zeros(3), np.zeros(3)),)
-        stance = np.array([True, True, True, False])
+        goal[:2] += 0.6 * (feet0[stance, :2].mean(axis=0) - com0[:2])
+        lifted = (SwingReference(lifted_leg, feet0[lifted_leg] + [0.0, 0.0, 0.08],
+                                 np.zeros(3), np.zeros(3)),)
         run(world, wbc, lambda t, b, c: (
-            (goal, np.array([0.0, 0.3 if t > 1.8 else 0.0, 0.0]), np.zeros(3)), 0.0,
+            (goal, np.array([0.0, sideways if t > 1.8 else 0.0, 0.0]), np.zeros(3)), 0.0,
             np.ones(4, bool) if t < 1.5 else stance, () if t < 1.5 else lifted), 2.2)
-        assert not world.contact_state().contact[3]
+        assert not world.contact_state().contact[lifted_leg]
         rolls = []
         for _ in range(round(4.0 / DT)):
-            world.step(world.damping_torques(40.0, abduction_stiffness))
+            world.step(world.damping_torques(40.0, abduction_stiffness=200.0))
             rolls.append(abs(_roll_deg(world.base_state().quaternion)))
         sat = world.base_state().position[2]
     finally:
         world.close()
-    if abduction_stiffness == 0.0:
-        assert max(rolls) > 45.0, max(rolls)          # rolled over: why the hold is there
-    else:
-        assert max(rolls) < 15.0 and 0.25 < sat < 0.4, (max(rolls), sat)
+    assert max(rolls) < 15.0 and 0.25 < sat < 0.4, (max(rolls), sat)

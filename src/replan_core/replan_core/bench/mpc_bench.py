@@ -8,6 +8,9 @@ set-point that changes over the run. The crawl is built here on purpose (no depe
 ``replan_core.gait``). The last printed line is one JSON object.
 
     python -m replan_core.bench.mpc_bench [--formulation sparse|dense] [--replans 200] ...
+
+``median_iter``/``max_iter`` count the QP iterations of a re-plan: active-set iterations of the
+working-set dual by default, proxsuite's with ``--proxsuite-dual`` or a full formulation.
 """
 
 from __future__ import annotations
@@ -128,6 +131,7 @@ def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float 
         'terminal_capture_point': settings.terminal_capture_point,
         'drop_inactive': settings.drop_inactive,
         'add_peaks_only': settings.add_peaks_only,
+        'exact_dual': settings.exact_dual,
     }
 
 
@@ -148,6 +152,9 @@ def main(argv: list[str] | None = None) -> None:
                     help='working set: keep rows whose multiplier is 0')
     ap.add_argument('--add-all-violated', action='store_true',
                     help='working set: add the worst row of every violated sample')
+    ap.add_argument('--proxsuite-dual', action='store_true',
+                    help='working set: solve the dual with proxsuite (+ KKT polish) instead of '
+                         'the exact active-set method')
     args = ap.parse_args(argv)
     settings = MpcSettings(formulation=args.formulation, eps_abs=args.eps_abs,
                            max_iter=args.max_iter, jerk_weight=args.jerk_weight,
@@ -155,7 +162,8 @@ def main(argv: list[str] | None = None) -> None:
                            warm_start=not args.no_warm,
                            terminal_capture_point=not args.no_terminal,
                            drop_inactive=not args.keep_inactive,
-                           add_peaks_only=not args.add_all_violated)
+                           add_peaks_only=not args.add_all_violated,
+                           exact_dual=not args.proxsuite_dual)
     print(json.dumps(run(settings, args.replans, args.seed)))
 
 
