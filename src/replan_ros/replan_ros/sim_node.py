@@ -20,6 +20,13 @@ The realistic robot (config/profiles/realistic.yaml) is made of separate paramet
 in config/sim.yaml (the ideal world): actuator lag, delay, joint friction and torque limits;
 IMU and joint sensor noise (seeded by `noise_seed`); a payload and leg mass errors that the
 controller's model does not know; compliant feet.
+
+Every lock-step tick is timed by phase (tick_budget.py; docs/ARCHITECTURE.md, "Per-tick
+budget"): the command's DDS transport and this process's wake-up (from the message info),
+decoding, physics, sensing, conversion to messages, each publish, and the wait from the
+`joint_states` publish to the next command (the round trip through the controller); the
+figures are in /diagnostics (`tick_<phase>_median_ms`, `tick_<phase>_mean_ms`) and in one log
+line at shutdown.
 """
 
 from __future__ import annotations
@@ -57,11 +64,28 @@ from replan_ros.interfaces import (
     torque_cmd_from_msg,
 )
 from replan_ros.params import declare_node_parameters
+from replan_ros.tick_budget import TickBudget
 
 WAITING, LOCK_STEP, FREE_RUN, DAMPING = 'waiting_first_command', 'lock_step', 'free_run', 'damping'
 _LOG_THROTTLE = 1.0          # wall s between two log lines of the same kind
 _MAX_CATCH_UP_TICKS = 25     # free-run: ticks stepped at most per timer call before slipping
 _WATCHDOG_PERIOD = 0.02      # wall s
+# Phases of a lock-step tick, from the command's arrival to the next one (tick_budget.py).
+BUDGET_PHASES = (
+    'sim_transport_cmd',          # joint_torque_cmd: wbc's DDS write -> our DDS reader
+    'sim_wake',                   # our DDS reader -> _on_command (executor, take, deserialize)
+    'sim_decode',                 # the command to torques
+    'sim_physics',                # due wrenches and the physics steps of one control period
+    'sim_sensing',                # truth, IMU and joint sensor models
+    'sim_conversion',             # the four state messages built
+    'sim_publish_clock',
+    'sim_publish_truth_odom',
+    'sim_publish_truth_contacts',
+    'sim_publish_imu',
+    'sim_publish_joint_states',
+    'sim_wait',                   # joint_states published -> the next command's callback
+    'sim_tick',                   # wall time between two commands' callbacks
+)
 
 
 def _default_urdf() -> str:
@@ -128,6 +152,9 @@ class SimNode(Node):
         self._gyro_variance = imu_noise.gyro_noise_density ** 2 / dt
         self._accel_variance = imu_noise.accel_noise_density ** 2 / dt
         self._tick_messages: tuple = ()     # the samples of the current tick, drawn once
+        self.budget = TickBudget(BUDGET_PHASES)
+        self._tick_start_ns: int | None = None     # perf_counter_ns of the last lock-step
+        self._published_ns: int | None = None      # command, and of its joint_states publish
         self.lock_step: bool = p['lock_step']
         self.republish_period: float = p['republish_period']
         self.command_timeout: float = p['command_timeout']
@@ -217,41 +244,66 @@ class SimNode(Node):
     def _sense(self) -> None:
         """Measure the current tick once: its messages, republished as they are if needed."""
         w = self.world
+        t0 = time.perf_counter_ns()
         truth_contacts = w.contact_state()
         omega_body, specific_force = w.imu_truth()
         imu = self.imu_sensor.measure(w.time, omega_body, specific_force)
+        base = w.base_state()
+        joints = self.joint_sensor.measure(w.joint_state())
+        t1 = time.perf_counter_ns()
         self._tick_messages = (
-            odom_from_base_state(w.base_state()), contacts_to_msg(truth_contacts),
+            odom_from_base_state(base), contacts_to_msg(truth_contacts),
             imu_to_msg(imu, self._gyro_variance, self._accel_variance),
-            joint_state_to_msg(self.joint_sensor.measure(w.joint_state())))
+            joint_state_to_msg(joints))
+        budget = self.budget
+        budget.add('sim_sensing', t1 - t0)
+        budget.add('sim_conversion', time.perf_counter_ns() - t1)
 
-    def _publish_state(self, with_clock: bool = False) -> None:
+    def _publish_state(self, with_clock: bool = False, timed: bool = False) -> None:
         """State of the current tick; /clock on its grid (clock_period) or when forced.
-        joint_states go last: the controller wakes on them."""
+        joint_states go last: the controller wakes on them. ``timed``: a tick's first publish,
+        whose phases go into the budget (a republish does not)."""
         w = self.world
+        clock = time.perf_counter_ns
+        t0 = clock()
         if with_clock or w.tick % self._clock_every == 0:
             self.clock_pub.publish(Clock(clock=ns_to_stamp(self.now_ns)))
+        t1 = clock()
         truth_odom, truth_contacts, imu, joints = self._tick_messages
         self.truth_odom_pub.publish(truth_odom)
+        t2 = clock()
         self.truth_contacts_pub.publish(truth_contacts)
+        t3 = clock()
         self.imu_pub.publish(imu)
+        t4 = clock()
         self.joint_pub.publish(joints)
+        t5 = clock()
         self.last_publish_wall = time.monotonic()
+        if timed:
+            add = self.budget.add
+            add('sim_publish_clock', t1 - t0)
+            add('sim_publish_truth_odom', t2 - t1)
+            add('sim_publish_truth_contacts', t3 - t2)
+            add('sim_publish_imu', t4 - t3)
+            add('sim_publish_joint_states', t5 - t4)
+            self._published_ns = t5
 
     def _advance(self, torques: np.ndarray) -> None:
         """One control tick: due wrenches, physics, state out."""
+        t0 = time.perf_counter_ns()
         self._apply_due_wrenches()
         try:
             self.world.step(torques)
         except ValueError as err:       # never reached with validated commands; be safe
             self.get_logger().error(f'step failed ({err}); applying zero torques')
             self.world.step(np.zeros(len(JOINT_NAMES)))
+        self.budget.add('sim_physics', time.perf_counter_ns() - t0)
         now = time.monotonic()
         self._rtf_samples.append((now, self.world.time))
         while len(self._rtf_samples) > 2 and now - self._rtf_samples[1][0] >= 1.0:
             self._rtf_samples.popleft()
         self._sense()
-        self._publish_state()
+        self._publish_state(timed=True)
 
     def _set_mode(self, mode: str) -> None:
         if mode == self.mode:
@@ -273,7 +325,9 @@ class SimNode(Node):
         self.mode = mode
 
     # ------------------------------------------------------------------ inputs
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg: JointState, info: dict) -> None:
+        start_ns = time.perf_counter_ns()
+        start_wall_ns = time.time_ns()
         try:
             stamp_ns, torques = torque_cmd_from_msg(msg)
         except ValueError as err:
@@ -291,6 +345,7 @@ class SimNode(Node):
                 self._set_mode(FREE_RUN)
             return
         if stamp_ns == self.now_ns:
+            self._begin_budget_tick(start_ns, start_wall_ns, info)
             self.command = torques
             self.last_command_wall = time.monotonic()
             self._set_mode(LOCK_STEP)
@@ -307,6 +362,26 @@ class SimNode(Node):
         self._log_throttled(
             'debug', 'stale', f'ignored joint_torque_cmd stamped {stamp_ns * 1e-9:.3f} s '
             f'(state is {self.world.time:.3f} s)')
+
+    def _begin_budget_tick(self, start_ns: int, start_wall_ns: int, info: dict) -> None:
+        """An accepted lock-step command: close the previous tick with its wait, open this
+        one with the command's transport, wake-up and decoding. The first command (it waited
+        for the first plans) and one after free-running open a tick only."""
+        budget = self.budget
+        if self.mode == LOCK_STEP and self._published_ns is not None:
+            budget.add('sim_wait', start_ns - self._published_ns)
+            budget.add('sim_tick', start_ns - self._tick_start_ns)
+            budget.end_tick()
+        else:
+            budget.discard_tick()
+        self._tick_start_ns = start_ns
+        self._published_ns = None
+        if info:
+            sent, received = info.get('source_timestamp', 0), info.get('received_timestamp', 0)
+            if 0 < sent <= received <= start_wall_ns:
+                budget.add('sim_transport_cmd', received - sent)
+                budget.add('sim_wake', start_wall_ns - received)
+        budget.add('sim_decode', time.perf_counter_ns() - start_ns)
 
     def _on_wrench(self, msg: WrenchStamped) -> None:
         f, t = msg.wrench.force, msg.wrench.torque
@@ -372,6 +447,8 @@ class SimNode(Node):
                                                   self.damping_abduction_stiffness)
                        if self.mode == DAMPING else self.command)
             self._advance(torques)
+            self.budget.discard_tick()        # only lock-step ticks are budgeted
+            self._published_ns = None
             if self.mode not in (FREE_RUN, DAMPING):
                 return
         if todo > _MAX_CATCH_UP_TICKS:    # too slow for the target RTF: slip, do not spiral
@@ -399,11 +476,14 @@ class SimNode(Node):
                   'real_time_factor': self._rtf(), 'commands_rejected': self.rejected,
                   'commands_ignored': self.ignored,
                   'damping_since_s': self._damping_since if self.mode == DAMPING else '',
-                  'wall_s_since_command': time.monotonic() - self.last_command_wall}
+                  'wall_s_since_command': time.monotonic() - self.last_command_wall,
+                  **self.budget.period_values()}
         self.diag_pub.publish(diagnostics.array(
             ns_to_stamp(self.now_ns), diagnostics.status('sim', level, message, values)))
 
     def destroy_node(self) -> None:
+        if self.budget.ticks:
+            self.get_logger().info(self.budget.log_line('sim'))
         self.world.close()
         super().destroy_node()
 

@@ -24,6 +24,12 @@ docs/ARCHITECTURE.md, "Time and lock-step", "State estimation" and "Re-plan prot
   of more than `stale_ticks` control periods between answered ticks, e.g. after the sim
   free-ran): it holds a stable stand with the feet where they are (`wbc.StandHold`) until a new
   plan pair arrives.
+
+Every answered tick is timed by phase (tick_budget.py; docs/ARCHITECTURE.md, "Per-tick budget"):
+the `joint_states` DDS transport and this process's wake-up (from the message info), decoding,
+the take of the tick's queued samples, estimator, messages, publishes, plan logic, controller
+maths, the command; in /diagnostics (`tick_<phase>_median_ms`, `tick_<phase>_mean_ms`) and in one
+log line at shutdown.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import time
 from collections import deque
 from pathlib import Path
 
@@ -77,6 +84,7 @@ from replan_ros.qos import (
     SENSOR,
     SENSOR_PUB,
 )
+from replan_ros.tick_budget import TickBudget
 
 _NS = 1_000_000_000
 _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead of the ticks)
@@ -87,6 +95,20 @@ _STATE_WAIT = 0.01       # wall s to wait for the imu / ground truth of a joint_
 # mean the robot sat down (the sim's damping mode): it stands up in joint space first.
 _SAT_DOWN = 0.1
 _STAND_ADOPT_AGE_NS = 500_000_000   # a stand ends only with plans at most 0.5 sim s old
+# Phases of an answered tick, from the sim's joint_states write to our command's publish.
+BUDGET_PHASES = (
+    'wbc_transport_in',      # joint_states: the sim's DDS write -> our DDS reader
+    'wbc_wake',              # our DDS reader -> _on_joint_states (executor, take, deserialize)
+    'wbc_decode',            # joint_states to the core joint state
+    'wbc_take',              # the tick's queued imu / ground truth taken and decoded
+    'wbc_estimator',         # state estimator update
+    'wbc_state_msgs',        # odom, contacts and contact_events messages built
+    'wbc_publish_state',     # odom, contacts (and contact_events) published
+    'wbc_logic',             # plan following, adoption, stand decisions
+    'wbc_plan_wait',         # a re-plan tick held until its plans arrived
+    'wbc_controller',        # whole-body controller maths (pinocchio, proxsuite)
+    'wbc_command',           # joint_torque_cmd built and published
+)
 
 
 class WbcNode(Node):
@@ -184,6 +206,11 @@ class WbcNode(Node):
         self._fallbacks = 0
         self._period_fallbacks = 0
         self._ticks = 0
+        self.budget = TickBudget(BUDGET_PHASES)
+        self._wait_started_ns = 0          # perf_counter_ns when a tick began to wait for plans
+        self._budget_tick: int | None = None   # the stamp whose phases the budget gathers
+        self._logic_start_ns: int | None = None  # perf_counter_ns the current phase began
+        self._unpublished: tuple | None = None   # the tick's estimate messages, not yet out
 
         self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND,
                                              event_callbacks=INTERNAL_PUB_EVENTS)
@@ -264,7 +291,10 @@ class WbcNode(Node):
         while len(buffer) > _KEEP_STATES:
             del buffer[min(buffer)]
 
-    def _on_joint_states(self, msg: JointStateMsg) -> None:
+    def _on_joint_states(self, msg: JointStateMsg, info: dict) -> None:
+        clock = time.perf_counter_ns
+        t0 = clock()
+        wall0 = time.time_ns()
         stamp = stamp_to_ns(msg.header.stamp)
         if stamp in self._state_msgs:
             # The sim republished a tick we have estimated: the same state and command again
@@ -276,33 +306,61 @@ class WbcNode(Node):
             return
         if self._last_estimated is not None and stamp <= self._last_estimated:
             return                                   # an old stamp: nothing to answer
+        budget = self.budget
+        budget.discard_tick()                        # a tick never answered is not counted
+        self._budget_tick = stamp
+        if info:
+            sent, received = info.get('source_timestamp', 0), info.get('received_timestamp', 0)
+            if 0 < sent <= received <= wall0:
+                budget.add('wbc_transport_in', received - sent)
+                budget.add('wbc_wake', wall0 - received)
         joints = self._decoded(joint_state_from_msg, msg, 'joint_states')
         if joints is None:
             return
+        t1 = clock()
         # The tick's other samples were published before joint_states; should one have been
         # lost (best effort), the sim's republish of the tick brings it again.
         self.state_input.drain(lambda: all(stamp in buffer for buffer in self._needed),
                                timeout=_STATE_WAIT)
+        t2 = clock()
+        budget.add('wbc_decode', t1 - t0)
+        budget.add('wbc_take', t2 - t1)
         if not all(stamp in buffer for buffer in self._needed):
             self._warn(f'tick {stamp / _NS:.3f} s: imu or ground truth missing, waiting for '
                        'the republish')
             return
         base, contacts, odom_msg, contacts_msg = self._estimate(stamp, joints)
-        self.odom_pub.publish(odom_msg)
-        self.contacts_pub.publish(contacts_msg)
+        t3 = clock()
         events = contact_events_to_msg(contacts)
-        if events is not None:
-            self.events_pub.publish(events)
+        budget.add('wbc_state_msgs', clock() - t3)
+        self._unpublished = (odom_msg, contacts_msg, events)
+        self._publish_estimate()
         self._last_estimated = stamp
         self._state_msgs[stamp] = (odom_msg, contacts_msg)
         self._joints[stamp], self._odom[stamp], self._contacts[stamp] = joints, base, contacts
         self._on_state(stamp)
+        self._publish_estimate()      # a tick not answered now (held, or not to be answered)
+
+    def _publish_estimate(self) -> None:
+        """Publish the tick's odom, contacts and contact_events if not done yet."""
+        if self._unpublished is None:
+            return
+        t0 = time.perf_counter_ns()
+        odom_msg, contacts_msg, events = self._unpublished
+        self._unpublished = None
+        self.odom_pub.publish(odom_msg)
+        self.contacts_pub.publish(contacts_msg)
+        if events is not None:
+            self.events_pub.publish(events)
+        self.budget.add('wbc_publish_state', time.perf_counter_ns() - t0)
 
     def _estimate(self, stamp: int, joints) -> tuple:
         """Base state and contacts of the tick (estimated or true) and their messages."""
         estimate = None
         if self.estimator is not None:
+            t0 = time.perf_counter_ns()
             estimate = self.estimator.update(self._imu[stamp], joints)
+            self.budget.add('wbc_estimator', time.perf_counter_ns() - t0)
         if self.state_estimation:
             base = estimate[0]
             odom_msg = odom_from_base_state(base)
@@ -367,8 +425,18 @@ class WbcNode(Node):
         self._adopt(ready[-1], stamp, announced=not self._waiting_first)
         self._answer(stamp)
 
+    def _wait_ended(self, stamp: int) -> None:
+        """A held tick is answered now: its wait for plans goes into the budget."""
+        if self._budget_tick != stamp:
+            return
+        if self._waiting_first:     # the first tick waits for the planners' start: not a tick
+            self._budget_tick = None
+        else:
+            self.budget.add('wbc_plan_wait', time.perf_counter_ns() - self._wait_started_ns)
+
     # ------------------------------------------------------------------------------ ticks
     def _on_state(self, stamp: int) -> None:
+        self._logic_start_ns = time.perf_counter_ns()
         if stamp in self._commands:                  # duplicate: the same command again
             self.cmd_pub.publish(self._commands[stamp])
             return
@@ -392,6 +460,7 @@ class WbcNode(Node):
             elif pairs:
                 self._adopt(pairs[-1], stamp)
             else:
+                self._budget_logic()
                 self._wait(stamp, first=True)
                 return
         elif (self._last_answered is not None and stamp - self._last_answered > self.stale_gap_ns
@@ -427,9 +496,16 @@ class WbcNode(Node):
                     self._pending = None
                     self._adopt(plan_stamp, stamp, announced=True)
                 else:
+                    self._budget_logic()
                     self._wait(stamp, first=False)
                     return
         self._answer(stamp)
+
+    def _budget_logic(self) -> None:
+        """The plan logic of the tick so far (from _on_state or a wait's end)."""
+        now = time.perf_counter_ns()
+        self.budget.add('wbc_logic', now - self._logic_start_ns)
+        self._logic_start_ns = now
 
     def _listeners_subscribed(self) -> bool:
         """True once every node of ``first_command_waits_for`` (e.g. the recorder's on-demand
@@ -445,12 +521,17 @@ class WbcNode(Node):
         return True
 
     def _wait(self, stamp: int, first: bool) -> None:
+        self._publish_estimate()      # the planners answer a held tick from its estimate
+        self._wait_started_ns = time.perf_counter_ns()
+        self._logic_start_ns = None
         self._waiting = stamp
         self._waiting_first = first
         timeout = self.first_plan_timeout if first else self.plan_timeout
         self._wait_timer = self.create_timer(timeout, self._on_wait_timeout, clock=self._wall)
 
     def _end_wait(self) -> None:
+        if self._waiting is not None:
+            self._wait_ended(self._waiting)
         self._waiting = None
         if self._wait_timer is not None:
             self.destroy_timer(self._wait_timer)
@@ -545,6 +626,8 @@ class WbcNode(Node):
         self.get_logger().warning(f'standing at t = {stamp / _NS:.3f} s: {reason}')
 
     def _answer(self, stamp: int) -> None:
+        if self._logic_start_ns is None:
+            self._logic_start_ns = time.perf_counter_ns()   # answered after a wait
         t = stamp / _NS
         base, joints, contacts = self._odom[stamp], self._joints[stamp], self._contacts[stamp]
         if self._stand is None and self._follower is not None:
@@ -562,15 +645,24 @@ class WbcNode(Node):
         else:
             com_ref, yaw, stance, swing = self._follower.references(t)
             yaw_rate = self._follower.yaw_rate(t)
+        self._budget_logic()
         result = self.wbc.compute(base, joints, contacts.contact, com_ref, yaw, stance, swing,
                                   yaw_rate_reference=yaw_rate)
+        self._controller_done()
         self._command(stamp, result)
+
+    def _controller_done(self) -> None:
+        now = time.perf_counter_ns()
+        self.budget.add('wbc_controller', now - self._logic_start_ns)
+        self._logic_start_ns = now
 
     def _answer_stand_up(self, stamp: int, joints, contacts: ContactState) -> None:
         """A tick of the joint-space stand-up; its last tick starts the base estimate over
         and the force-based stand takes over at the next tick, from the new estimate."""
         t = stamp / _NS
+        self._budget_logic()
         result = self.wbc.stand_up(joints, self._stand_up, t, contacts.contact)
+        self._controller_done()
         self._command(stamp, result)
         if self._stand_up.done(t):
             self._stand_up = None
@@ -588,6 +680,14 @@ class WbcNode(Node):
         msg = torque_cmd_to_msg(t, result.torque)
         msg.header.stamp = ns_to_stamp(stamp)        # exactly the stamp answered
         self.cmd_pub.publish(msg)
+        counted = self._budget_tick == stamp
+        if counted:
+            self.budget.add('wbc_command', time.perf_counter_ns() - self._logic_start_ns)
+        self._publish_estimate()
+        if counted:
+            self.budget.end_tick()
+            self._budget_tick = None
+        self._logic_start_ns = None
         self._commands[stamp] = msg
         while len(self._commands) > _KEEP_COMMANDS:
             del self._commands[min(self._commands)]
@@ -653,6 +753,7 @@ class WbcNode(Node):
                 level, message = diagnostics.WARN, f'standing: {self._stand_reason}'
             else:
                 level, message = diagnostics.OK, 'tracking the plan'
+            values.update(self.budget.period_values())
         self._times.clear()
         self._com_errors.clear()
         self._period_timeouts = 0
@@ -663,6 +764,8 @@ class WbcNode(Node):
                                                                           values)))
 
     def destroy_node(self) -> None:
+        if self.budget.ticks:
+            self.get_logger().info(self.budget.log_line('wbc'))
         self.state_input.destroy()
         super().destroy_node()
 

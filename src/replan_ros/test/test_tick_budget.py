@@ -1,0 +1,80 @@
+"""TickBudget: phases add up within a tick, ticks are kept in a ring, figures per period and
+for the run, the log line and the /diagnostics keys read back; the tick_budget tool's table."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from replan_ros.tick_budget import TickBudget, parse_diagnostic_values, parse_log_line
+from replan_ros.tools.tick_budget import ROUND_TRIP, SIM_OWN, table
+
+
+def test_phases_add_up_within_a_tick_and_missing_ones_count_zero():
+    budget = TickBudget(['a', 'b'])
+    budget.add('a', 1_000_000)
+    budget.add('a', 2_000_000)            # met twice in the tick: added
+    budget.end_tick()
+    budget.add('b', 4_000_000)
+    budget.end_tick()
+    values = budget.period_values()
+    assert values['tick_budget_ticks'] == 2
+    assert values['tick_a_mean_ms'] == pytest.approx(1.5)
+    assert values['tick_b_mean_ms'] == pytest.approx(2.0)
+    assert values['tick_a_median_ms'] == pytest.approx(1.5)
+    assert budget.period_values() == {}   # a period without ticks: nothing to report
+
+
+def test_discarded_tick_is_not_counted():
+    budget = TickBudget(['a'])
+    budget.add('a', 9_000_000)
+    budget.discard_tick()
+    budget.add('a', 1_000_000)
+    budget.end_tick()
+    assert budget.summary()['phases']['a']['mean_ms'] == pytest.approx(1.0)
+
+
+def test_ring_keeps_the_last_ticks_and_periods_follow_it():
+    budget = TickBudget(['a'], capacity=4)
+    for k in range(10):
+        budget.add('a', k * 1_000_000)
+        budget.end_tick()
+        if k == 6:
+            assert budget.period_values()['tick_budget_ticks'] == 4   # ring capacity
+    assert budget.period_values()['tick_a_mean_ms'] == pytest.approx(8.0)   # ticks 7, 8, 9
+    summary = budget.summary()
+    assert summary['ticks'] == 4
+    assert summary['phases']['a']['mean_ms'] == pytest.approx(7.5)         # ticks 6..9
+    assert budget.ticks == 10
+
+
+def test_log_line_and_diagnostic_values_read_back():
+    budget = TickBudget(['sim_x', 'sim_y'])
+    budget.add('sim_x', 250_000)
+    budget.end_tick()
+    parsed = parse_log_line('[INFO] [1.0] [sim]: ' + budget.log_line('sim'))
+    assert parsed['node'] == 'sim' and parsed['ticks'] == 1
+    assert parsed['phases']['sim_x'] == {'median_ms': 0.25, 'mean_ms': 0.25}
+    assert parse_log_line('[INFO] nothing here') is None
+    values = {k: str(v) for k, v in budget.period_values().items()}
+    values['mode'] = 'lock_step'
+    assert parse_diagnostic_values(values) == {
+        'sim_x': {'median_ms': 0.25, 'mean_ms': 0.25},
+        'sim_y': {'median_ms': 0.0, 'mean_ms': 0.0}}
+
+
+def test_table_shares_add_up_to_the_tick():
+    def stats(mean):
+        return {'median_ms': mean, 'mean_ms': mean}
+    sim = {'ticks': 100, 'phases': {key: stats(0.1) for key, _ in SIM_OWN}}
+    sim['phases'].update({'sim_wait': stats(2.0), 'sim_tick': stats(3.0),
+                          'sim_transport_cmd': stats(0.1), 'sim_wake': stats(0.1)})
+    wbc = {'ticks': 100, 'phases': {key: stats(0.1) for key, _ in ROUND_TRIP
+                                    if key.startswith('wbc_')}}
+    rows, totals = table(sim, wbc)
+    top_level = [share for label, _, _, share in rows if not label.startswith('  ')]
+    assert math.fsum(top_level) == pytest.approx(1.0)
+    inside_wait = [mean for label, _, mean, _ in rows if label.startswith('  ')]
+    assert math.fsum(inside_wait) == pytest.approx(totals['round_trip_ms'])
+    assert totals['tick_ms_mean'] == 3.0

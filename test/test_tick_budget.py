@@ -1,0 +1,61 @@
+"""The per-tick budget of the lock-step loop (tick_budget.py) in the running sim and wbc: every
+phase appears in their /diagnostics, finite and not negative, the work done every tick
+positive, and the figures agree with what a tick is made of. No timing is asserted."""
+
+from __future__ import annotations
+
+import math
+
+from conftest import CONFIG_DIR
+from diagnostic_msgs.msg import DiagnosticArray
+from nav_msgs.msg import Odometry
+
+from replan_ros import diagnostics, sim_node, wbc_node
+from replan_ros.interfaces import stamp_to_sec
+from replan_ros.qos import COMMAND, SENSOR
+from replan_ros.tick_budget import parse_diagnostic_values
+
+
+def _latest(diags, name: str) -> dict | None:
+    """The newest status ``name`` with budget figures, as phase -> {median_ms, mean_ms}."""
+    for array in reversed(diags):
+        for status in array.status:
+            if status.name == name:
+                phases = parse_diagnostic_values(diagnostics.values_of(status))
+                if phases:
+                    return phases
+    return None
+
+
+def test_budget_figures_in_diagnostics_of_sim_and_wbc(launcher, probe):
+    launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml',
+                   params={'diagnostics_period': 0.5})
+    launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
+                   params={'plan_timeout': 0.5, 'diagnostics_period': 0.5})
+    odoms = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
+    diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
+    ok = probe.spin_until(lambda: odoms and stamp_to_sec(odoms[-1].header.stamp) >= 2.0,
+                          timeout=90)
+    assert ok, launcher.logs()
+    diags.clear()
+    assert probe.spin_until(lambda: _latest(diags, 'sim') and _latest(diags, 'wbc'),
+                            timeout=10), launcher.logs()
+    sim, wbc = _latest(diags, 'sim'), _latest(diags, 'wbc')
+    assert set(sim) == set(sim_node.BUDGET_PHASES)
+    assert set(wbc) == set(wbc_node.BUDGET_PHASES)
+    for phases in (sim, wbc):
+        for name, stats in phases.items():
+            assert set(stats) == {'median_ms', 'mean_ms'}, name
+            assert all(math.isfinite(v) and v >= 0.0 for v in stats.values()), (name, stats)
+    # Work done in every tick costs something; DDS gives both processes the message info.
+    for name in ('sim_physics', 'sim_sensing', 'sim_conversion', 'sim_publish_joint_states',
+                 'sim_wait', 'sim_tick', 'sim_wake'):
+        assert sim[name]['median_ms'] > 0.0, name
+    for name in ('wbc_decode', 'wbc_take', 'wbc_controller', 'wbc_command', 'wbc_wake'):
+        assert wbc[name]['median_ms'] > 0.0, name
+    # The ideal world: no estimator, and this wbc holds no tick for plans (it stands).
+    assert wbc['wbc_estimator']['mean_ms'] == 0.0
+    # A tick is the sim's own phases and its wait for the command, one after the other.
+    own = sum(stats['mean_ms'] for name, stats in sim.items()
+              if name not in ('sim_tick', 'sim_wait', 'sim_transport_cmd', 'sim_wake'))
+    assert sim['sim_tick']['mean_ms'] >= 0.99 * (own + sim['sim_wait']['mean_ms'])
