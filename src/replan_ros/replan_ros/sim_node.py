@@ -3,7 +3,8 @@
 It publishes what a robot's sensors measure: `imu` (gyro and accelerometer with noise and bias)
 and `joint_states` (encoders and joint torque sensors with noise), and, for metrics and bags
 only, the truth: `ground_truth/odom` and `ground_truth/contacts` (the simulator's exact pose,
-twist and ground reaction forces). The state estimator lives in the controller's process
+twist and ground reaction forces; built and published only while someone reads them, as is
+the `imu`). The state estimator lives in the controller's process
 (wbc_node), which publishes the estimated `odom` and `contacts` the planners use.
 
 Lock-step (docs/ARCHITECTURE.md, "Time and lock-step"): at tick t_k it publishes /clock,
@@ -151,7 +152,8 @@ class SimNode(Node):
         # Variances of one sample, for the Imu message's covariances.
         self._gyro_variance = imu_noise.gyro_noise_density ** 2 / dt
         self._accel_variance = imu_noise.accel_noise_density ** 2 / dt
-        self._tick_messages: tuple = ()     # the samples of the current tick, drawn once
+        self._tick_messages: list = []      # the samples of the current tick, drawn once
+        self._tick_sources: tuple = ()
         self.budget = TickBudget(BUDGET_PHASES)
         self._tick_start_ns: int | None = None     # perf_counter_ns of the last lock-step
         self._published_ns: int | None = None      # command, and of its joint_states publish
@@ -251,13 +253,29 @@ class SimNode(Node):
         base = w.base_state()
         joints = self.joint_sensor.measure(w.joint_state())
         t1 = time.perf_counter_ns()
-        self._tick_messages = (
-            odom_from_base_state(base), contacts_to_msg(truth_contacts),
-            imu_to_msg(imu, self._gyro_variance, self._accel_variance),
-            joint_state_to_msg(joints))
+        # Built when first published to a reader: a topic nobody reads (the truth without the
+        # recorder, the imu in the ideal profile) costs no conversion (volatile topics: a
+        # sample published to no reader is lost anyway). The samples are drawn all the same.
+        self._tick_sources = (
+            (self.truth_odom_pub, odom_from_base_state, (base,)),
+            (self.truth_contacts_pub, contacts_to_msg, (truth_contacts,)),
+            (self.imu_pub, imu_to_msg, (imu, self._gyro_variance, self._accel_variance)))
+        self._tick_messages = [None, None, None, joint_state_to_msg(joints)]
+        for k in range(3):
+            self._tick_message(k)
         budget = self.budget
         budget.add('sim_sensing', t1 - t0)
         budget.add('sim_conversion', time.perf_counter_ns() - t1)
+
+    def _tick_message(self, k: int):
+        """Message ``k`` (truth odom, truth contacts, imu) of the tick if ``k``'s topic has a
+        reader now, built once; None otherwise."""
+        message = self._tick_messages[k]
+        if message is None:
+            publisher, build, args = self._tick_sources[k]
+            if publisher.get_subscription_count() > 0:
+                message = self._tick_messages[k] = build(*args)
+        return message
 
     def _publish_state(self, with_clock: bool = False, timed: bool = False) -> None:
         """State of the current tick; /clock on its grid (clock_period) or when forced.
@@ -269,12 +287,18 @@ class SimNode(Node):
         if with_clock or w.tick % self._clock_every == 0:
             self.clock_pub.publish(Clock(clock=ns_to_stamp(self.now_ns)))
         t1 = clock()
+        if not timed:                 # a republish: a reader may have come meanwhile
+            for k in range(3):
+                self._tick_message(k)
         truth_odom, truth_contacts, imu, joints = self._tick_messages
-        self.truth_odom_pub.publish(truth_odom)
+        if truth_odom is not None:
+            self.truth_odom_pub.publish(truth_odom)
         t2 = clock()
-        self.truth_contacts_pub.publish(truth_contacts)
+        if truth_contacts is not None:
+            self.truth_contacts_pub.publish(truth_contacts)
         t3 = clock()
-        self.imu_pub.publish(imu)
+        if imu is not None:
+            self.imu_pub.publish(imu)
         t4 = clock()
         self.joint_pub.publish(joints)
         t5 = clock()
