@@ -251,6 +251,11 @@ class StandHold:
         return (self.com, np.zeros(3), np.zeros(3)), self.yaw, stance, swing
 
 
+def _trunk_frame() -> BaseState:
+    """The base at the world origin, level and at rest: kinematics in the trunk's axes."""
+    return BaseState(0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), np.zeros(3))
+
+
 class JointStandUp:
     """Stand-up of a robot that sat down, in joint space.
 
@@ -498,9 +503,7 @@ class WholeBodyController:
 
     def leg_heights(self, joints: JointState) -> np.ndarray:
         """(4,) m: base_link above each foot along the trunk's z axis (joint kinematics only)."""
-        origin = BaseState(0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
-                           np.zeros(3))
-        return -self.robot.foot_positions(origin, joints)[:, 2]
+        return -self.robot.foot_positions(_trunk_frame(), joints)[:, 2]
 
     def stand_up(self, joints: JointState, stand_up: JointStandUp, t: float,
                  contact: np.ndarray) -> WbcResult:
@@ -511,9 +514,7 @@ class WholeBodyController:
         q = np.asarray(joints.position, dtype=float)
         qd = np.asarray(joints.velocity, dtype=float)
         q_ref, qd_ref, load = stand_up.reference(t)
-        origin = BaseState(0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
-                           np.zeros(3))
-        jacobians = self.robot.foot_jacobians(origin, joints)          # (4, 3, nv)
+        jacobians = self.robot.foot_jacobians(_trunk_frame(), joints)  # (4, 3, nv)
         foot_force = np.array([0.0, 0.0, load * self.mass * GRAVITY / N_LEGS])   # N, each foot
         weight = np.zeros(len(self._limit))
         for i in range(N_LEGS):

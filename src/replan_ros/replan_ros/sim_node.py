@@ -400,11 +400,7 @@ class SimNode(Node):
             budget.discard_tick()
         self._tick_start_ns = start_ns
         self._published_ns = None
-        if info:
-            sent, received = info.get('source_timestamp', 0), info.get('received_timestamp', 0)
-            if 0 < sent <= received <= start_wall_ns:
-                budget.add('sim_transport_cmd', received - sent)
-                budget.add('sim_wake', start_wall_ns - received)
+        budget.add_delivery(info, start_wall_ns, 'sim_transport_cmd', 'sim_wake')
         budget.add('sim_decode', time.perf_counter_ns() - start_ns)
 
     def _on_wrench(self, msg: WrenchStamped) -> None:

@@ -46,6 +46,19 @@ class TickBudget:
         """``ns`` nanoseconds spent in ``phase`` during the current tick."""
         self._current[self._index[phase]] += ns
 
+    def add_delivery(self, info: dict | None, callback_wall_ns: int, transport: str,
+                     wake: str) -> None:
+        """A message's DDS transport (writer's write -> our reception) into ``transport`` and
+        its wake-up (reception -> the callback, started at ``callback_wall_ns``, time.time_ns)
+        into ``wake``, from the message info rclpy gives a two-argument callback; nothing if
+        the info lacks the timestamps or they are out of order (clock steps)."""
+        if not info:
+            return
+        sent, received = info.get('source_timestamp', 0), info.get('received_timestamp', 0)
+        if 0 < sent <= received <= callback_wall_ns:
+            self.add(transport, received - sent)
+            self.add(wake, callback_wall_ns - received)
+
     def discard_tick(self) -> None:
         """Forget what the current tick has gathered (a tick not to be counted)."""
         self._current = [0] * len(self.phases)

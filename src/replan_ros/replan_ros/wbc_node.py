@@ -210,7 +210,6 @@ class WbcNode(Node):
         self._wait_started_ns = 0          # perf_counter_ns when a tick began to wait for plans
         self._budget_tick: int | None = None   # the stamp whose phases the budget gathers
         self._logic_start_ns: int | None = None  # perf_counter_ns the current phase began
-        self._unpublished: tuple | None = None   # the tick's estimate messages, not yet out
 
         self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND,
                                              event_callbacks=INTERNAL_PUB_EVENTS)
@@ -309,11 +308,7 @@ class WbcNode(Node):
         budget = self.budget
         budget.discard_tick()                        # a tick never answered is not counted
         self._budget_tick = stamp
-        if info:
-            sent, received = info.get('source_timestamp', 0), info.get('received_timestamp', 0)
-            if 0 < sent <= received <= wall0:
-                budget.add('wbc_transport_in', received - sent)
-                budget.add('wbc_wake', wall0 - received)
+        budget.add_delivery(info, wall0, 'wbc_transport_in', 'wbc_wake')
         joints = self._decoded(joint_state_from_msg, msg, 'joint_states')
         if joints is None:
             return
@@ -333,26 +328,16 @@ class WbcNode(Node):
         t3 = clock()
         events = contact_events_to_msg(contacts)
         budget.add('wbc_state_msgs', clock() - t3)
-        self._unpublished = (odom_msg, contacts_msg, events)
-        self._publish_estimate()
-        self._last_estimated = stamp
-        self._state_msgs[stamp] = (odom_msg, contacts_msg)
-        self._joints[stamp], self._odom[stamp], self._contacts[stamp] = joints, base, contacts
-        self._on_state(stamp)
-        self._publish_estimate()      # a tick not answered now (held, or not to be answered)
-
-    def _publish_estimate(self) -> None:
-        """Publish the tick's odom, contacts and contact_events if not done yet."""
-        if self._unpublished is None:
-            return
-        t0 = time.perf_counter_ns()
-        odom_msg, contacts_msg, events = self._unpublished
-        self._unpublished = None
+        t4 = clock()
         self.odom_pub.publish(odom_msg)
         self.contacts_pub.publish(contacts_msg)
         if events is not None:
             self.events_pub.publish(events)
-        self.budget.add('wbc_publish_state', time.perf_counter_ns() - t0)
+        budget.add('wbc_publish_state', clock() - t4)
+        self._last_estimated = stamp
+        self._state_msgs[stamp] = (odom_msg, contacts_msg)
+        self._joints[stamp], self._odom[stamp], self._contacts[stamp] = joints, base, contacts
+        self._on_state(stamp)
 
     def _estimate(self, stamp: int, joints) -> tuple:
         """Base state and contacts of the tick (estimated or true) and their messages."""
@@ -521,7 +506,6 @@ class WbcNode(Node):
         return True
 
     def _wait(self, stamp: int, first: bool) -> None:
-        self._publish_estimate()      # the planners answer a held tick from its estimate
         self._wait_started_ns = time.perf_counter_ns()
         self._logic_start_ns = None
         self._waiting = stamp
@@ -683,8 +667,6 @@ class WbcNode(Node):
         counted = self._budget_tick == stamp
         if counted:
             self.budget.add('wbc_command', time.perf_counter_ns() - self._logic_start_ns)
-        self._publish_estimate()
-        if counted:
             self.budget.end_tick()
             self._budget_tick = None
         self._logic_start_ns = None

@@ -78,3 +78,16 @@ def test_table_shares_add_up_to_the_tick():
     inside_wait = [mean for label, _, mean, _ in rows if label.startswith('  ')]
     assert math.fsum(inside_wait) == pytest.approx(totals['round_trip_ms'])
     assert totals['tick_ms_mean'] == 3.0
+
+
+def test_delivery_from_the_message_info():
+    budget = TickBudget(('transport', 'wake'))
+    budget.add_delivery({'source_timestamp': 1_000, 'received_timestamp': 1_300}, 2_000,
+                        'transport', 'wake')
+    budget.add_delivery({'source_timestamp': 5_000, 'received_timestamp': 1_300}, 2_000,
+                        'transport', 'wake')             # out of order: not counted
+    budget.add_delivery({}, 2_000, 'transport', 'wake')  # no info: not counted
+    budget.end_tick()
+    values = budget.period_values()
+    assert values['tick_transport_mean_ms'] == pytest.approx(300e-6)   # ns -> ms
+    assert values['tick_wake_mean_ms'] == pytest.approx(700e-6)
