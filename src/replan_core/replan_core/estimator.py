@@ -31,7 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from replan_core import rotations
-from replan_core.robot_model import GRAVITY, RobotModel
+from replan_core.robot_model import GRAVITY, RobotModel, unit_quaternion_matrix
 from replan_core.types import LEGS, BaseState, ContactState, ImuReading, JointState
 
 N_LEGS = len(LEGS)
@@ -325,7 +325,7 @@ class StateEstimator:
             norm = math.sqrt(x * x + y * y + z * z + w * w)
             x, y, z, w = x / norm, y / norm, z / norm, w / norm
             self._quat = np.array((x, y, z, w))
-            self._rot = _rotation_matrix(x, y, z, w)
+            self._rot = unit_quaternion_matrix(x, y, z, w)
         return omega
 
     # ------------------------------------------------------------------ kinematics, contacts
@@ -494,14 +494,6 @@ def _vector(values, size: int) -> np.ndarray | None:
     if array.shape != (size,) or not math.isfinite(float(array.sum())):
         return None
     return array
-
-
-def _rotation_matrix(x: float, y: float, z: float, w: float) -> np.ndarray:
-    """``rotations.quaternion_to_matrix`` of a quaternion already normalised, on floats."""
-    return np.array((
-        (1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
-        (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
-        (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y))))
 
 
 def _level_quaternion(accel: np.ndarray, yaw: float) -> np.ndarray:
