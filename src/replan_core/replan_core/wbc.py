@@ -19,6 +19,7 @@ QP of fixed size) and ``compute`` is called once per control tick (250 Hz):
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -29,7 +30,7 @@ import proxsuite
 
 from replan_core.contact import StepEvent, StepTracker
 from replan_core.robot_model import GRAVITY, RobotModel
-from replan_core.rotations import quaternion_to_matrix, yaw_of
+from replan_core.rotations import yaw_of
 from replan_core.swing import swing_reference as swing_trajectory
 from replan_core.types import (
     LEGS,
@@ -301,7 +302,14 @@ class WholeBodyController:
         self.data = self.robot.data
         self.mass = self.robot.total_mass
         self._leg_v = self.robot.leg_v_index           # (4, 3) columns of each leg in v
+        # Fancy index picking each leg's (3, 3) block out of the (4, 3, nv) foot Jacobians, and
+        # each leg's (3, 3) block of the mass matrix: built once, not per tick.
+        self._leg_pick = (np.arange(N_LEGS)[:, None, None], np.arange(3)[None, :, None],
+                          self._leg_v[:, None, :])
+        self._leg_mass_ix = tuple(np.ix_(cols, cols) for cols in self._leg_v)
+        self._swing_damping = 1e-4 * np.eye(3)        # of the swing feed-forward's J^T J
         self._limit = self.robot.effort_limit.copy()
+        self._neg_limit = -self._limit
         self._hold_q: np.ndarray | None = None         # last good posture for the fallback
         self._hold_torque = np.zeros(len(self._limit))  # last good stance torque (feed-forward)
         self._build_qp()
@@ -323,6 +331,19 @@ class WholeBodyController:
         for i in range(N_LEGS):
             self._wrench_map[0:3, 3 * i:3 * i + 3] = np.eye(3)
         self._weights = np.array([p.weight_force] * 3 + [p.weight_moment] * 3)
+        # skew(r_i) blocks of the moment rows as one scatter: entry (row, col) of the flat
+        # wrench map takes sign * (feet - com).ravel()[source], the other entries stay zero.
+        dst, src, sign = [], [], []
+        for i in range(N_LEGS):
+            for row, col, axis, factor in ((0, 1, 2, -1.0), (0, 2, 1, 1.0), (1, 0, 2, 1.0),
+                                           (1, 2, 0, -1.0), (2, 0, 1, -1.0), (2, 1, 0, 1.0)):
+                dst.append((3 + row) * 3 * N_LEGS + 3 * i + col)
+                src.append(3 * i + axis)
+                sign.append(factor)
+        self._skew_dst = np.array(dst)
+        self._skew_src = np.array(src)
+        self._skew_sign = np.array(sign)
+        self._bounds_cache: dict[tuple[bool, ...], tuple[np.ndarray, np.ndarray]] = {}
         self._qp = proxsuite.proxqp.dense.QP(3 * N_LEGS, 0, 4 * N_LEGS, True)
         self._qp.settings.eps_abs = p.qp_eps_abs
         self._qp.settings.eps_rel = 0.0
@@ -331,7 +352,15 @@ class WholeBodyController:
         self._qp_initialized = False
         self._qp_stance: tuple[bool, ...] = ()
 
-    def _bounds(self, stance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _bounds(self, stance: tuple[bool, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """Box bounds of the forces for a stance set; 16 sets at most, each built once
+        (proxsuite copies them, so the cached arrays are never changed)."""
+        bounds = self._bounds_cache.get(stance)
+        if bounds is None:
+            bounds = self._bounds_cache[stance] = self._build_bounds(stance)
+        return bounds
+
+    def _build_bounds(self, stance: tuple[bool, ...]) -> tuple[np.ndarray, np.ndarray]:
         p = self.params
         lower = np.zeros(3 * N_LEGS)
         upper = np.zeros(3 * N_LEGS)
@@ -346,38 +375,39 @@ class WholeBodyController:
                       stance: np.ndarray) -> tuple[np.ndarray, str, int]:
         """GRF (4, 3) realising ``wrench`` = [force; moment about the CoM] on the stance feet."""
         a = self._wrench_map
-        for i in range(N_LEGS):
-            a[3:6, 3 * i:3 * i + 3] = skew(feet[i] - com)
+        # a[3:6, 3i:3i+3] = skew(feet[i] - com) for the four feet in one scatter.
+        a.ravel()[self._skew_dst] = (feet - com).ravel()[self._skew_src] * self._skew_sign
         aw = a.T * self._weights
         h = aw @ a
-        h[np.diag_indices_from(h)] += self.params.regularization
+        h.ravel()[::3 * N_LEGS + 1] += self.params.regularization    # the diagonal, a view
         g = -aw @ wrench
-        lower, upper = self._bounds(stance)
         # Warm start while the stance set holds; a new set changes the box bounds, and
         # proxsuite's warm start from a point outside the new box can end in a spurious
         # 'primal_infeasible': set up afresh then (one more init per touchdown/lift-off).
-        stance_key = tuple(bool(x) for x in stance)
+        stance_key = tuple(stance.tolist())
+        lower, upper = self._bounds(stance_key)
         warm = self._qp_initialized and stance_key == self._qp_stance
-        name = self._solve_qp(h, g, lower, upper, warm)
+        name, iterations = self._solve_qp(h, g, lower, upper, warm)
         if name not in ('solved', 'max_iter') and warm:
-            name = self._solve_qp(h, g, lower, upper, False)      # retry cold once
+            name, iterations = self._solve_qp(h, g, lower, upper, False)   # retry cold once
         self._qp_stance = stance_key
-        qp = self._qp
-        return qp.results.x.reshape(N_LEGS, 3).copy(), name, int(qp.results.info.iter)
+        return self._qp.results.x.reshape(N_LEGS, 3).copy(), name, iterations
 
     def _solve_qp(self, h: np.ndarray, g: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                  warm: bool) -> str:
+                  warm: bool) -> tuple[str, int]:
+        """Solve; returns the status name and the iteration count."""
         qp = self._qp
         if warm:
             qp.update(H=h, g=g, l_box=lower, u_box=upper)
-            qp.settings.initial_guess = (
-                proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT)
+            qp.settings.initial_guess = _WARM_START
         else:
-            qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+            qp.settings.initial_guess = _COLD_START
             qp.init(h, g, None, None, self._c, self._l, self._u, lower, upper)
             self._qp_initialized = True
         qp.solve()
-        return _STATUS_NAMES.get(qp.results.info.status, str(qp.results.info.status))
+        info = qp.results.info          # each attribute access builds a new wrapper: once
+        status = info.status
+        return _STATUS_NAMES.get(status, str(status)), int(info.iter)
 
     # ------------------------------------------------------------------------------ per tick
     def compute(self, base: BaseState, joints: JointState, contact: np.ndarray,
@@ -427,8 +457,12 @@ class WholeBodyController:
         com = data.com[0].copy()
         vcom = data.vcom[0].copy()
         nle = data.nle
-        jacobians = [pin.getFrameJacobian(model, data, f, pin.LOCAL_WORLD_ALIGNED)[:3]
-                     for f in self.robot.foot_frame_ids]
+        lwa = pin.LOCAL_WORLD_ALIGNED
+        # (4, 3, nv) translational foot Jacobians, world axes: one array, so that the legs'
+        # blocks and products below are one call each instead of one per leg.
+        jacobians = np.array([pin.getFrameJacobian(model, data, f, lwa)[:3]
+                              for f in self.robot.foot_frame_ids])
+        j_legs = jacobians[self._leg_pick]                  # (4, 3, 3) J_leg, world axes
         feet = np.array([data.oMf[f].translation for f in self.robot.foot_frame_ids])
 
         # Desired CoM acceleration: plan feed-forward + PD on the CoM error (world).
@@ -436,25 +470,32 @@ class WholeBodyController:
         vcom_error = vcom_des - vcom
         acc = acom_des + p.com_kp * com_error + p.com_kd * vcom_error
         # Trunk: level roll/pitch, commanded yaw; PD on the rotation vector (world axes).
-        rotation = quaternion_to_matrix(base.quaternion)
-        cy, sy = np.cos(yaw_reference), np.sin(yaw_reference)
-        rotation_des = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+        rotation = self.robot.rotation          # of base.quaternion, from robot.update
+        cy, sy = math.cos(yaw_reference), math.sin(yaw_reference)
+        rotation_des = np.array(((cy, -sy, 0.0), (sy, cy, 0.0), (0.0, 0.0, 1.0)))
         orientation_error = pin.log3(rotation_des @ rotation.T)
         omega = np.asarray(base.angular_velocity, dtype=float)
-        # Gains are given about the trunk's roll/pitch/yaw axes: rotate them to the world.
+        # Gains are given about the trunk's roll/pitch/yaw axes: Rz diag(k) Rz^T e, done as
+        # Rz (k * (Rz^T e)) on floats (3-vectors: numpy's call overhead outweighs the maths).
         yaw = yaw_of(base.quaternion)
-        rz = np.array([[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0],
-                       [0.0, 0.0, 1.0]])
-        kp_w = rz @ np.diag(p.trunk_kp) @ rz.T
-        kd_w = rz @ np.diag(p.trunk_kd) @ rz.T
-        omega_ref = np.array([0.0, 0.0, yaw_rate_reference])
-        omega_dot = kp_w @ orientation_error + kd_w @ (omega_ref - omega)
+        c, s = math.cos(yaw), math.sin(yaw)
+        ex, ey, ez = orientation_error.tolist()
+        wx, wy, wz = omega.tolist()
+        dx, dy, dz = -wx, -wy, yaw_rate_reference - wz        # omega_ref - omega
+        kpx, kpy, kpz = np.asarray(p.trunk_kp, dtype=float).tolist()
+        kdx, kdy, kdz = np.asarray(p.trunk_kd, dtype=float).tolist()
+        ux = kpx * (c * ex + s * ey) + kdx * (c * dx + s * dy)       # in the trunk's yaw axes
+        uy = kpy * (c * ey - s * ex) + kdy * (c * dy - s * dx)
+        omega_dot = (c * ux - s * uy, s * ux + c * uy, kpz * ez + kdz * dz)
         inertia = data.Ig.inertia               # centroidal composite inertia, world axes
-        wrench = np.concatenate([
-            self.mass * (acc + np.array([0.0, 0.0, GRAVITY])),     # sum f = m (a + g)
-            inertia @ omega_dot + skew(omega) @ (inertia @ omega)])
+        # Rows I omega_dot and I omega in one product.
+        (mx, my, mz), (ix, iy, iz) = (np.array((omega_dot, (wx, wy, wz))) @ inertia.T).tolist()
+        ax, ay, az = acc.tolist()
+        mass = self.mass
+        wrench = np.array((
+            mass * ax, mass * ay, mass * (az + GRAVITY),            # sum f = m (a + g)
+            mx + (wy * iz - wz * iy), my + (wz * ix - wx * iz), mz + (wx * iy - wy * ix)))
 
-        torque = np.zeros(len(self._limit))
         forces = np.zeros((N_LEGS, 3))
         qp_status, qp_iter = 'no_stance', 0
         if stance.any():
@@ -464,34 +505,34 @@ class WholeBodyController:
             forces[~stance] = 0.0
 
         swing_error = np.zeros(N_LEGS)
+        # Every leg: gravity + Coriolis (h), minus J^T f of the stance feet (the foot pushes
+        # the ground with -f); one batched product: the other legs' forces are zero here.
+        legs_tau = nle[self._leg_v] - (j_legs.transpose(0, 2, 1) @ forces[..., None])[..., 0]
         swing_legs = {s.leg: s for s in swing}
         for i in range(N_LEGS):
-            cols = self._leg_v[i]
-            j_leg = jacobians[i][:, cols]                   # (3, 3) world axes
-            rows = slice(3 * i, 3 * i + 3)
-            tau = nle[cols].copy()                          # leg gravity + Coriolis
-            if stance[i]:
-                tau -= j_leg.T @ forces[i]                  # foot pushes the ground with -f
-            elif i in swing_legs:
-                ref = swing_legs[i]
-                foot_velocity = jacobians[i] @ v
-                error = np.asarray(ref.position, dtype=float) - feet[i]
-                derror = np.asarray(ref.velocity, dtype=float) - foot_velocity
-                swing_error[i] = float(np.linalg.norm(error))
-                force = p.swing_kp * error + p.swing_kd * derror
-                # Feed-forward: leg inverse dynamics of the reference acceleration minus the
-                # velocity-product drift, through a damped inverse of the (3, 3) leg Jacobian.
-                drift = pin.getFrameClassicalAcceleration(
-                    model, data, self.robot.foot_frame_ids[i], pin.LOCAL_WORLD_ALIGNED).linear
-                a_task = np.asarray(ref.acceleration, dtype=float) - drift
-                qdd = np.linalg.solve(j_leg.T @ j_leg + 1e-4 * np.eye(3), j_leg.T @ a_task)
-                m_leg = data.M[np.ix_(cols, cols)]
-                tau += j_leg.T @ force + m_leg @ qdd
-            torque[rows] = tau
+            ref = swing_legs.get(i)
+            if ref is None or stance[i]:
+                continue
+            j_leg = j_legs[i]
+            foot_velocity = jacobians[i] @ v
+            error = np.asarray(ref.position, dtype=float) - feet[i]
+            derror = np.asarray(ref.velocity, dtype=float) - foot_velocity
+            swing_error[i] = float(np.linalg.norm(error))
+            force = p.swing_kp * error + p.swing_kd * derror
+            # Feed-forward: leg inverse dynamics of the reference acceleration minus the
+            # velocity-product drift, through a damped inverse of the (3, 3) leg Jacobian.
+            drift = pin.getFrameClassicalAcceleration(
+                model, data, self.robot.foot_frame_ids[i], lwa).linear
+            a_task = np.asarray(ref.acceleration, dtype=float) - drift
+            qdd = np.linalg.solve(j_leg.T @ j_leg + self._swing_damping, j_leg.T @ a_task)
+            m_leg = data.M[self._leg_mass_ix[i]]
+            legs_tau[i] += j_leg.T @ force + m_leg @ qdd
+        torque = legs_tau.ravel()           # leg-major: JOINT_NAMES order
 
         if not np.all(np.isfinite(torque)):
             return self._fallback(joints, contact, stance, 'non-finite torque')
-        clipped = np.clip(torque, -self._limit, self._limit)
+        # np.clip's wrapper costs more than the two ufuncs it calls (torque is finite here).
+        clipped = np.minimum(np.maximum(torque, self._neg_limit), self._limit)
         saturated = int(np.count_nonzero(clipped != torque))
         self._hold_q = np.asarray(joints.position, dtype=float).copy()
         self._hold_torque = np.where(np.repeat(stance, 3), clipped, 0.0)
@@ -556,6 +597,9 @@ class WholeBodyController:
             compute_time=0.0, saturated=0)
 
 
+# proxsuite's enum values, looked up once (an attribute chain per tick costs ~2 us).
+_WARM_START = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+_COLD_START = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
 _STATUS_NAMES = {
     proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED: 'solved',
     proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED: 'max_iter',
