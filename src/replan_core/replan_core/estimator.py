@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from scipy.linalg import lapack
 
 from replan_core import rotations
 from replan_core.robot_model import GRAVITY, RobotModel, unit_quaternion_matrix
@@ -462,7 +463,13 @@ class StateEstimator:
         PHt = P @ self._H_t
         S = H @ PHt
         S.ravel()[::N_MEAS + 1] += r_diag
-        K = np.linalg.solve(S, PHt.T).T            # S symmetric: (S^-1 H P)^T = P H^T S^-1
+        # S symmetric: K = P H^T S^-1 = (S^-1 H P)^T. LAPACK's dgesv straight (the LU solve
+        # np.linalg.solve runs too, without its ~5 us of Python wrapping); PHt.T is
+        # Fortran-ordered, so it is passed without a copy.
+        _, _, gain_t, info = lapack.dgesv(S, PHt.T)
+        if info != 0:
+            raise np.linalg.LinAlgError(f'singular innovation covariance (dgesv info {info})')
+        K = gain_t.T
         x += K @ innovation
         # Joseph form: stays symmetric positive definite even with the 1e6 ratio of noises.
         A = self._eye - K @ H
