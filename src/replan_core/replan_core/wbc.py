@@ -354,7 +354,8 @@ class WholeBodyController:
 
     def _bounds(self, stance: tuple[bool, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Box bounds of the forces for a stance set; 16 sets at most, each built once
-        (proxsuite copies them, so the cached arrays are never changed)."""
+        (proxsuite copies them, so the cached arrays are never changed). Like the friction
+        rows of ``_build_qp``, they take the params as they were at construction."""
         bounds = self._bounds_cache.get(stance)
         if bounds is None:
             bounds = self._bounds_cache[stance] = self._build_bounds(stance)
