@@ -27,9 +27,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from test_launch import LaunchProcess
 from visualization_msgs.msg import Marker, MarkerArray
-from websockets.sync.client import connect
 
 from replan_core.types import JOINT_NAMES
+from replan_ros.tools.live_client import LiveClient, free_port
 
 URDF = (REPO_ROOT / 'urdf' / 'hyq.urdf').read_text()
 WANTED = ('/robot_description', '/tf', '/odom', '/joint_states', '/view/contact_forces')
@@ -37,63 +37,8 @@ CLASSES = {'/robot_description': String, '/odom': Odometry, '/joint_states': Joi
            '/view/contact_forces': MarkerArray}
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(('127.0.0.1', 0))
-        return sock.getsockname()[1]
-
-
-class Viewer:
-    """A Foxglove WebSocket client: serverInfo, advertise, subscribe, client publish."""
-
-    def __init__(self, port: int, subprotocol: str, timeout: float = 60.0) -> None:
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                self.ws = connect(f'ws://127.0.0.1:{port}', subprotocols=[subprotocol],
-                                  open_timeout=5, max_size=None, legacy=True)
-                break
-            except OSError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.5)
-        self.channels: dict[str, dict] = {}
-        self.by_subscription: dict[int, str] = {}
-        self.statuses: list[dict] = []
-        self.info = json.loads(self.ws.recv(timeout=10))
-
-    def poll(self, seconds: float) -> list[tuple[str, int, bytes]]:
-        """Handle what arrives for ``seconds``; returns the (topic, stamp ns, payload) data."""
-        out = []
-        end = time.monotonic() + seconds
-        while (left := end - time.monotonic()) > 0:
-            try:
-                frame = self.ws.recv(timeout=left)
-            except TimeoutError:
-                break
-            if isinstance(frame, str):
-                message = json.loads(frame)
-                if message['op'] == 'advertise':
-                    self.channels.update({c['topic']: c for c in message['channels']})
-                elif message['op'] == 'status':
-                    self.statuses.append(message)
-            elif frame[0] == 0x01:
-                subscription, stamp = struct.unpack_from('<IQ', frame, 1)
-                out.append((self.by_subscription[subscription], stamp, frame[13:]))
-        return out
-
-    def subscribe(self, topics, timeout: float = 30.0) -> None:
-        end = time.monotonic() + timeout
-        while not all(t in self.channels for t in topics) and time.monotonic() < end:
-            self.poll(0.2)
-        missing = [t for t in topics if t not in self.channels]
-        assert not missing, f'not advertised: {missing} (have {sorted(self.channels)})'
-        subscriptions = []
-        for topic in topics:
-            sid = len(self.by_subscription) + 1
-            self.by_subscription[sid] = topic
-            subscriptions.append({'id': sid, 'channelId': self.channels[topic]['id']})
-        self.ws.send(json.dumps({'op': 'subscribe', 'subscriptions': subscriptions}))
+class Viewer(LiveClient):
+    """The live client (replan_ros.tools.live_client), decoding what it receives."""
 
     def decode(self, topic: str, payload: bytes):
         if topic in CLASSES:
@@ -101,9 +46,6 @@ class Viewer:
         channel = self.channels[topic]   # /tf: no Python class; decoded from the schema sent
         return generate_dynamic(channel['schemaName'], channel['schema'])[
             channel['schemaName']](payload)
-
-    def close(self) -> None:
-        self.ws.close()
 
 
 def yaw(msg: Odometry) -> float:

@@ -102,6 +102,9 @@ class MpcResult:
     max_zmp_violation_m: float        # largest violation of a polygon row (margin included)
     jerk: np.ndarray | None = None    # (N, 2) m/s^3
     cost: float = math.nan            # jerk cost 1/2 R sum |u|^2 of the returned plan
+    # CPU time of this thread in the call: below solve_time_ms when the process lost its core
+    # meanwhile (other processes on a busy machine), so the two tell contention from work.
+    solve_cpu_ms: float = math.nan
 
     @property
     def ok(self) -> bool:
@@ -663,6 +666,14 @@ class LipMpc:
         m/s is the velocity the tracking term pulls to; ``com_z`` (m) the planned CoM height
         (default: mean initial foot height + ``com_height``, else ``com_pos[2]``).
         """
+        cpu_start = time.thread_time()
+        result = self._solve(start_time, com_pos, com_vel, com_acc, support, v_ref, com_z)
+        result.solve_cpu_ms = (time.thread_time() - cpu_start) * 1e3
+        return result
+
+    def _solve(self, start_time: float, com_pos: np.ndarray, com_vel: np.ndarray,
+               com_acc: np.ndarray, support: FootholdPlan | SupportSchedule,
+               v_ref: np.ndarray | None, com_z: float | None) -> MpcResult:
         t_start = time.perf_counter()
         s, n = self.settings, self.n
         msg = (_finite('com_pos', com_pos, (3,)) or _finite('com_vel', com_vel, (3,))

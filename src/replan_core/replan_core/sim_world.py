@@ -251,6 +251,9 @@ class SimWorld:
         self._liftoff = np.zeros(4, dtype=bool)
         # Velocity of the base_link origin (world, m/s) at the previous tick, for imu_truth.
         self._previous_velocity = self._origin_motion()[0]
+        self._begun: int | None = None     # lead steps run by begin_step, None: not begun
+        self._force_sum = np.zeros((4, 3))  # foot forces summed over the period's steps, N
+        self._normal_sum = np.zeros(4)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -288,52 +291,89 @@ class SimWorld:
         With actuator dynamics, the command is clipped before the lag, so the lag cannot wind
         up and its output (a convex combination of clipped values) stays within the limits.
         """
+        tau = self._checked_torques(torques)
+        self.begin_step()
+        self._finish_step(tau)
+
+    @property
+    def lead_steps(self) -> int:
+        """Physics steps at the start of a control period that no command sent at its start
+        can reach: the actuator delay in whole steps (at most one period)."""
+        return min(self._delay_steps, self._substeps)
+
+    def begin_step(self) -> None:
+        """Run the physics steps of the next control period that the actuator delay keeps
+        from the coming command (``lead_steps``): the torques of those steps are already on
+        the delay line. ``finish_step`` then runs the rest; ``begin_step`` + ``finish_step``
+        is exactly ``step``, so a simulator can run these steps while the controller computes.
+        A second call before ``finish_step`` does nothing."""
+        if self._begun is not None:
+            return
+        self._previous_velocity = self._origin_motion()[0]
+        self._force_sum = np.zeros((4, 3))
+        self._normal_sum = np.zeros(4)
+        lead = self.lead_steps
+        for _ in range(lead):
+            self._physics_step(self._delay_line.popleft())
+        self._begun = lead
+
+    def finish_step(self, torques: np.ndarray) -> None:
+        """The rest of the control period begun with ``begin_step`` (which it calls if it was
+        not), under the command ``torques`` (12,) N m: as ``step``."""
+        self._finish_step(self._checked_torques(torques))
+
+    def _checked_torques(self, torques: np.ndarray) -> np.ndarray:
         tau = np.asarray(torques, dtype=float)
         if tau.shape != (len(JOINT_NAMES),):
             raise ValueError(f'expected {len(JOINT_NAMES)} torques, got shape {tau.shape}')
         if not np.all(np.isfinite(tau)):
             raise ValueError('torques contain NaN or inf')
-        tau = np.clip(tau, -self._effort_limit, self._effort_limit)
-        self._applied = tau
-        p, robot = self._p, self._robot
-        forces = tau.tolist()
-        force_sum = np.zeros((4, 3))
-        normal_sum = np.zeros(4)
-        push = bool(np.any(self._wrench_force) or np.any(self._wrench_torque))
-        self._previous_velocity = self._origin_motion()[0]
-        for _ in range(self._substeps):
-            if self._actuator_dynamics:
-                actual = tau
-                if self._delay_steps:
-                    self._delay_line.append(tau)
-                    actual = self._delay_line.popleft()
-                if self._lag_alpha < 1.0:
-                    self._lagged = self._lagged + self._lag_alpha * (actual - self._lagged)
-                    actual = self._lagged
-                # The effort reported is the actuator torque of the tick's last physics step.
-                self._applied = actual
-                forces = actual.tolist()
-            step_forces = forces
-            if self._coulomb:
-                # Joint friction on top of the actuator torque (not part of the effort).
-                tau_c, inv_v = self._coulomb, self._coulomb_inv_velocity
-                step_forces = [f - tau_c * max(-1.0, min(1.0, s[1] * inv_v)) for f, s in
-                               zip(forces, p.getJointStates(robot, self._joints), strict=True)]
-            # Torques and external forces act for one stepSimulation only: set them every step.
-            p.setJointMotorControlArray(robot, self._joints, pybullet.TORQUE_CONTROL,
-                                        forces=step_forces)
-            if push:
-                origin = self._base_pose()[0]
-                p.applyExternalForce(robot, -1, self._wrench_force.tolist(), origin.tolist(),
-                                     pybullet.WORLD_FRAME)
-                p.applyExternalTorque(robot, -1, self._wrench_torque.tolist(),
-                                      pybullet.WORLD_FRAME)
-            p.stepSimulation()
-            self._add_foot_forces(force_sum, normal_sum)
+        return np.clip(tau, -self._effort_limit, self._effort_limit)
+
+    def _finish_step(self, tau: np.ndarray) -> None:
+        self.begin_step()
+        lead = self._begun
+        # The command enters the delay line once per physics step; the lead steps took their
+        # torques out already, so it goes in for them now, in the same order.
+        for _ in range(lead):
+            self._delay_line.append(tau)
+        for _ in range(self._substeps - lead):
+            actual = tau
+            if self._delay_steps:
+                self._delay_line.append(tau)
+                actual = self._delay_line.popleft()
+            self._physics_step(actual)
+        self._begun = None
         self._tick += 1
-        self._force = force_sum / self._substeps       # mean over the tick, N
-        self._normal = normal_sum / self._substeps
+        self._force = self._force_sum / self._substeps       # mean over the tick, N
+        self._normal = self._normal_sum / self._substeps
         self._update_contact_flags()
+
+    def _physics_step(self, commanded: np.ndarray) -> None:
+        """One physics step under the torque ``commanded`` (N m) as it leaves the delay."""
+        p, robot = self._p, self._robot
+        actual = commanded
+        if self._lag_alpha < 1.0:
+            self._lagged = self._lagged + self._lag_alpha * (commanded - self._lagged)
+            actual = self._lagged
+        # The effort reported is the actuator torque of the tick's last physics step.
+        self._applied = actual
+        forces = actual.tolist()
+        if self._coulomb:
+            # Joint friction on top of the actuator torque (not part of the effort).
+            tau_c, inv_v = self._coulomb, self._coulomb_inv_velocity
+            forces = [f - tau_c * max(-1.0, min(1.0, s[1] * inv_v)) for f, s in
+                      zip(forces, p.getJointStates(robot, self._joints), strict=True)]
+        # Torques and external forces act for one stepSimulation only: set them every step.
+        p.setJointMotorControlArray(robot, self._joints, pybullet.TORQUE_CONTROL, forces=forces)
+        if np.any(self._wrench_force) or np.any(self._wrench_torque):
+            origin = self._base_pose()[0]
+            p.applyExternalForce(robot, -1, self._wrench_force.tolist(), origin.tolist(),
+                                 pybullet.WORLD_FRAME)
+            p.applyExternalTorque(robot, -1, self._wrench_torque.tolist(),
+                                  pybullet.WORLD_FRAME)
+        p.stepSimulation()
+        self._add_foot_forces(self._force_sum, self._normal_sum)
 
     def _update_contact_flags(self) -> None:
         raw = self._normal > self._threshold

@@ -269,3 +269,16 @@ def test_infeasible_replan_fails_fast_to_the_relaxed_plan():
     assert res.status == STATUS_INFEASIBLE and res.fallback == FALLBACK_RELAXED
     assert 'working-set dual' in res.reason or 'iteration budget' in res.reason, res.reason
     assert res.iterations < 3 * mpc.settings.iteration_budget
+
+
+def test_solve_reports_its_cpu_time_next_to_its_wall_time():
+    mpc = LipMpc(MpcSettings())
+    results = [res for _, res in crawl(mpc, 4, 5)]
+    results.append(mpc.solve(0.0, np.full(3, np.nan), np.zeros(3), np.zeros(3),
+                             crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2),
+                                        np.random.default_rng(0))))     # a rejected input
+    for res in results:
+        assert math.isfinite(res.solve_cpu_ms) and res.solve_cpu_ms > 0.0
+        # One thread: it cannot use more CPU than wall time (the CPU clock's span is a few
+        # calls longer; 0.2 ms covers it).
+        assert res.solve_cpu_ms <= res.solve_time_ms + 0.2

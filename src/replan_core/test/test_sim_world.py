@@ -429,3 +429,49 @@ def test_bad_realism_configuration():
         SimWorld(URDF, contact_damping=100.0)            # damping without stiffness
     with pytest.raises(ValueError):
         SimWorld(URDF, contact_stiffness=-1.0)
+
+
+def _world_vector(world) -> np.ndarray:
+    joints, base, contacts = world.joint_state(), world.base_state(), world.contact_state()
+    return np.concatenate([joints.position, joints.velocity, joints.effort, base.position,
+                           base.quaternion, base.linear_velocity, world.imu_truth()[1],
+                           contacts.force.ravel(), contacts.contact])
+
+
+@pytest.mark.parametrize('actuator', [
+    None,                                                    # ideal: no lead steps
+    ActuatorParams(time_constant=0.003, delay=0.002, coulomb_friction=1.0),   # 2 of 4
+    ActuatorParams(delay=0.006),                             # beyond a period: all 4
+])
+def test_begin_and_finish_step_are_exactly_step(world_factory, actuator):
+    # The sim node runs the lead physics steps while the controller computes the command:
+    # the trajectory must be bit for bit the one of step(), pushes and friction included.
+    whole, split = world_factory(actuator=actuator), world_factory(actuator=actuator)
+    expected_lead = 0 if actuator is None else min(round(actuator.delay / 0.001), 4)
+    assert split.lead_steps == expected_lead
+    rng = np.random.default_rng(3)
+    for k in range(150):
+        torques = rng.normal(0.0, 20.0, 12)
+        if k == 40:
+            for world in (whole, split):
+                world.set_external_wrench(np.array([0.0, 60.0, 0.0]), np.zeros(3))
+        whole.step(torques)
+        before = _world_vector(split)
+        split.begin_step()
+        split.begin_step()                          # a second call does nothing
+        moved = not np.array_equal(
+            np.concatenate([split.joint_state().position, split.base_state().position]),
+            np.concatenate([before[:12], before[36:39]]))
+        assert moved == (expected_lead > 0)
+        split.finish_step(torques)
+        np.testing.assert_array_equal(_world_vector(split), _world_vector(whole))
+    assert split.tick == whole.tick == 150
+
+
+def test_finish_step_rejects_bad_torques_and_goes_on(world_factory):
+    world = world_factory(actuator=ActuatorParams(delay=0.002))
+    world.begin_step()
+    with pytest.raises(ValueError, match='NaN'):
+        world.finish_step(np.full(12, np.nan))
+    world.finish_step(np.zeros(12))              # the begun period ends with safe torques
+    assert world.tick == 1

@@ -21,9 +21,11 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import time
+from collections import deque
 
 import numpy as np
 import rclpy
@@ -64,6 +66,8 @@ from replan_ros.qos import (
 )
 from replan_ros.stamped_buffer import RawStampedBuffer
 
+SOLVE_TIMES_KEPT = 10_000          # re-plans whose solve times the shutdown line summarises
+SOLVE_TIMES_LOG = 'mpc solve times:'   # its prefix; the rest is one JSON object
 
 class MpcNode(Node):
     """Footholds in, CoM plan out, from the actual state of the footholds' stamp."""
@@ -106,6 +110,8 @@ class MpcNode(Node):
         self.last_plan: ComPlan | None = None
         self.last_stamp_ns: int | None = None
         self.replans = 0
+        # (wall, CPU) ms of the last re-plans, for the log line at shutdown.
+        self._solve_times: deque[tuple[float, float]] = deque(maxlen=SOLVE_TIMES_KEPT)
         self.get_logger().info(
             f'mpc: N={self.mpc.n} per axis ({self.settings.horizon} s / {self.settings.dt} s), '
             f'h={self.settings.com_height} m, R={self.settings.jerk_weight}, '
@@ -257,6 +263,7 @@ class MpcNode(Node):
             acc = self.last_plan.sample(t)[2]       # eq. (2): the planned acceleration at t_k
         v_ref = implied_velocity(plan)
         res = self.mpc.solve(t, com, vcom, acc, plan, v_ref=v_ref)
+        self._solve_times.append((res.solve_time_ms, res.solve_cpu_ms))
         self.last_stamp_ns = ns
         self.replans += 1
         if res.status != 'solved':
@@ -291,6 +298,7 @@ class MpcNode(Node):
             st = diagnostics.status('mpc', level, message, {
                 'stamp': t,
                 'solve_time_ms': res.solve_time_ms,
+                'solve_cpu_ms': res.solve_cpu_ms,
                 'iterations': res.iterations,
                 'status': res.status,
                 'zmp_margin_m': res.min_zmp_margin_m,
@@ -301,7 +309,19 @@ class MpcNode(Node):
             })
         self.diag_pub.publish(diagnostics.array(sec_to_stamp(t), st))
 
+    def solve_time_summary(self) -> dict:
+        """Wall and CPU time of the kept re-plans (ms): count, median, p99."""
+        wall, cpu = np.array(self._solve_times).reshape(-1, 2).T
+        summary: dict = {'replans': len(wall)}
+        if len(wall):
+            for name, values in (('wall', wall), ('cpu', cpu)):
+                summary[f'{name}_median_ms'] = round(float(np.median(values)), 3)
+                summary[f'{name}_p99_ms'] = round(float(np.percentile(values, 99)), 3)
+        return summary
+
     def destroy_node(self) -> None:
+        # One line that benchmarks read (scripts/bench_speed.sh): the solve times in the graph.
+        self.get_logger().info(f'{SOLVE_TIMES_LOG} {json.dumps(self.solve_time_summary())}')
         self.state_input.destroy()
         super().destroy_node()
 

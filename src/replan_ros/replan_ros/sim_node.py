@@ -7,15 +7,17 @@ twist and ground reaction forces; built and published only while someone reads t
 the `imu`). The state estimator lives in the controller's process
 (wbc_node), which publishes the estimated `odom` and `contacts` the planners use.
 
-Lock-step (docs/ARCHITECTURE.md, "Time and lock-step"): at tick t_k it publishes /clock,
-ground_truth/odom, ground_truth/contacts, imu and joint_states (last: the controller wakes on
-it), all stamped t_k, then waits for the joint_torque_cmd stamped t_k, applies it for one
-control period and publishes t_{k+1}. Without that command it republishes the same samples of
-t_k every `republish_period` (the noise is drawn once per tick, so a republish is identical);
-after `command_timeout` wall seconds without one (the controller is dead) it free-runs in real
-time with joint damping so the robot sits down, reports ERROR on /diagnostics, and returns to
-lock-step as soon as the controller answers again. Before the first command the sim does not
-advance.
+Lock-step (docs/ARCHITECTURE.md, "Time and lock-step"): at tick t_k it publishes imu and
+joint_states (the controller wakes on them), then, while the controller computes, /clock,
+ground_truth/odom and ground_truth/contacts, all stamped t_k, and runs the first physics steps
+of the next period that the actuator delay keeps from the coming command; it waits for the
+joint_torque_cmd stamped t_k (straight from its DDS queue, outside the executor, for runs of
+ticks: direct_take.py), applies it for the rest of the control period and publishes t_{k+1}.
+Without that command it republishes the same samples of t_k every `republish_period` (the
+noise is drawn once per tick, so a republish is identical); after `command_timeout` wall
+seconds without one (the controller is dead) it free-runs in real time with joint damping so
+the robot sits down, reports ERROR on /diagnostics, and returns to lock-step as soon as the
+controller answers again. Before the first command the sim does not advance.
 
 The realistic robot (config/profiles/realistic.yaml) is made of separate parameters, each off
 in config/sim.yaml (the ideal world): actuator lag, delay, joint friction and torque limits;
@@ -24,8 +26,9 @@ controller's model does not know; compliant feet.
 
 Every lock-step tick is timed by phase (tick_budget.py; docs/ARCHITECTURE.md, "Per-tick
 budget"): the command's DDS transport and this process's wake-up (from the message info),
-decoding, physics, sensing, conversion to messages, each publish, and the wait from the
-`joint_states` publish to the next command (the round trip through the controller); the
+decoding, physics, sensing, conversion to messages, each publish, the work done while the
+controller computes, and the wait from the `joint_states` publish to the next command (the
+round trip through the controller); the
 figures are in /diagnostics (`tick_<phase>_median_ms`, `tick_<phase>_mean_ms`) and in one log
 line at shutdown.
 """
@@ -54,6 +57,7 @@ from replan_core.sensors import ImuNoiseParams, ImuSensor, JointSensor, JointSen
 from replan_core.sim_world import STANDING_POSE, ActuatorParams, SimWorld
 from replan_core.types import JOINT_NAMES, WORLD_FRAME
 from replan_ros import diagnostics, qos
+from replan_ros.direct_take import DirectTake
 from replan_ros.interfaces import (
     contacts_to_msg,
     imu_to_msg,
@@ -71,20 +75,29 @@ WAITING, LOCK_STEP, FREE_RUN, DAMPING = 'waiting_first_command', 'lock_step', 'f
 _LOG_THROTTLE = 1.0          # wall s between two log lines of the same kind
 _MAX_CATCH_UP_TICKS = 25     # free-run: ticks stepped at most per timer call before slipping
 _WATCHDOG_PERIOD = 0.02      # wall s
+# Lock-step fast path (direct_take.py): wall s to wait for the next command outside the
+# executor, and the longest run of ticks between two turns of the executor (its timers and
+# the external_wrench subscription then run at most this late).
+_DIRECT_WAIT = 0.01
+_DIRECT_SLICE = 0.05
 # Phases of a lock-step tick, from the command's arrival to the next one (tick_budget.py).
 BUDGET_PHASES = (
     'sim_transport_cmd',          # joint_torque_cmd: wbc's DDS write -> our DDS reader
     'sim_wake',                   # our DDS reader -> _on_command (executor, take, deserialize)
     'sim_decode',                 # the command to torques
-    'sim_physics',                # due wrenches and the physics steps of one control period
-    'sim_sensing',                # truth, IMU and joint sensor models
-    'sim_conversion',             # the four state messages built
-    'sim_publish_clock',
-    'sim_publish_truth_odom',
-    'sim_publish_truth_contacts',
+    'sim_physics',                # the physics steps of one control period after the lead ones
+    'sim_sensing',                # IMU and joint sensor models
+    'sim_conversion',             # imu and joint_states messages built
     'sim_publish_imu',
     'sim_publish_joint_states',
     'sim_wait',                   # joint_states published -> the next command's callback
+    # While the controller works (after joint_states, inside sim_wait):
+    'sim_truth_sensing',          # the simulator's exact base state and contact forces
+    'sim_truth_conversion',       # their messages built
+    'sim_publish_truth_odom',
+    'sim_publish_truth_contacts',
+    'sim_publish_clock',
+    'sim_lead_physics',           # due wrenches, the next period's lead physics steps
     'sim_tick',                   # wall time between two commands' callbacks
 )
 
@@ -153,7 +166,8 @@ class SimNode(Node):
         self._gyro_variance = imu_noise.gyro_noise_density ** 2 / dt
         self._accel_variance = imu_noise.accel_noise_density ** 2 / dt
         self._tick_messages: list = []      # the samples of the current tick, drawn once
-        self._tick_sources: tuple = ()
+        self._tick_sources: list = []
+        self._begun = False                 # the next period's lead physics steps are done
         self.budget = TickBudget(BUDGET_PHASES)
         self._tick_start_ns: int | None = None     # perf_counter_ns of the last lock-step
         self._published_ns: int | None = None      # command, and of its joint_states publish
@@ -179,10 +193,14 @@ class SimNode(Node):
                                                  event_callbacks=qos.INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.COMMAND,
                                               event_callbacks=qos.INTERNAL_PUB_EVENTS)
-        self.create_subscription(JointState, 'joint_torque_cmd', self._on_command, qos.COMMAND,
-                                 event_callbacks=qos.INTERNAL_SUB_EVENTS)
-        self.create_subscription(WrenchStamped, 'external_wrench', self._on_wrench,
-                                 qos.SCHEDULE)
+        command_sub = self.create_subscription(
+            JointState, 'joint_torque_cmd', self._on_command, qos.COMMAND,
+            event_callbacks=qos.INTERNAL_SUB_EVENTS)
+        wrench_sub = self.create_subscription(WrenchStamped, 'external_wrench', self._on_wrench,
+                                              qos.SCHEDULE)
+        # A wrench goes to the executor as soon as it comes (direct_take.py).
+        self._direct_commands = DirectTake(self, command_sub, self._on_command,
+                                           watched=(wrench_sub,))
 
         self.mode = WAITING
         self.command = np.zeros(len(JOINT_NAMES))     # last accepted (safe) command, N m
@@ -204,6 +222,7 @@ class SimNode(Node):
         self.create_timer(_WATCHDOG_PERIOD, self._on_watchdog)
         self.create_timer(p['diagnostics_period'], self._on_diagnostics)
         self._sense()
+        self._sense_truth()
         self._publish_state(with_clock=True)
         stepping = 'lock-step' if self.lock_step else 'free-run'
         variant = '' if urdf == model_urdf else f' (the controller\'s model: {model_urdf})'
@@ -244,28 +263,37 @@ class SimNode(Node):
         return sec_to_ns(self.world.time)
 
     def _sense(self) -> None:
-        """Measure the current tick once: its messages, republished as they are if needed."""
+        """Measure the current tick's sensors once (drawn once, republished as they are)."""
         w = self.world
         t0 = time.perf_counter_ns()
-        truth_contacts = w.contact_state()
         omega_body, specific_force = w.imu_truth()
         imu = self.imu_sensor.measure(w.time, omega_body, specific_force)
-        base = w.base_state()
         joints = self.joint_sensor.measure(w.joint_state())
         t1 = time.perf_counter_ns()
         # Built when first published to a reader: a topic nobody reads (the truth without the
         # recorder, the imu in the ideal profile) costs no conversion (volatile topics: a
         # sample published to no reader is lost anyway). The samples are drawn all the same.
-        self._tick_sources = (
-            (self.truth_odom_pub, odom_from_base_state, (base,)),
-            (self.truth_contacts_pub, contacts_to_msg, (truth_contacts,)),
-            (self.imu_pub, imu_to_msg, (imu, self._gyro_variance, self._accel_variance)))
+        self._tick_sources = [
+            None, None, (self.imu_pub, imu_to_msg,
+                         (imu, self._gyro_variance, self._accel_variance))]
         self._tick_messages = [None, None, None, joint_state_to_msg(joints)]
-        for k in range(3):
-            self._tick_message(k)
+        self._tick_message(2)
         budget = self.budget
         budget.add('sim_sensing', t1 - t0)
         budget.add('sim_conversion', time.perf_counter_ns() - t1)
+
+    def _sense_truth(self) -> None:
+        """The current tick's truth (read before the next period's lead physics steps)."""
+        w = self.world
+        t0 = time.perf_counter_ns()
+        self._tick_sources[0] = (self.truth_odom_pub, odom_from_base_state, (w.base_state(),))
+        self._tick_sources[1] = (self.truth_contacts_pub, contacts_to_msg, (w.contact_state(),))
+        t1 = time.perf_counter_ns()
+        self._tick_message(0)
+        self._tick_message(1)
+        budget = self.budget
+        budget.add('sim_truth_sensing', t1 - t0)
+        budget.add('sim_truth_conversion', time.perf_counter_ns() - t1)
 
     def _tick_message(self, k: int):
         """Message ``k`` (truth odom, truth contacts, imu) of the tick if ``k``'s topic has a
@@ -278,56 +306,78 @@ class SimNode(Node):
         return message
 
     def _publish_state(self, with_clock: bool = False, timed: bool = False) -> None:
-        """State of the current tick; /clock on its grid (clock_period) or when forced.
-        joint_states go last: the controller wakes on them. ``timed``: a tick's first publish,
-        whose phases go into the budget (a republish does not)."""
-        w = self.world
+        """State of the current tick: first what the controller waits for (imu, then
+        joint_states: it wakes on them), then the truth and /clock (on its grid,
+        clock_period, or when forced), which nobody waits for. ``timed``: a tick's first
+        publish, whose phases go into the budget (a republish does not); it senses the truth
+        after the controller's inputs are out."""
         clock = time.perf_counter_ns
         t0 = clock()
-        if with_clock or w.tick % self._clock_every == 0:
-            self.clock_pub.publish(Clock(clock=ns_to_stamp(self.now_ns)))
-        t1 = clock()
         if not timed:                 # a republish: a reader may have come meanwhile
             for k in range(3):
                 self._tick_message(k)
-        truth_odom, truth_contacts, imu, joints = self._tick_messages
-        if truth_odom is not None:
-            self.truth_odom_pub.publish(truth_odom)
-        t2 = clock()
-        if truth_contacts is not None:
-            self.truth_contacts_pub.publish(truth_contacts)
-        t3 = clock()
+        imu, joints = self._tick_messages[2:]
         if imu is not None:
             self.imu_pub.publish(imu)
-        t4 = clock()
+        t1 = clock()
         self.joint_pub.publish(joints)
-        t5 = clock()
+        t2 = clock()
         self.last_publish_wall = time.monotonic()
         if timed:
+            self._sense_truth()
+        t3 = clock()
+        truth_odom, truth_contacts = self._tick_messages[:2]
+        if truth_odom is not None:
+            self.truth_odom_pub.publish(truth_odom)
+        t4 = clock()
+        if truth_contacts is not None:
+            self.truth_contacts_pub.publish(truth_contacts)
+        t5 = clock()
+        if with_clock or self.world.tick % self._clock_every == 0:
+            self.clock_pub.publish(Clock(clock=ns_to_stamp(self.now_ns)))
+        t6 = clock()
+        if timed:
             add = self.budget.add
-            add('sim_publish_clock', t1 - t0)
-            add('sim_publish_truth_odom', t2 - t1)
-            add('sim_publish_truth_contacts', t3 - t2)
-            add('sim_publish_imu', t4 - t3)
-            add('sim_publish_joint_states', t5 - t4)
-            self._published_ns = t5
+            add('sim_publish_imu', t1 - t0)
+            add('sim_publish_joint_states', t2 - t1)
+            add('sim_publish_truth_odom', t4 - t3)
+            add('sim_publish_truth_contacts', t5 - t4)
+            add('sim_publish_clock', t6 - t5)
+            self._published_ns = t2
 
-    def _advance(self, torques: np.ndarray) -> None:
-        """One control tick: due wrenches, physics, state out."""
+    def _begin_next(self) -> None:
+        """Start the next control period: the wrenches due at this tick, then the physics
+        steps the actuator delay keeps from the coming command (SimWorld.begin_step), which
+        run while the controller computes that command."""
+        if self._begun:
+            return
         t0 = time.perf_counter_ns()
         self._apply_due_wrenches()
+        self.world.begin_step()
+        self._begun = True
+        self.budget.add('sim_lead_physics', time.perf_counter_ns() - t0)
+
+    def _advance(self, torques: np.ndarray) -> None:
+        """One control tick: due wrenches, physics, state out; in lock-step, the next
+        period's lead physics steps while the controller works."""
+        t1 = time.perf_counter_ns()
+        self._begin_next()              # done already after the previous tick in lock-step
         try:
-            self.world.step(torques)
+            self.world.finish_step(torques)
         except ValueError as err:       # never reached with validated commands; be safe
             self.get_logger().error(f'step failed ({err}); applying zero torques')
-            self.world.step(np.zeros(len(JOINT_NAMES)))
-        self.budget.add('sim_physics', time.perf_counter_ns() - t0)
+            self.world.finish_step(np.zeros(len(JOINT_NAMES)))
+        self._begun = False
+        budget = self.budget
+        budget.add('sim_physics', time.perf_counter_ns() - t1)
         now = time.monotonic()
         self._rtf_samples.append((now, self.world.time))
         while len(self._rtf_samples) > 2 and now - self._rtf_samples[1][0] >= 1.0:
             self._rtf_samples.popleft()
         self._sense()
         self._publish_state(timed=True)
+        if self.mode == LOCK_STEP:
+            self._begin_next()
 
     def _set_mode(self, mode: str) -> None:
         if mode == self.mode:
@@ -374,6 +424,9 @@ class SimNode(Node):
             self.last_command_wall = time.monotonic()
             self._set_mode(LOCK_STEP)
             self._advance(torques)
+            # The next commands straight from their DDS queue, not through the executor
+            # (direct_take.py); the executor runs again when one is late or the slice ends.
+            self._direct_commands.run(lambda: self.mode == LOCK_STEP, _DIRECT_WAIT, _DIRECT_SLICE)
             return
         self.ignored += 1
         if self.mode == DAMPING and stamp_ns < self.now_ns:

@@ -2,11 +2,12 @@
 and re-plan protocol.
 
 docs/ARCHITECTURE.md, "Time and lock-step", "State estimation" and "Re-plan protocol":
-- it wakes on the simulator's `joint_states` (published last in a tick) and takes the tick's
-  `imu` from its queue; the state estimator (`replan_core.estimator`, in this process so that
-  estimation adds no DDS hop to the tick) turns them into the base pose and twist and the foot
-  contacts (forces estimated from the joint torques and the model), which it publishes as
-  `odom`, `contacts` and `contact_events` for the gait and mpc nodes before it answers. With
+- it wakes on the simulator's `joint_states` and takes the tick's `imu` from its queue; the
+  state estimator (`replan_core.estimator`, in this process so that estimation adds no DDS
+  hop to the tick) turns them into the base pose and twist and the foot contacts (forces
+  estimated from the joint torques and the model), which it publishes as `odom`, `contacts`
+  and `contact_events` for the gait and mpc nodes right after its command (while the sim
+  steps), or before it waits when it holds the tick for plans. With
   `state_estimation` / `contact_estimation` false (the ideal profile) the simulator's
   `ground_truth/odom` / `ground_truth/contacts` of the tick take their place;
 - each tick is answered by one `joint_torque_cmd` stamped with it; a republished tick gets the
@@ -20,6 +21,8 @@ docs/ARCHITECTURE.md, "Time and lock-step", "State estimation" and "Re-plan prot
   plans, WARN). Waiting is event-driven: the plan callbacks answer, a one-shot wall-clock timer
   handles the timeout;
 - at the first tick it waits for the first plans the same way (timeout: stand);
+- after a command, the next `joint_states` are taken straight from their DDS queue, outside
+  the executor (`direct_take.py`), until a tick must wait for plans or for at most 50 ms wall;
 - no plan, a plan older than `plan_max_age` (sim s) or past its horizon, or stale inputs (a gap
   of more than `stale_ticks` control periods between answered ticks, e.g. after the sim
   free-ran): it holds a stable stand with the feet where they are (`wbc.StandHold`) until a new
@@ -58,6 +61,7 @@ from replan_core.rotations import yaw_of
 from replan_core.types import STANDING_POSE, ComPlan, ContactState, FootholdPlan, JointState
 from replan_core.wbc import JointStandUp, PlanFollower, StandHold, WbcParams, WholeBodyController
 from replan_ros import diagnostics
+from replan_ros.direct_take import DirectTake
 from replan_ros.interfaces import (
     base_state_from_odom,
     com_plan_from_msg,
@@ -91,6 +95,11 @@ _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead 
 _KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
 _KEEP_STATES = 50        # ticks of inputs kept per topic while waiting for the rest
 _STATE_WAIT = 0.01       # wall s to wait for the imu / ground truth of a joint_states tick
+# Lock-step fast path (direct_take.py): wall s to wait for the next joint_states outside the
+# executor, and the longest run of ticks between two turns of the executor (its timers and
+# the plan subscriptions then run at most this late; a tick that waits for plans hands over).
+_DIRECT_WAIT = 0.01
+_DIRECT_SLICE = 0.05
 # m: legs this much shorter (median over the four, base above foot) than in the standing pose
 # mean the robot sat down (the sim's damping mode): it stands up in joint space first.
 _SAT_DOWN = 0.1
@@ -103,11 +112,11 @@ BUDGET_PHASES = (
     'wbc_take',              # the tick's queued imu / ground truth taken and decoded
     'wbc_estimator',         # state estimator update
     'wbc_state_msgs',        # odom, contacts and contact_events messages built
-    'wbc_publish_state',     # odom, contacts (and contact_events) published
     'wbc_logic',             # plan following, adoption, stand decisions
     'wbc_plan_wait',         # a re-plan tick held until its plans arrived
     'wbc_controller',        # whole-body controller maths (pinocchio, proxsuite)
     'wbc_command',           # joint_torque_cmd built and published
+    'wbc_publish_state',     # then odom, contacts (and contact_events) published
 )
 
 
@@ -207,6 +216,7 @@ class WbcNode(Node):
         self._period_fallbacks = 0
         self._ticks = 0
         self.budget = TickBudget(BUDGET_PHASES)
+        self._unpublished: tuple | None = None   # (odom, contacts, events) not yet published
         self._wait_started_ns = 0          # perf_counter_ns when a tick began to wait for plans
         self._budget_tick: int | None = None   # the stamp whose phases the budget gathers
         self._logic_start_ns: int | None = None  # perf_counter_ns the current phase began
@@ -223,8 +233,9 @@ class WbcNode(Node):
                                                 event_callbacks=INTERNAL_PUB_EVENTS)
         # One wake-up per tick: the sim publishes joint_states last, so when they arrive the
         # other samples of the tick are queued, and are taken then (on_demand.py).
-        self.create_subscription(JointStateMsg, 'joint_states', self._on_joint_states, SENSOR,
-                                 event_callbacks=INTERNAL_SUB_EVENTS)
+        joint_states_sub = self.create_subscription(
+            JointStateMsg, 'joint_states', self._on_joint_states, SENSOR,
+            event_callbacks=INTERNAL_SUB_EVENTS)
         self.state_input = OnDemandSubscriptions(self)
         self._needed: list[dict] = []
         if self.estimator is not None:
@@ -238,10 +249,15 @@ class WbcNode(Node):
             self.state_input.subscribe(PointCloud2, 'ground_truth/contacts', CONTACTS,
                                        self._on_truth_contacts, raw=False)
             self._needed.append(self._truth_contacts)
-        self.create_subscription(PointCloud2, 'footholds', self._on_footholds, LATCHED,
-                                 event_callbacks=INTERNAL_SUB_EVENTS)
-        self.create_subscription(MultiDOFJointTrajectory, 'com_plan', self._on_com_plan, LATCHED,
-                                 event_callbacks=INTERNAL_SUB_EVENTS)
+        footholds_sub = self.create_subscription(
+            PointCloud2, 'footholds', self._on_footholds, LATCHED,
+            event_callbacks=INTERNAL_SUB_EVENTS)
+        com_plan_sub = self.create_subscription(
+            MultiDOFJointTrajectory, 'com_plan', self._on_com_plan, LATCHED,
+            event_callbacks=INTERNAL_SUB_EVENTS)
+        # Plans go to the executor as soon as they come (direct_take.py).
+        self._direct_states = DirectTake(self, joint_states_sub, self._on_joint_states,
+                                         watched=(footholds_sub, com_plan_sub))
         self.create_timer(float(p['diagnostics_period']), self._publish_diagnostics,
                           clock=self._wall)
         base_source = 'the estimator' if self.state_estimation else 'ground truth'
@@ -328,16 +344,33 @@ class WbcNode(Node):
         t3 = clock()
         events = contact_events_to_msg(contacts)
         budget.add('wbc_state_msgs', clock() - t3)
-        t4 = clock()
-        self.odom_pub.publish(odom_msg)
-        self.contacts_pub.publish(contacts_msg)
-        if events is not None:
-            self.events_pub.publish(events)
-        budget.add('wbc_publish_state', clock() - t4)
+        # Published right after the command (_command), so that the sim steps while they go
+        # out; a tick not answered now (held for its plans) publishes them below, before the
+        # wait: the planners need this tick's state to make those plans.
+        self._unpublished = (odom_msg, contacts_msg, events)
         self._last_estimated = stamp
         self._state_msgs[stamp] = (odom_msg, contacts_msg)
         self._joints[stamp], self._odom[stamp], self._contacts[stamp] = joints, base, contacts
         self._on_state(stamp)
+        self._publish_estimate()
+        if self._last_answered == stamp:
+            # The next ticks' joint_states straight from their DDS queue, not through the
+            # executor (direct_take.py). A tick that must wait for its plans hands back to
+            # the executor, which delivers them (footholds, com_plan).
+            self._direct_states.run(lambda: self._waiting is None, _DIRECT_WAIT, _DIRECT_SLICE)
+
+    def _publish_estimate(self) -> None:
+        """odom, contacts (and contact_events) of the last estimated tick, once."""
+        if self._unpublished is None:
+            return
+        t0 = time.perf_counter_ns()
+        odom_msg, contacts_msg, events = self._unpublished
+        self._unpublished = None
+        self.odom_pub.publish(odom_msg)
+        self.contacts_pub.publish(contacts_msg)
+        if events is not None:
+            self.events_pub.publish(events)
+        self.budget.add('wbc_publish_state', time.perf_counter_ns() - t0)
 
     def _estimate(self, stamp: int, joints) -> tuple:
         """Base state and contacts of the tick (estimated or true) and their messages."""
@@ -667,6 +700,8 @@ class WbcNode(Node):
         counted = self._budget_tick == stamp
         if counted:
             self.budget.add('wbc_command', time.perf_counter_ns() - self._logic_start_ns)
+        self._publish_estimate()
+        if counted:
             self.budget.end_tick()
             self._budget_tick = None
         self._logic_start_ns = None

@@ -135,6 +135,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     tracking = tracking_errors(times, pos, rpy[:, 2], segments, settle=2.0)
     mpc = _diag_values(data.get('/diagnostics', []), 'mpc')
     solve = _first(mpc, 'solve_time_ms', 'solve_ms')
+    solve_cpu = _first(mpc, 'solve_cpu_ms')
     margins = _first(mpc, 'zmp_margin_m', 'min_zmp_margin_m')
     sim_diag = _diag_values(data.get('/diagnostics', []), 'sim')
     metrics.update(
@@ -160,6 +161,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
             skip=2),
         mpc_solve_ms_median=_round(np.median(solve)) if solve else None,
         mpc_solve_ms_p99=_round(np.percentile(solve, 99)) if solve else None,
+        mpc_solve_cpu_ms_median=_round(np.median(solve_cpu)) if solve_cpu else None,
         mpc_solves=len(solve),
         min_zmp_margin_m=_round(min(margins), 5) if margins else None,
         trunk_height_min_m=float(pos[:, 2].min()), trunk_height_max_m=float(pos[:, 2].max()),

@@ -1,0 +1,234 @@
+"""Speed of the lock-step graph against its targets, every figure from one run of one command.
+
+``scripts/bench_speed.sh [--runs N] [--duration S] [--out DIR] [--json]``
+
+Each round (default 3, interleaved so that a ratio is measured under one load) runs:
+
+- physics alone (``replan_core.bench.sim_bench``): the bare PyBullet world with the sim node's
+  state queries, ideal and with every realism element on;
+- the graph walking the ``forward`` scenario's set-point (0.15 m/s from t = 1 s), headless,
+  lock-step, ``--duration`` sim s (default 22) in four set-ups: the ideal profile, the
+  realistic one, the realistic one with the recorder, and with the recorder and the live view
+  watched by a headless viewer subscribed to every channel it advertises
+  (``tools/live_client.py``).
+
+and once the MPC benchmark (``replan_core.bench.mpc_bench``, 200 re-plans at the paper's size).
+The real-time factor of a run is the launcher's (sim s per wall s from the first tick); the
+tick is the sim's mean command-to-command time (its ``tick budget`` line); the MPC's solve
+times in the graph come from the mpc's shutdown line (wall and thread CPU time, so that work
+and waiting for a core are told apart).
+
+It prints one table (target, figure, verdict: met / not met) and, with ``--json``, one JSON
+line of everything. Targets: docs/ARCHITECTURE.md, "Speed targets".
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import statistics
+import sys
+import tempfile
+from pathlib import Path
+
+import yaml
+
+from replan_core.bench.mpc_bench import run as mpc_bench_run
+from replan_core.bench.sim_bench import physics_rtf
+from replan_core.mpc import MpcSettings
+from replan_ros.mpc_node import SOLVE_TIMES_LOG
+from replan_ros.tools.launch_graph import Graph, run_graph
+from replan_ros.tools.live_client import WatchEverything, free_port
+from replan_ros.tools.scenario import load_scenario, params_document, scenario_inputs
+from replan_ros.tools.tick_budget import read_budgets, table
+
+ROOT = Path(__file__).resolve().parents[4]
+SCENARIO = ROOT / 'config' / 'scenarios' / 'forward.yaml'
+# name -> (profile, recorder, live view with a viewer)
+SETUPS = {
+    'ideal': ('ideal', False, False),
+    'realistic': ('realistic', False, False),
+    'realistic+recorder': ('realistic', True, False),
+    'realistic+recorder+live': ('realistic', True, True),
+}
+# The targets (issue 17): real-time factor, its share of physics alone, the recorder's cost,
+# the MPC alone and inside the graph.
+RTF_TARGET = 1.5
+PHYSICS_SHARE_TARGET = 0.2
+RECORDER_COST_TARGET = 0.10
+MPC_MEDIAN_TARGET_MS = 2.0
+MPC_P99_TARGET_MS = 5.0
+MPC_GRAPH_FACTOR_TARGET = 1.5
+
+
+def graph_run(setup: str, out: Path, duration: float, log) -> dict:
+    """One headless run of ``setup``: real-time factor, mean tick, MPC solve times."""
+    profile, record, live = SETUPS[setup]
+    scenario = load_scenario(SCENARIO)
+    out.mkdir(parents=True, exist_ok=True)
+    params_file = out / 'params.yaml'
+    params_file.write_text(yaml.safe_dump(params_document(scenario), sort_keys=False))
+    port = free_port() if live else None
+    graph = Graph(out, config_dir=ROOT / 'config', profile=profile, param_files=[params_file],
+                  record_dir=out / 'bag' if record else None, respawn=False,
+                  log=lambda text: log(text, quiet=True), live_port=port)
+    inputs = scenario_inputs(scenario)
+    viewer = WatchEverything(port) if live else None
+
+    def on_start(node) -> list:
+        if viewer is not None:
+            viewer.start()
+        return inputs.publish(node)
+
+    try:
+        code = run_graph(graph, duration, wall_timeout=max(300.0, 20.0 * duration),
+                         on_start=on_start)
+    finally:
+        if viewer is not None:
+            viewer.stop()
+    result: dict = {'setup': setup, 'exit_code': code, 'real_time_factor': graph.real_time_factor}
+    budgets = read_budgets(graph.log_dir)
+    if {'sim', 'wbc'} <= set(budgets):
+        totals = table(budgets['sim'], budgets['wbc'])[1]
+        result['tick_ms_mean'] = round(totals['tick_ms_mean'], 3)
+    result['mpc'] = mpc_solve_times(graph.log_dir / 'mpc.log')
+    if viewer is not None:
+        result['viewer_frames'] = viewer.frames
+        result['viewer_mb'] = round(viewer.bytes / 1e6, 1)
+        if viewer.error:
+            result['viewer_error'] = viewer.error
+    return result
+
+
+def mpc_solve_times(log_path: Path) -> dict:
+    """The mpc node's shutdown summary of its solve times ({} if it has none)."""
+    if not log_path.exists():
+        return {}
+    found = re.findall(re.escape(SOLVE_TIMES_LOG) + r' (\{.*\})', log_path.read_text())
+    return json.loads(found[-1]) if found else {}
+
+
+def _median(values: list) -> float | None:
+    values = [v for v in values if v is not None]
+    return round(statistics.median(values), 3) if values else None
+
+
+def _span(values: list) -> str:
+    values = [v for v in values if v is not None]
+    if not values:
+        return 'n/a'
+    return f'{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})'
+
+
+def _verdict(ok: bool | None) -> str:
+    return 'n/a' if ok is None else ('met' if ok else 'NOT met')
+
+
+def summarise(rounds: list[dict], mpc_bench: dict) -> tuple[list[tuple[str, str, str]], dict]:
+    """Table rows (target, figure, verdict) and the summary, from the rounds' results."""
+    rtf = {s: [r['graph'][s]['real_time_factor'] for r in rounds] for s in SETUPS}
+    rows = []
+    summary: dict = {'real_time_factor': {s: _median(v) for s, v in rtf.items()}}
+    for setup, values in rtf.items():
+        median = _median(values)
+        rows.append((f'real-time factor >= {RTF_TARGET}: {setup}', _span(values),
+                     _verdict(None if median is None else median >= RTF_TARGET)))
+    for setup, physics_key in (('ideal', 'ideal'), ('realistic', 'realistic')):
+        shares = [r['graph'][setup]['real_time_factor'] / r['physics'][physics_key]
+                  if r['graph'][setup]['real_time_factor'] else None for r in rounds]
+        median = _median(shares)
+        summary[f'{setup}_over_physics'] = median
+        physics = _span([r['physics'][physics_key] for r in rounds])
+        rows.append((f'graph >= {PHYSICS_SHARE_TARGET} x physics alone: {setup} '
+                     f'(physics {physics})', _span(shares),
+                     _verdict(None if median is None else median >= PHYSICS_SHARE_TARGET)))
+    for label, with_it, without in (('recorder', 'realistic+recorder', 'realistic'),
+                                    ('live view + viewer', 'realistic+recorder+live',
+                                     'realistic+recorder')):
+        costs = [1.0 - r['graph'][with_it]['real_time_factor']
+                 / r['graph'][without]['real_time_factor']
+                 if r['graph'][with_it]['real_time_factor']
+                 and r['graph'][without]['real_time_factor'] else None for r in rounds]
+        median = _median(costs)
+        summary[f'{label} cost'] = median
+        target = label == 'recorder'
+        rows.append((f'{label} costs <= {RECORDER_COST_TARGET:.0%} of the RTF' if target else
+                     f'{label} cost (no target)', _span(costs),
+                     _verdict(None if median is None or not target
+                              else median <= RECORDER_COST_TARGET)))
+    rows.append((f'MPC alone: median <= {MPC_MEDIAN_TARGET_MS} ms, p99 <= '
+                 f'{MPC_P99_TARGET_MS} ms', f'{mpc_bench["median_ms"]:.2f} / '
+                 f'{mpc_bench["p99_ms"]:.2f} ms',
+                 _verdict(mpc_bench['median_ms'] <= MPC_MEDIAN_TARGET_MS
+                          and mpc_bench['p99_ms'] <= MPC_P99_TARGET_MS)))
+    for setup in SETUPS:
+        medians = [r['graph'][setup]['mpc'].get('wall_median_ms') for r in rounds]
+        p99s = [r['graph'][setup]['mpc'].get('wall_p99_ms') for r in rounds]
+        cpus = [r['graph'][setup]['mpc'].get('cpu_median_ms') for r in rounds]
+        median, p99 = _median(medians), _median(p99s)
+        summary[f'mpc_in_graph_{setup}'] = {'median_ms': median, 'p99_ms': p99,
+                                            'cpu_median_ms': _median(cpus)}
+        ok = None
+        if median is not None and p99 is not None:
+            ok = (median <= MPC_GRAPH_FACTOR_TARGET * mpc_bench['median_ms']
+                  and p99 <= MPC_GRAPH_FACTOR_TARGET * mpc_bench['p99_ms'])
+        rows.append((f'MPC in the graph <= {MPC_GRAPH_FACTOR_TARGET} x alone: {setup}',
+                     f'median {_span(medians)}, p99 {_span(p99s)}, CPU median '
+                     f'{_span(cpus)} ms', _verdict(ok)))
+    return rows, summary
+
+
+def print_rows(rows, out=sys.stdout) -> None:
+    width = max(len(target) for target, _, _ in rows)
+    for target, figure, verdict in rows:
+        print(f'{target:<{width}}  {figure:<48}  {verdict}', file=out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog='bench_speed.sh', description=__doc__.split('\n\n')[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--runs', type=int, default=3, help='rounds (default 3)')
+    parser.add_argument('--duration', type=float, default=22.0,
+                        help='sim s of each graph run (default 22)')
+    parser.add_argument('--out', type=Path, help='run folder (default: a temporary one)')
+    parser.add_argument('--json', action='store_true', help='also one JSON line of everything')
+    args = parser.parse_args(argv)
+    if args.runs < 1 or args.duration <= 1.0:
+        parser.error('--runs must be >= 1 and --duration > 1 s (the walk starts at 1 s)')
+    out = args.out or Path(tempfile.mkdtemp(prefix='bench_speed_'))
+    urdf = os.environ.get('REPLAN_URDF') or str(ROOT / 'urdf' / 'hyq.urdf')
+
+    def log(text: str, quiet: bool = False) -> None:
+        if not quiet:
+            print(text, file=sys.stderr, flush=True)
+
+    log(f'bench_speed: {args.runs} rounds, {len(SETUPS)} graph set-ups of {args.duration:g} '
+        f'sim s each, in {out}')
+    rounds = []
+    for k in range(1, args.runs + 1):
+        physics = {'ideal': round(physics_rtf(urdf)[0], 2),
+                   'realistic': round(physics_rtf(urdf, realistic=True)[0], 2)}
+        graph = {}
+        for setup in SETUPS:
+            result = graph_run(setup, out / f'{setup}_{k}', args.duration, log)
+            graph[setup] = result
+            log(f'round {k}: {setup}: real-time factor {result["real_time_factor"]}, '
+                f'tick {result.get("tick_ms_mean")} ms, mpc {result["mpc"]}')
+        rounds.append({'physics': physics, 'graph': graph})
+    mpc_bench = mpc_bench_run(MpcSettings(), 200, 0)
+    rows, summary = summarise(rounds, mpc_bench)
+    print(f'bench_speed: {args.runs} rounds, forward walk {args.duration:g} sim s, '
+          f'{os.cpu_count()} CPUs ({out})')
+    print_rows(rows)
+    if args.json:
+        print(json.dumps({'summary': summary, 'rounds': rounds,
+                          'mpc_bench': {k: mpc_bench[k] for k in ('median_ms', 'p99_ms')}}))
+    failed = [r for r in rounds for g in r['graph'].values() if g['exit_code'] != 0]
+    return 1 if failed else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

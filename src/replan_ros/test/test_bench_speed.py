@@ -1,0 +1,57 @@
+"""bench_speed's verdicts from given figures (no graph is run here) and its reading of the mpc
+node's shutdown line."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from replan_ros.mpc_node import SOLVE_TIMES_LOG
+from replan_ros.tools.bench_speed import SETUPS, mpc_solve_times, summarise
+
+
+def _round(rtf: dict, physics: dict, mpc_median: float = 1.2, mpc_p99: float = 2.0) -> dict:
+    return {'physics': physics,
+            'graph': {s: {'real_time_factor': rtf[s], 'exit_code': 0,
+                          'mpc': {'wall_median_ms': mpc_median, 'wall_p99_ms': mpc_p99,
+                                  'cpu_median_ms': 1.0}} for s in SETUPS}}
+
+
+def _verdicts(rows) -> dict[str, str]:
+    return {target: verdict for target, _, verdict in rows}
+
+
+def test_every_target_met():
+    rtf = {'ideal': 2.0, 'realistic': 1.9, 'realistic+recorder': 1.8,
+           'realistic+recorder+live': 1.7}
+    rounds = [_round(rtf, {'ideal': 9.0, 'realistic': 8.0})] * 3
+    rows, summary = summarise(rounds, {'median_ms': 1.0, 'p99_ms': 2.0})
+    verdicts = _verdicts(rows)
+    assert set(verdicts.values()) == {'met', 'n/a'}
+    assert [t for t, v in verdicts.items() if v == 'n/a'] == ['live view + viewer cost (no target)']
+    assert summary['recorder cost'] == pytest.approx(1.0 - 1.8 / 1.9, abs=1e-3)
+    assert summary['ideal_over_physics'] == pytest.approx(2.0 / 9.0, abs=1e-3)
+
+
+def test_misses_are_reported_per_target():
+    rtf = {'ideal': 1.6, 'realistic': 1.4, 'realistic+recorder': 1.0,
+           'realistic+recorder+live': 0.9}
+    rounds = [_round(rtf, {'ideal': 13.0, 'realistic': 10.0}, mpc_median=2.0, mpc_p99=3.5)]
+    verdicts = _verdicts(summarise(rounds, {'median_ms': 1.0, 'p99_ms': 2.0})[0])
+    assert verdicts['real-time factor >= 1.5: ideal'] == 'met'
+    assert verdicts['real-time factor >= 1.5: realistic'] == 'NOT met'
+    assert verdicts['recorder costs <= 10% of the RTF'] == 'NOT met'          # 29 %
+    assert all(v == 'NOT met' for t, v in verdicts.items() if t.startswith('graph >='))
+    assert all(v == 'NOT met' for t, v in verdicts.items() if t.startswith('MPC in the graph'))
+    assert verdicts['MPC alone: median <= 2.0 ms, p99 <= 5.0 ms'] == 'met'
+
+
+def test_mpc_shutdown_line_read_back(tmp_path):
+    summary = {'replans': 12, 'wall_median_ms': 1.5, 'wall_p99_ms': 4.0,
+               'cpu_median_ms': 1.1, 'cpu_p99_ms': 2.0}
+    log = tmp_path / 'mpc.log'
+    log.write_text('[INFO] [1.0] [mpc]: mpc ready\n'
+                   f'[INFO] [2.0] [mpc]: {SOLVE_TIMES_LOG} {json.dumps(summary)}\n')
+    assert mpc_solve_times(log) == summary
+    assert mpc_solve_times(tmp_path / 'missing.log') == {}
