@@ -12,7 +12,10 @@ Each round (default 3, interleaved so that a ratio is measured under one load) r
   watched by a headless viewer subscribed to every channel it advertises
   (``tools/live_client.py``).
 
-and once the MPC benchmark (``replan_core.bench.mpc_bench``, 200 re-plans at the paper's size).
+and once the MPC benchmark (``replan_core.bench.mpc_bench``, 200 re-plans at the paper's size,
+back to back), and again with ``MPC_IDLE`` wall s of sleep before each re-plan: in the graph
+the mpc idles between touchdowns and each solve starts cold (caches, the core's state), which
+alone doubled its CPU time on the 2-core machine (docs/mpc.md).
 The real-time factor of a run is the launcher's (sim s per wall s from the first tick); the
 tick is the sim's mean command-to-command time (its ``tick budget`` line); the MPC's solve
 times in the graph come from the mpc's shutdown line (wall and thread CPU time, so that work
@@ -25,6 +28,7 @@ line of everything. Targets: docs/ARCHITECTURE.md, "Speed targets".
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import re
@@ -61,6 +65,21 @@ RECORDER_COST_TARGET = 0.10
 MPC_MEDIAN_TARGET_MS = 2.0
 MPC_P99_TARGET_MS = 5.0
 MPC_GRAPH_FACTOR_TARGET = 1.5
+MPC_IDLE = 0.3              # wall s between two re-plans of the idle MPC benchmark
+MPC_IDLE_REPLANS = 40
+
+
+@contextlib.contextmanager
+def _native_stdout_to_stderr():
+    """PyBullet's C code prints its banner on file descriptor 1: keep stdout for the table."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def graph_run(setup: str, out: Path, duration: float, log) -> dict:
@@ -126,8 +145,10 @@ def _verdict(ok: bool | None) -> str:
     return 'n/a' if ok is None else ('met' if ok else 'NOT met')
 
 
-def summarise(rounds: list[dict], mpc_bench: dict) -> tuple[list[tuple[str, str, str]], dict]:
-    """Table rows (target, figure, verdict) and the summary, from the rounds' results."""
+def summarise(rounds: list[dict], mpc_bench: dict,
+              mpc_idle: dict | None = None) -> tuple[list[tuple[str, str, str]], dict]:
+    """Table rows (target, figure, verdict) and the summary, from the rounds' results and
+    the MPC benchmark back to back (``mpc_bench``) and after idling (``mpc_idle``)."""
     rtf = {s: [r['graph'][s]['real_time_factor'] for r in rounds] for s in SETUPS}
     rows = []
     summary: dict = {'real_time_factor': {s: _median(v) for s, v in rtf.items()}}
@@ -163,6 +184,10 @@ def summarise(rounds: list[dict], mpc_bench: dict) -> tuple[list[tuple[str, str,
                  f'{mpc_bench["p99_ms"]:.2f} ms',
                  _verdict(mpc_bench['median_ms'] <= MPC_MEDIAN_TARGET_MS
                           and mpc_bench['p99_ms'] <= MPC_P99_TARGET_MS)))
+    if mpc_idle is not None:
+        rows.append((f'MPC alone, {mpc_idle["idle_s"]:g} s idle before each re-plan (no '
+                     'target)', f'{mpc_idle["median_ms"]:.2f} / {mpc_idle["p99_ms"]:.2f} ms, '
+                     f'CPU median {mpc_idle["cpu_median_ms"]:.2f} ms', 'n/a'))
     for setup in SETUPS:
         medians = [r['graph'][setup]['mpc'].get('wall_median_ms') for r in rounds]
         p99s = [r['graph'][setup]['mpc'].get('wall_p99_ms') for r in rounds]
@@ -209,8 +234,9 @@ def main(argv: list[str] | None = None) -> int:
         f'sim s each, in {out}')
     rounds = []
     for k in range(1, args.runs + 1):
-        physics = {'ideal': round(physics_rtf(urdf)[0], 2),
-                   'realistic': round(physics_rtf(urdf, realistic=True)[0], 2)}
+        with _native_stdout_to_stderr():
+            physics = {'ideal': round(physics_rtf(urdf)[0], 2),
+                       'realistic': round(physics_rtf(urdf, realistic=True)[0], 2)}
         graph = {}
         for setup in SETUPS:
             result = graph_run(setup, out / f'{setup}_{k}', args.duration, log)
@@ -219,13 +245,17 @@ def main(argv: list[str] | None = None) -> int:
                 f'tick {result.get("tick_ms_mean")} ms, mpc {result["mpc"]}')
         rounds.append({'physics': physics, 'graph': graph})
     mpc_bench = mpc_bench_run(MpcSettings(), 200, 0)
-    rows, summary = summarise(rounds, mpc_bench)
+    mpc_idle = mpc_bench_run(MpcSettings(), MPC_IDLE_REPLANS, 0, idle=MPC_IDLE)
+    rows, summary = summarise(rounds, mpc_bench, mpc_idle)
     print(f'bench_speed: {args.runs} rounds, forward walk {args.duration:g} sim s, '
           f'{os.cpu_count()} CPUs ({out})')
     print_rows(rows)
     if args.json:
         print(json.dumps({'summary': summary, 'rounds': rounds,
-                          'mpc_bench': {k: mpc_bench[k] for k in ('median_ms', 'p99_ms')}}))
+                          'mpc_bench': {k: mpc_bench[k] for k in ('median_ms', 'p99_ms',
+                                                                   'cpu_median_ms')},
+                          'mpc_bench_idle': {k: mpc_idle[k] for k in (
+                              'idle_s', 'median_ms', 'p99_ms', 'cpu_median_ms')}}))
     failed = [r for r in rounds for g in r['graph'].values() if g['exit_code'] != 0]
     return 1 if failed else 0
 
