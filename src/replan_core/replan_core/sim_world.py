@@ -241,6 +241,7 @@ class SimWorld:
 
         self._applied = np.zeros(len(JOINT_NAMES))
         self._wrench_force = np.zeros(3)
+        self._pushing = False                # a non-zero wrench is set (checked once per change)
         self._wrench_torque = np.zeros(3)
         self._force = np.zeros((4, 3))
         self._normal = np.zeros(4)
@@ -294,6 +295,11 @@ class SimWorld:
         tau = self._checked_torques(torques)
         self.begin_step()
         self._finish_step(tau)
+
+    @property
+    def begun(self) -> bool:
+        """True between ``begin_step`` and ``finish_step``: the period's lead steps are done."""
+        return self._begun is not None
 
     @property
     def lead_steps(self) -> int:
@@ -366,7 +372,7 @@ class SimWorld:
                       zip(forces, p.getJointStates(robot, self._joints), strict=True)]
         # Torques and external forces act for one stepSimulation only: set them every step.
         p.setJointMotorControlArray(robot, self._joints, pybullet.TORQUE_CONTROL, forces=forces)
-        if np.any(self._wrench_force) or np.any(self._wrench_torque):
+        if self._pushing:
             origin = self._base_pose()[0]
             p.applyExternalForce(robot, -1, self._wrench_force.tolist(), origin.tolist(),
                                  pybullet.WORLD_FRAME)
@@ -457,6 +463,7 @@ class SimWorld:
         if not (np.all(np.isfinite(f)) and np.all(np.isfinite(t))):
             raise ValueError('wrench contains NaN or inf')
         self._wrench_force, self._wrench_torque = f.copy(), t.copy()
+        self._pushing = bool(np.any(f) or np.any(t))
 
     def damping_torques(self, gain: float, abduction_stiffness: float = 0.0) -> np.ndarray:
         """Torques (N m) of the controller-dead mode: joint damping -gain * qd, and the

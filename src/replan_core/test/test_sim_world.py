@@ -459,11 +459,13 @@ def test_begin_and_finish_step_are_exactly_step(world_factory, actuator):
         before = _world_vector(split)
         split.begin_step()
         split.begin_step()                          # a second call does nothing
+        assert split.begun
         moved = not np.array_equal(
             np.concatenate([split.joint_state().position, split.base_state().position]),
             np.concatenate([before[:12], before[36:39]]))
         assert moved == (expected_lead > 0)
         split.finish_step(torques)
+        assert not split.begun
         np.testing.assert_array_equal(_world_vector(split), _world_vector(whole))
     assert split.tick == whole.tick == 150
 

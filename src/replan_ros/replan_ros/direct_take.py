@@ -3,16 +3,15 @@
 In lock-step the sim and the controller each wait for exactly one message per tick (the
 command, the tick's ``joint_states``). rclpy's executor, at every wake-up, rebuilds a wait set
 of every entity of the node (subscriptions, timers, the parameter services, guard conditions)
-in Python and walks it: measured on the 2-core machine, a two-process ping-pong of a
-``JointState`` took 0.35-0.40 ms per round trip spun by ``SingleThreadedExecutor`` and
-0.09 ms waited for on that one subscription (docs/ARCHITECTURE.md, "Per-tick budget"). So
-after answering a tick, a node waits here for the next sample of that subscription, for at
-most ``wait`` wall seconds, and hands it to its callback; it goes back to its executor (timers,
-the other subscriptions, services) when nothing came in time, when ``keep_going()`` says so,
-as soon as a sample of a watched subscription (the controller's plans, the sim's
-``external_wrench``) is there, and at least every ``slice_period`` wall seconds. Nothing is
-lost meanwhile: the other subscriptions' samples wait in their DDS queues for the executor,
-and the watched ones get its next turn, as they did without the fast path.
+in Python and walks it, at every tick of both processes (docs/ARCHITECTURE.md, "Per-tick
+budget": what taking it out of the chain gained). So after answering a tick, a node waits here
+for the next sample of that subscription, for at most ``wait`` wall seconds, and hands it to
+its callback; it goes back to its executor (timers, the other subscriptions, services) when
+nothing came in time, when ``keep_going()`` says so, as soon as a sample of a watched
+subscription (the controller's plans, the sim's ``external_wrench``) is there, and at least
+every ``slice_period`` wall seconds. Nothing is lost meanwhile: the other subscriptions'
+samples wait in their DDS queues for the executor, and the watched ones get its next turn, as
+they did without the fast path.
 
 rclpy offers this only through the handles its executor uses (as ``wait_for_message`` does);
 ``on_demand.py`` takes samples the same way.
@@ -27,6 +26,11 @@ from contextlib import ExitStack
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.subscription import Subscription
+
+# The lock-step chain's defaults (sim and wbc): a tick's message normally comes within a few
+# ms; the executor gets a turn at least this often, so timers run at most this late.
+WAIT = 0.01            # wall s to wait for the next sample before handing back
+SLICE = 0.05           # wall s: the longest run of samples between two turns of the executor
 
 
 class DirectTake:
@@ -69,7 +73,8 @@ class DirectTake:
                 return None
             return subscription.handle.take_message(subscription.msg_type, subscription.raw)
 
-    def run(self, keep_going: Callable[[], bool], wait: float, slice_period: float) -> int:
+    def run(self, keep_going: Callable[[], bool], wait: float = WAIT,
+            slice_period: float = SLICE) -> int:
         """Hand the samples that come to the handler while ``keep_going()``, each within
         ``wait`` wall s of the last, for at most ``slice_period`` wall s, until a watched
         subscription has a sample; returns how many. A call from inside the handler returns 0

@@ -75,11 +75,6 @@ WAITING, LOCK_STEP, FREE_RUN, DAMPING = 'waiting_first_command', 'lock_step', 'f
 _LOG_THROTTLE = 1.0          # wall s between two log lines of the same kind
 _MAX_CATCH_UP_TICKS = 25     # free-run: ticks stepped at most per timer call before slipping
 _WATCHDOG_PERIOD = 0.02      # wall s
-# Lock-step fast path (direct_take.py): wall s to wait for the next command outside the
-# executor, and the longest run of ticks between two turns of the executor (its timers and
-# the external_wrench subscription then run at most this late).
-_DIRECT_WAIT = 0.01
-_DIRECT_SLICE = 0.05
 # Phases of a lock-step tick, from the command's arrival to the next one (tick_budget.py).
 BUDGET_PHASES = (
     'sim_transport_cmd',          # joint_torque_cmd: wbc's DDS write -> our DDS reader
@@ -167,7 +162,6 @@ class SimNode(Node):
         self._accel_variance = imu_noise.accel_noise_density ** 2 / dt
         self._tick_messages: list = []      # the samples of the current tick, drawn once
         self._tick_sources: list = []
-        self._begun = False                 # the next period's lead physics steps are done
         self.budget = TickBudget(BUDGET_PHASES)
         self._tick_start_ns: int | None = None     # perf_counter_ns of the last lock-step
         self._published_ns: int | None = None      # command, and of its joint_states publish
@@ -349,12 +343,11 @@ class SimNode(Node):
         """Start the next control period: the wrenches due at this tick, then the physics
         steps the actuator delay keeps from the coming command (SimWorld.begin_step), which
         run while the controller computes that command."""
-        if self._begun:
+        if self.world.begun:
             return
         t0 = time.perf_counter_ns()
         self._apply_due_wrenches()
         self.world.begin_step()
-        self._begun = True
         self.budget.add('sim_lead_physics', time.perf_counter_ns() - t0)
 
     def _advance(self, torques: np.ndarray) -> None:
@@ -367,7 +360,6 @@ class SimNode(Node):
         except ValueError as err:       # never reached with validated commands; be safe
             self.get_logger().error(f'step failed ({err}); applying zero torques')
             self.world.finish_step(np.zeros(len(JOINT_NAMES)))
-        self._begun = False
         budget = self.budget
         budget.add('sim_physics', time.perf_counter_ns() - t1)
         now = time.monotonic()
@@ -426,7 +418,7 @@ class SimNode(Node):
             self._advance(torques)
             # The next commands straight from their DDS queue, not through the executor
             # (direct_take.py); the executor runs again when one is late or the slice ends.
-            self._direct_commands.run(lambda: self.mode == LOCK_STEP, _DIRECT_WAIT, _DIRECT_SLICE)
+            self._direct_commands.run(lambda: self.mode == LOCK_STEP)
             return
         self.ignored += 1
         if self.mode == DAMPING and stamp_ns < self.now_ns:

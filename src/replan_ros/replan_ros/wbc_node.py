@@ -95,11 +95,6 @@ _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead 
 _KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
 _KEEP_STATES = 50        # ticks of inputs kept per topic while waiting for the rest
 _STATE_WAIT = 0.01       # wall s to wait for the imu / ground truth of a joint_states tick
-# Lock-step fast path (direct_take.py): wall s to wait for the next joint_states outside the
-# executor, and the longest run of ticks between two turns of the executor (its timers and
-# the plan subscriptions then run at most this late; a tick that waits for plans hands over).
-_DIRECT_WAIT = 0.01
-_DIRECT_SLICE = 0.05
 # m: legs this much shorter (median over the four, base above foot) than in the standing pose
 # mean the robot sat down (the sim's damping mode): it stands up in joint space first.
 _SAT_DOWN = 0.1
@@ -231,8 +226,9 @@ class WbcNode(Node):
                                                   event_callbacks=INTERNAL_PUB_EVENTS)
         self.events_pub = self.create_publisher(PointCloud2, 'contact_events', CONTACTS,
                                                 event_callbacks=INTERNAL_PUB_EVENTS)
-        # One wake-up per tick: the sim publishes joint_states last, so when they arrive the
-        # other samples of the tick are queued, and are taken then (on_demand.py).
+        # One wake-up per tick, on joint_states: the sim publishes the imu before them, so it
+        # is queued by then; the truth (ideal profile) comes right after them and is waited
+        # for (_STATE_WAIT). Both are taken from their queues (on_demand.py).
         joint_states_sub = self.create_subscription(
             JointStateMsg, 'joint_states', self._on_joint_states, SENSOR,
             event_callbacks=INTERNAL_SUB_EVENTS)
@@ -357,7 +353,7 @@ class WbcNode(Node):
             # The next ticks' joint_states straight from their DDS queue, not through the
             # executor (direct_take.py). A tick that must wait for its plans hands back to
             # the executor, which delivers them (footholds, com_plan).
-            self._direct_states.run(lambda: self._waiting is None, _DIRECT_WAIT, _DIRECT_SLICE)
+            self._direct_states.run(lambda: self._waiting is None)
 
     def _publish_estimate(self) -> None:
         """odom, contacts (and contact_events) of the last estimated tick, once."""

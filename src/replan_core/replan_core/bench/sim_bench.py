@@ -57,7 +57,7 @@ def physics_rtf(urdf: str, *, terrain: str = 'flat', query: bool = True,
                 joints = encoders.measure(joints)
                 imu.measure(world.time, *world.imu_truth())
             world.step(kp * (STANDING_POSE - joints.position) - kd * joints.velocity)
-            if query or realistic:
+            if query:
                 world.base_state()
                 world.contact_state()
         best = min(best, time.perf_counter() - start)

@@ -136,6 +136,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     mpc = _diag_values(data.get('/diagnostics', []), 'mpc')
     solve = _first(mpc, 'solve_time_ms', 'solve_ms')
     solve_cpu = _first(mpc, 'solve_cpu_ms')
+    iterations = _first(mpc, 'iterations')
     margins = _first(mpc, 'zmp_margin_m', 'min_zmp_margin_m')
     sim_diag = _diag_values(data.get('/diagnostics', []), 'sim')
     metrics.update(
@@ -162,6 +163,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
         mpc_solve_ms_median=_round(np.median(solve)) if solve else None,
         mpc_solve_ms_p99=_round(np.percentile(solve, 99)) if solve else None,
         mpc_solve_cpu_ms_median=_round(np.median(solve_cpu)) if solve_cpu else None,
+        mpc_iterations_median=float(np.median(iterations)) if iterations else None,
         mpc_solves=len(solve),
         min_zmp_margin_m=_round(min(margins), 5) if margins else None,
         trunk_height_min_m=float(pos[:, 2].min()), trunk_height_max_m=float(pos[:, 2].max()),
