@@ -77,6 +77,30 @@ def test_wbc_alone_keeps_robot_standing(launcher, probe):
     assert float(values['compute_time_median_ms']) > 0.0
 
 
+def test_first_command_waits_for_listeners_then_starts_anyway(launcher, probe):
+    """A node of first_command_waits_for that never subscribes to one of the estimate's topics
+    (a recorder excluding it) delays the first command by first_command_wait_timeout, then the
+    wbc starts with a warning naming that node and topic: the run never hangs."""
+    odom_sub = probe.subscribe(Odometry, 'odom', SENSOR)
+    probe.subscribe(PointCloud2, 'contacts', CONTACTS)        # contact_events: not subscribed
+    launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml')
+    wbc = launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml', params={
+        'plan_timeout': 0.5, 'first_plan_timeout': 0.5, 'first_command_waits_for': ['test_probe'],
+        'first_command_wait_timeout': 3.0})
+    truth = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
+    assert probe.spin_until(lambda: 'wbc ready' in wbc.log(), timeout=60), launcher.logs()
+    probe.spin_for(1.5)                  # within the timeout: the sim waits at t = 0
+    assert truth and all(stamp_to_ns(o.header.stamp) == 0 for o in [*truth, *odom_sub]), \
+        launcher.logs()
+    assert probe.spin_until(
+        lambda: truth and stamp_to_sec(truth[-1].header.stamp) >= 0.5, timeout=60), \
+        launcher.logs()
+    log = wbc.log()
+    assert 'no subscription of test_probe on contact_events after ' \
+        'first_command_wait_timeout (3 s): starting anyway' in log, log
+    assert 'test_probe on odom' not in log and 'test_probe on contacts,' not in log
+
+
 class FakeSimAndPlanners:
     """Test-side publishers of the sim's state topics and of the two plans."""
 

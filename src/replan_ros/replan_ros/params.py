@@ -329,6 +329,9 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
         _p('first_command_waits_for', [], 'nodes that must subscribe to odom, contacts and '
            'contact_events before the first command lets the sim move (the launcher sets the '
            "recorder's, so a bag holds the estimate from t = 0)", kind='str[]'),
+        _p('first_command_wait_timeout', 10.0, 'longest wait for first_command_waits_for; '
+           'then the first command goes out anyway, with a warning naming what is missing',
+           'wall s', min=0.0, max=3600.0),
         *_estimator_specs(),
     )
 

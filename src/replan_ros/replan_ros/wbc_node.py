@@ -149,7 +149,9 @@ class WbcNode(Node):
         latency = float(p['plan_latency'])         # within [0, 0.99] s (params.WBC)
         self.latency_ns = math.ceil(sec_to_ns(latency) / period_ns - 1e-9) * period_ns
         self.first_command_waits_for = set(p['first_command_waits_for'])
+        self.first_command_wait_timeout = float(p['first_command_wait_timeout'])
         self._listeners_ready = not self.first_command_waits_for
+        self._listeners_deadline: float | None = None     # time.monotonic(), set at 1st tick
 
         urdf = p['urdf_path'] or os.environ.get('REPLAN_URDF') or str(
             Path(__file__).resolve().parents[3] / 'urdf' / 'hyq.urdf')
@@ -524,14 +526,28 @@ class WbcNode(Node):
     def _listeners_subscribed(self) -> bool:
         """True once every node of ``first_command_waits_for`` (e.g. the recorder's on-demand
         helper) subscribes to the estimate's topics: the sim does not move before our first
-        command, so a bag then holds them from t = 0."""
+        command, so a bag then holds them from t = 0. After ``first_command_wait_timeout``
+        wall s (a recorder told to leave one of them out, or one that died) it starts anyway
+        and says which node does not listen to which topic: never a graph that waits forever."""
+        missing = []
         for topic in ('odom', 'contacts', 'contact_events'):
             readers = {info.node_name for info in
                        self.get_subscriptions_info_by_topic(self.resolve_topic_name(topic))}
-            if not self.first_command_waits_for <= readers:
+            missing += [f'{node} on {topic}'
+                        for node in sorted(self.first_command_waits_for - readers)]
+        if missing:
+            now = time.monotonic()
+            if self._listeners_deadline is None:
+                self._listeners_deadline = now + self.first_command_wait_timeout
+            if now < self._listeners_deadline:
                 return False
+            self.get_logger().warning(
+                f'no subscription of {", ".join(missing)} after '
+                f'first_command_wait_timeout ({self.first_command_wait_timeout:g} s): starting '
+                'anyway; a bag misses these topics or their first samples')
+        else:
+            self.get_logger().info(f'{sorted(self.first_command_waits_for)} listen: starting')
         self._listeners_ready = True
-        self.get_logger().info(f'{sorted(self.first_command_waits_for)} listen: starting')
         return True
 
     def _wait(self, stamp: int, first: bool) -> None:
