@@ -41,15 +41,14 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 from replan_core.mpc import LipMpc, MpcResult, MpcSettings
 from replan_core.robot_model import RobotModel
 from replan_core.support import implied_velocity
-from replan_core.types import LEGS, BaseState, ComPlan, FootholdPlan, JointState
-from replan_ros import diagnostics
+from replan_core.types import LEGS, WORLD_FRAME, BaseState, ComPlan, FootholdPlan, JointState
+from replan_ros import cdr, diagnostics
 from replan_ros.interfaces import (
     base_state_from_odom,
-    com_plan_to_msg,
     contact_events_from_msg,
     footholds_from_msg,
     joint_state_from_msg,
-    path_msg,
+    sec_to_ns,
     sec_to_stamp,
     stamp_to_ns,
 )
@@ -275,18 +274,16 @@ class MpcNode(Node):
         self._publish_diag(t, res, '')
 
     def _publish_plan(self, t: float, res: MpcResult) -> None:
+        # Serialized by hand (cdr.py: 0.2 ms against 4.6 ms for rclpy's messages), the
+        # controller's com_plan first: the re-plan waits for it.
         plan = res.plan
-        msg = com_plan_to_msg(plan)
-        msg.header.stamp = sec_to_stamp(t)        # exactly the footholds' stamp
-        self.com_plan_pub.publish(msg)
+        stamp_ns = sec_to_ns(t)                   # exactly the footholds' stamp
+        self.com_plan_pub.publish(cdr.encode_com_plan(plan, stamp_ns, WORLD_FRAME))
         ground = plan.position[0, 2] - self.settings.com_height
         zmp = np.column_stack([res.zmp, np.full(len(res.zmp), ground)])
-        zmp_msg = path_msg(t, plan.dt, zmp)
-        zmp_msg.header.stamp = msg.header.stamp
-        self.zmp_pub.publish(zmp_msg)
-        com_msg = path_msg(t, plan.dt, plan.position)
-        com_msg.header.stamp = msg.header.stamp
-        self.com_path_pub.publish(com_msg)
+        self.zmp_pub.publish(cdr.encode_path(stamp_ns, t, plan.dt, zmp, WORLD_FRAME))
+        self.com_path_pub.publish(cdr.encode_path(stamp_ns, t, plan.dt, plan.position,
+                                                  WORLD_FRAME))
 
     def _publish_diag(self, t: float, res: MpcResult | None, why: str) -> None:
         if res is None:

@@ -85,6 +85,7 @@ BUDGET_PHASES = (
     'sim_conversion',             # imu and joint_states messages built
     'sim_publish_imu',
     'sim_publish_joint_states',
+    'sim_truth_first',            # truth_first: the truth sensed, built and published first
     'sim_wait',                   # joint_states published -> the next command's callback
     # While the controller works (after joint_states, inside sim_wait):
     'sim_truth_sensing',          # the simulator's exact base state and contact forces
@@ -166,6 +167,7 @@ class SimNode(Node):
         self._tick_start_ns: int | None = None     # perf_counter_ns of the last lock-step
         self._published_ns: int | None = None      # command, and of its joint_states publish
         self.lock_step: bool = p['lock_step']
+        self.truth_first: bool = p['truth_first']
         self.republish_period: float = p['republish_period']
         self.command_timeout: float = p['command_timeout']
         self.damping_gain: float = p['damping_gain']
@@ -276,7 +278,7 @@ class SimNode(Node):
         budget.add('sim_sensing', t1 - t0)
         budget.add('sim_conversion', time.perf_counter_ns() - t1)
 
-    def _sense_truth(self) -> None:
+    def _sense_truth(self, timed: bool = True) -> None:
         """The current tick's truth (read before the next period's lead physics steps)."""
         w = self.world
         t0 = time.perf_counter_ns()
@@ -285,9 +287,10 @@ class SimNode(Node):
         t1 = time.perf_counter_ns()
         self._tick_message(0)
         self._tick_message(1)
-        budget = self.budget
-        budget.add('sim_truth_sensing', t1 - t0)
-        budget.add('sim_truth_conversion', time.perf_counter_ns() - t1)
+        if timed:
+            budget = self.budget
+            budget.add('sim_truth_sensing', t1 - t0)
+            budget.add('sim_truth_conversion', time.perf_counter_ns() - t1)
 
     def _tick_message(self, k: int):
         """Message ``k`` (truth odom, truth contacts, imu) of the tick if ``k``'s topic has a
@@ -300,44 +303,59 @@ class SimNode(Node):
         return message
 
     def _publish_state(self, with_clock: bool = False, timed: bool = False) -> None:
-        """State of the current tick: first what the controller waits for (imu, then
-        joint_states: it wakes on them), then the truth and /clock (on its grid,
-        clock_period, or when forced), which nobody waits for. ``timed``: a tick's first
-        publish, whose phases go into the budget (a republish does not); it senses the truth
-        after the controller's inputs are out."""
+        """State of the current tick: first what the controller waits for (with
+        ``truth_first`` the truth, then imu and joint_states: it wakes on them), then the
+        truth otherwise and /clock (on its grid, clock_period, or when forced), which nobody
+        waits for. ``timed``: a tick's first publish, whose phases go into the budget (a
+        republish does not); it senses the truth after the controller's inputs are out, or
+        before them with ``truth_first``."""
         clock = time.perf_counter_ns
         t0 = clock()
         if not timed:                 # a republish: a reader may have come meanwhile
             for k in range(3):
                 self._tick_message(k)
+        elif self.truth_first:
+            self._sense_truth(timed=False)
+        if self.truth_first:
+            self._publish_truth()
+        t1 = clock()
         imu, joints = self._tick_messages[2:]
         if imu is not None:
             self.imu_pub.publish(imu)
-        t1 = clock()
-        self.joint_pub.publish(joints)
         t2 = clock()
-        self.last_publish_wall = time.monotonic()
-        if timed:
-            self._sense_truth()
+        self.joint_pub.publish(joints)
         t3 = clock()
-        truth_odom, truth_contacts = self._tick_messages[:2]
-        if truth_odom is not None:
-            self.truth_odom_pub.publish(truth_odom)
+        self.last_publish_wall = time.monotonic()
+        odom_ns = contacts_ns = 0
+        if not self.truth_first:
+            if timed:
+                self._sense_truth()
+            odom_ns, contacts_ns = self._publish_truth()
         t4 = clock()
-        if truth_contacts is not None:
-            self.truth_contacts_pub.publish(truth_contacts)
-        t5 = clock()
         if with_clock or self.world.tick % self._clock_every == 0:
             self.clock_pub.publish(Clock(clock=ns_to_stamp(self.now_ns)))
-        t6 = clock()
+        t5 = clock()
         if timed:
             add = self.budget.add
-            add('sim_publish_imu', t1 - t0)
-            add('sim_publish_joint_states', t2 - t1)
-            add('sim_publish_truth_odom', t4 - t3)
-            add('sim_publish_truth_contacts', t5 - t4)
-            add('sim_publish_clock', t6 - t5)
-            self._published_ns = t2
+            add('sim_truth_first', t1 - t0)
+            add('sim_publish_imu', t2 - t1)
+            add('sim_publish_joint_states', t3 - t2)
+            add('sim_publish_truth_odom', odom_ns)
+            add('sim_publish_truth_contacts', contacts_ns)
+            add('sim_publish_clock', t5 - t4)
+            self._published_ns = t3
+
+    def _publish_truth(self) -> tuple[int, int]:
+        """Publish the truth messages that have a reader; wall ns of each publish."""
+        clock = time.perf_counter_ns
+        truth_odom, truth_contacts = self._tick_messages[:2]
+        t0 = clock()
+        if truth_odom is not None:
+            self.truth_odom_pub.publish(truth_odom)
+        t1 = clock()
+        if truth_contacts is not None:
+            self.truth_contacts_pub.publish(truth_contacts)
+        return t1 - t0, clock() - t1
 
     def _begin_next(self) -> None:
         """Start the next control period: the wrenches due at this tick, then the physics

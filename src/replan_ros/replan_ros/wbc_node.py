@@ -61,10 +61,10 @@ from replan_core.rotations import yaw_of
 from replan_core.types import STANDING_POSE, ComPlan, ContactState, FootholdPlan, JointState
 from replan_core.wbc import JointStandUp, PlanFollower, StandHold, WbcParams, WholeBodyController
 from replan_ros import diagnostics
+from replan_ros.cdr import com_plan_from_cdr
 from replan_ros.direct_take import DirectTake
 from replan_ros.interfaces import (
     base_state_from_odom,
-    com_plan_from_msg,
     contact_events_to_msg,
     contacts_from_msg,
     contacts_to_msg,
@@ -252,7 +252,7 @@ class WbcNode(Node):
             event_callbacks=INTERNAL_SUB_EVENTS)
         com_plan_sub = self.create_subscription(
             MultiDOFJointTrajectory, 'com_plan', self._on_com_plan, LATCHED,
-            event_callbacks=INTERNAL_SUB_EVENTS)
+            event_callbacks=INTERNAL_SUB_EVENTS, raw=True)
         # Plans go to the executor as soon as they come (direct_take.py).
         self._direct_states = DirectTake(self, joint_states_sub, self._on_joint_states,
                                          watched=(footholds_sub, com_plan_sub))
@@ -408,10 +408,11 @@ class WbcNode(Node):
             self._keep(self._footholds, stamp_to_ns(msg.header.stamp), plan)
             self._plans_arrived()
 
-    def _on_com_plan(self, msg: MultiDOFJointTrajectory) -> None:
-        plan = self._decoded(com_plan_from_msg, msg, 'com_plan')
-        if plan is not None:
-            self._keep(self._com_plans, stamp_to_ns(msg.header.stamp), plan)
+    def _on_com_plan(self, data: bytes) -> None:
+        # Raw: decoding the 201 points from the bytes takes 0.3 ms, rclpy's message 4.4 ms.
+        decoded = self._decoded(com_plan_from_cdr, data, 'com_plan')
+        if decoded is not None:
+            self._keep(self._com_plans, *decoded)
             self._plans_arrived()
 
     @staticmethod

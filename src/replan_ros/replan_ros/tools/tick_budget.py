@@ -37,6 +37,7 @@ SIM_OWN = (
     ('sim_conversion', 'sim: imu, joint_states messages'),
     ('sim_publish_imu', 'sim: publish imu'),
     ('sim_publish_joint_states', 'sim: publish joint_states'),
+    ('sim_truth_first', 'sim: truth sensed, built, published first'),
 )
 # Work off the chain (not added to the tick): the sim's after joint_states are out, while the
 # controller computes; the controller's after its command is out, while the sim steps.
@@ -91,7 +92,7 @@ def table(sim: dict, wbc: dict) -> tuple[list[tuple[str, float, float, float]], 
         rows.append((label, median, mean, mean / tick if tick > 0 else float('nan')))
         return mean
 
-    own = sum(row(label, key) for key, label in SIM_OWN)
+    own = sum(row(label, key) for key, label in SIM_OWN if key in phases)
     wait = phases['sim_wait']['mean_ms']
     row('sim: rest of its callback and timers', mean=tick - own - wait)
     rows.append(('sim: wait for the command (round trip) =', phases['sim_wait']['median_ms'],
