@@ -4,16 +4,23 @@ import numpy as np
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
-from replan_core.types import BaseState, ContactState, FootholdPlan, JointState, Step
+from replan_core.types import BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
 from replan_ros.bag_io import BagWriter
 from replan_ros.interfaces import (
+    com_plan_to_msg,
     contacts_to_msg,
     footholds_to_msg,
     joint_state_to_msg,
     odom_from_base_state,
     sec_to_stamp,
+    stamp_to_ns,
 )
-from replan_ros.tools.run_analysis import GAIT_WINDOW, analyse_run, gait_window
+from replan_ros.tools.run_analysis import (
+    GAIT_WINDOW,
+    analyse_run,
+    gait_window,
+    replan_wall_latency,
+)
 from replan_ros.tools.scenario import parse_scenario
 
 TICK = 0.004          # s
@@ -92,3 +99,32 @@ def test_gait_window_short_run_whole_long_run_middle_of_the_walk():
     assert abs(0.5 * (start + end) - 0.5 * (1.0 + 20.5)) < 1e-9
     start, end = gait_window(np.linspace(0.0, 30.0, 100), [])
     assert (start, end) == (15.0 - GAIT_WINDOW / 2, 15.0 + GAIT_WINDOW / 2)
+
+
+def test_replan_wall_latency_from_the_publishers_clocks():
+    """Per re-plan after the initial one: /odom out -> /footholds out -> /com_plan out, from
+    the publish times (wall ns); None when they are sim times (publish_time: header)."""
+    wall = 1_795_000_000_000_000_000          # ns, Nov 2026
+    plan = ComPlan(0.0, 0.04, np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)))
+    data = {'/odom': [], '/footholds': [], '/com_plan': []}
+    delays = [(2.0, 3.0), (4.0, 5.0), (1.0, 2.0)]      # ms: gait, mpc, per re-plan
+    for k, (gait_ms, mpc_ms) in enumerate([(50.0, 60.0), *delays]):   # k = 0: initial plan
+        t = 0.75 * k
+        out = wall + k * 10**9
+        base = BaseState(t, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
+                         np.zeros(3))
+        data['/odom'].append((out, odom_from_base_state(base)))
+        data['/odom'].append((out + 10**8, odom_from_base_state(base)))   # a republish
+        data['/footholds'].append((out + round(gait_ms * 1e6), footholds_to_msg(
+            FootholdPlan(t, FEET, 0.0, []))))
+        msg = com_plan_to_msg(plan)
+        msg.header.stamp = sec_to_stamp(t)
+        data['/com_plan'].append((out + round((gait_ms + mpc_ms) * 1e6), msg))
+    latency = replan_wall_latency(data)
+    assert latency == {'count': 3, 'median': 5.0, 'p90': 8.2, 'max': 9.0,
+                       'estimate_to_footholds_median': 2.0,
+                       'footholds_to_com_plan_median': 3.0}
+    sim_times = {topic: [(stamp_to_ns(m.header.stamp), m) for _, m in rows]
+                 for topic, rows in data.items()}
+    assert replan_wall_latency(sim_times) is None
+    assert replan_wall_latency({}) is None

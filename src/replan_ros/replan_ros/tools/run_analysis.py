@@ -38,6 +38,7 @@ from replan_ros.interfaces import (
     contacts_from_msg,
     footholds_from_msg,
     joint_state_from_msg,
+    stamp_to_ns,
     stamp_to_sec,
 )
 from replan_ros.introspection import message_class
@@ -165,6 +166,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
         mpc_solve_cpu_ms_median=_round(np.median(solve_cpu)) if solve_cpu else None,
         mpc_iterations_median=float(np.median(iterations)) if iterations else None,
         mpc_solves=len(solve),
+        replan_wall_ms=replan_wall_latency(data),
         min_zmp_margin_m=_round(min(margins), 5) if margins else None,
         trunk_height_min_m=float(pos[:, 2].min()), trunk_height_max_m=float(pos[:, 2].max()),
         max_roll_rad=float(np.abs(rpy[:, 0]).max()), max_pitch_rad=float(np.abs(rpy[:, 1]).max()),
@@ -187,6 +189,36 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     except Exception as err:  # plots are a convenience; the metrics must survive them
         metrics['plot_error'] = str(err)
     return metrics
+
+
+_WALL_CLOCK_NS = 10**18     # publish times above this are wall clock (after 2001), not sim
+
+
+def replan_wall_latency(data) -> dict | None:
+    """Wall ms from the controller's estimate of a touchdown tick (``/odom`` out) to that
+    re-plan's ``/com_plan`` out, and its two stages (gait node: ``/footholds`` out; mpc node:
+    ``/com_plan`` out), per re-plan after the initial one: the planning pipeline's real
+    latency (docs/ARCHITECTURE.md, "Re-plan path"), to hold against ``plan_latency`` (sim s).
+    From the bag's publish times, the publishers' wall clocks (the recorder's default
+    ``publish_time: source``; one machine, one clock); None without them."""
+    def first_by_stamp(topic: str) -> dict[int, int]:
+        out: dict[int, int] = {}
+        for publish_time, msg in data.get(topic, []):
+            out.setdefault(stamp_to_ns(msg.header.stamp), publish_time)
+        return out
+
+    odom, footholds, com_plan = (first_by_stamp(t) for t in ('/odom', '/footholds',
+                                                            '/com_plan'))
+    stamps = sorted(s for s in set(odom) & set(footholds) & set(com_plan) if s > 0)
+    rows = np.array([(odom[s], footholds[s], com_plan[s]) for s in stamps], dtype=float)
+    if not len(rows) or rows.min() < _WALL_CLOCK_NS:
+        return None
+    total = (rows[:, 2] - rows[:, 0]) * 1e-6
+    return {'count': len(rows), 'median': _round(np.median(total), 2),
+            'p90': _round(np.percentile(total, 90), 2), 'max': _round(total.max(), 2),
+            'estimate_to_footholds_median': _round(np.median(rows[:, 1] - rows[:, 0]) * 1e-6, 2),
+            'footholds_to_com_plan_median': _round(np.median(rows[:, 2] - rows[:, 1]) * 1e-6,
+                                                   2)}
 
 
 def _true_contacts(data) -> dict:

@@ -329,7 +329,8 @@ def summary(metrics: dict, out: Path) -> str:
              f'wall (real-time factor {metrics.get("real_time_factor", 0):.2f})',
              f'  distance {metrics.get("distance_m", 0):.2f} m, re-plans {metrics.get("replans")}, '
              f'MPC solve median {metrics.get("mpc_solve_ms_median")} ms, '
-             f'p99 {metrics.get("mpc_solve_ms_p99")} ms, '
+             f'p99 {metrics.get("mpc_solve_ms_p99")} ms, re-plan path (estimate out to '
+             f'plan out, wall) median {(metrics.get("replan_wall_ms") or {}).get("median")} ms, '
              f'planned ZMP margin min {metrics.get("min_zmp_margin_m")} m, '
              f'peak memory {metrics.get("peak_memory_total_mb")} MB',
              f'  profile {metrics.get("profile")}: measured CoP margin min '
