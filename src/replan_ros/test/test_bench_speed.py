@@ -58,3 +58,19 @@ def test_mpc_shutdown_line_read_back(tmp_path):
                    f'[INFO] [2.0] [mpc]: {SOLVE_TIMES_LOG} {json.dumps(summary)}\n')
     assert mpc_solve_times(log) == summary
     assert mpc_solve_times(tmp_path / 'missing.log') == {}
+
+
+def test_replan_path_rows_for_the_recorded_setups():
+    rtf = {'ideal': 2.0, 'realistic': 1.9, 'realistic+recorder': 1.8,
+           'realistic+recorder+live': 1.7}
+    rounds = []
+    for median, peak in ((10.0, 20.0), (12.0, 30.0), (11.0, 25.0)):
+        r = _round(rtf, {'ideal': 9.0, 'realistic': 8.0})
+        r['graph']['realistic+recorder']['replan_wall'] = {'median': median, 'max': peak}
+        r['graph']['realistic+recorder+live']['replan_wall'] = None      # no bag read
+        rounds.append(r)
+    rows, summary = summarise(rounds, {'median_ms': 1.0, 'p99_ms': 2.0})
+    row = [(f, v) for t, f, v in rows if t.startswith('re-plan path')]
+    assert row == [('median 11.00 (10.00-12.00), max 25.00 (20.00-30.00) ms', 'n/a')]
+    assert summary['replan_wall_realistic+recorder'] == {'median_ms': 11.0, 'max_ms': 25.0}
+    assert 'replan_wall_realistic+recorder+live' not in summary

@@ -19,7 +19,8 @@ alone doubled its CPU time on the 2-core machine (docs/mpc.md).
 The real-time factor of a run is the launcher's (sim s per wall s from the first tick); the
 tick is the sim's mean command-to-command time (its ``tick budget`` line); the MPC's solve
 times in the graph come from the mpc's shutdown line (wall and thread CPU time, so that work
-and waiting for a core are told apart).
+and waiting for a core are told apart); with the recorder, the re-plan path's wall latency
+(estimate out to ``com_plan`` out, ``run_analysis.replan_wall_latency``) from the bag.
 
 It prints one table (target, figure, verdict: met / not met) and, with ``--json``, one JSON
 line of everything. Targets: docs/ARCHITECTURE.md, "Speed targets".
@@ -45,6 +46,7 @@ from replan_core.mpc import MpcSettings
 from replan_ros.mpc_node import SOLVE_TIMES_LOG
 from replan_ros.tools.launch_graph import Graph, run_graph
 from replan_ros.tools.live_client import WatchEverything, free_port
+from replan_ros.tools.run_analysis import read_messages, replan_wall_latency
 from replan_ros.tools.scenario import load_scenario, params_document, scenario_inputs
 from replan_ros.tools.tick_budget import read_budgets, table
 
@@ -113,6 +115,9 @@ def graph_run(setup: str, out: Path, duration: float, log) -> dict:
         totals = table(budgets['sim'], budgets['wbc'])[1]
         result['tick_ms_mean'] = round(totals['tick_ms_mean'], 3)
     result['mpc'] = mpc_solve_times(graph.log_dir / 'mpc.log')
+    if record:          # the planning pipeline's wall latency, from the bag (run_analysis)
+        result['replan_wall'] = replan_wall_latency(
+            read_messages(out / 'bag', topics=('/odom', '/footholds', '/com_plan')))
     if viewer is not None:
         result['viewer_frames'] = viewer.frames
         result['viewer_mb'] = round(viewer.bytes / 1e6, 1)
@@ -202,6 +207,16 @@ def summarise(rounds: list[dict], mpc_bench: dict,
         rows.append((f'MPC in the graph <= {MPC_GRAPH_FACTOR_TARGET} x alone: {setup}',
                      f'median {_span(medians)}, p99 {_span(p99s)}, CPU median '
                      f'{_span(cpus)} ms', _verdict(ok)))
+    for setup in SETUPS:
+        latencies = [r['graph'][setup].get('replan_wall') for r in rounds]
+        if not any(latencies):
+            continue
+        medians = [x['median'] if x else None for x in latencies]
+        maxima = [x['max'] if x else None for x in latencies]
+        summary[f'replan_wall_{setup}'] = {'median_ms': _median(medians),
+                                           'max_ms': _median(maxima)}
+        rows.append((f're-plan path, estimate out -> com_plan out (no target): {setup}',
+                     f'median {_span(medians)}, max {_span(maxima)} ms', 'n/a'))
     return rows, summary
 
 
