@@ -37,10 +37,10 @@ FEET = np.array([[0.3708, 0.3241, 0.0218], [0.3708, -0.3241, 0.0218],
                  [-0.3708, 0.3241, 0.0218], [-0.3708, -0.3241, 0.0218]])
 
 
-def _wbc_status(diags):
+def _wbc_status(diags, name: str = 'wbc'):
     for array in reversed(diags):
         for status in array.status:
-            if status.name == 'wbc':
+            if status.name == name:
                 return status
     return None
 
@@ -75,6 +75,9 @@ def test_wbc_alone_keeps_robot_standing(launcher, probe):
     assert float(values['com_error_max_m']) < 0.01
     assert values['active_contacts'] == '1111'
     assert float(values['compute_time_median_ms']) > 0.0
+    # This controller reads the truth: the sim found it in the graph and sends it first.
+    sim = _wbc_status(diags, 'sim')
+    assert sim is not None and diagnostics.values_of(sim)['truth_first'] == 'True'
 
 
 def test_first_command_waits_for_listeners_then_starts_anyway(launcher, probe):
@@ -234,6 +237,7 @@ def test_estimator_mode_reads_no_ground_truth(launcher, probe):
     launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
                    params={'state_estimation': True, 'contact_estimation': True,
                            'plan_timeout': 0.5})
+    diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
     estimates = probe.subscribe(Odometry, 'odom', SENSOR)
     truth = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
     ok = probe.spin_until(lambda: estimates and stamp_to_sec(estimates[-1].header.stamp) >= 1.0,
@@ -245,6 +249,9 @@ def test_estimator_mode_reads_no_ground_truth(launcher, probe):
         assert not any(name.startswith('wbc') for name in readers), (topic, readers)
     readers = {i.node_name for i in node.get_subscriptions_info_by_topic('/imu')}
     assert 'wbc_on_demand' in readers
+    # Only the test reads the truth, not the controller: the sim sends it after the sensors.
+    assert probe.spin_until(lambda: _wbc_status(diags, 'sim') is not None, timeout=5)
+    assert diagnostics.values_of(_wbc_status(diags, 'sim'))['truth_first'] == 'False'
     # Standing on its estimate: the estimate agrees with the truth at the same stamp.
     by_stamp = {stamp_to_ns(m.header.stamp): m for m in truth}
     pairs = [(m, by_stamp[stamp_to_ns(m.header.stamp)]) for m in estimates

@@ -19,7 +19,7 @@ from rclpy.serialization import deserialize_message
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.types import ComPlan
-from replan_ros.interfaces import com_plan_from_msg, stamp_to_ns
+from replan_ros.interfaces import com_plan_from_arrays, com_plan_from_msg, stamp_to_ns
 
 ENCAPSULATION = b'\x00\x01\x00\x00'        # CDR, little endian, no options
 _U32 = struct.Struct('<I')
@@ -145,18 +145,11 @@ def decode_com_plan(data: bytes) -> tuple[int, ComPlan] | None:
     # Columns: count, 7 transform, count, 6 twist, count, 6 twist, sec, nanosec.
     if not (np.all(rows[:, 0] == 1) and np.all(rows[:, 8] == 1) and np.all(rows[:, 15] == 1)):
         return None
+    # The same float arithmetic as com_plan_from_msg, so both decoders give identical plans.
     times = rows[:, 22] + rows[:, 23] * 1e-9
-    dt = float(times[1] - times[0])
-    if dt <= 0 or not np.allclose(np.diff(times), dt, atol=1e-6):
-        raise ValueError('com_plan samples must be evenly spaced')
-    position, velocity, acceleration = rows[:, 1:4], rows[:, 9:12], rows[:, 16:19]
-    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))
-            and np.all(np.isfinite(acceleration))):
-        raise ValueError('com_plan holds non-finite values')
-    # The same float arithmetic as com_plan_from_msg: both decoders give identical plans.
-    return sec * _NS + nanosec, ComPlan(start_time=sec + nanosec * 1e-9, dt=dt,
-                                        position=position.copy(), velocity=velocity.copy(),
-                                        acceleration=acceleration.copy())
+    return sec * _NS + nanosec, com_plan_from_arrays(
+        sec + nanosec * 1e-9, times, rows[:, 1:4].copy(), rows[:, 9:12].copy(),
+        rows[:, 16:19].copy())
 
 
 def com_plan_from_cdr(data: bytes) -> tuple[int, ComPlan]:
@@ -172,7 +165,7 @@ def com_plan_from_cdr(data: bytes) -> tuple[int, ComPlan]:
     return stamp_to_ns(msg.header.stamp), com_plan_from_msg(msg)
 
 
-_POSE = struct.Struct('<7d')
+POSE = struct.Struct('<7d')      # geometry_msgs Pose / Transform: x y z, qx qy qz qw
 
 
 def encode_path(stamp_ns: int, start_time: float, dt: float, points: np.ndarray,
@@ -188,5 +181,5 @@ def encode_path(stamp_ns: int, start_time: float, dt: float, points: np.ndarray,
     w.u32(len(xyz))
     for k, (x, y, z) in enumerate(xyz.tolist()):
         w.header(round((start_time + k * dt) * 1e9), frame_id)     # as interfaces.header
-        w.packed(_POSE, 8, x, y, z, 0.0, 0.0, 0.0, 1.0)
+        w.packed(POSE, 8, x, y, z, 0.0, 0.0, 0.0, 1.0)
     return w.bytes()

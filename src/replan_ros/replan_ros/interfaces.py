@@ -415,13 +415,21 @@ def com_plan_from_msg(msg: MultiDOFJointTrajectory) -> ComPlan:
     vel = np.array([xyz(pt.velocities[0].linear) for pt in msg.points])
     acc = np.array([xyz(pt.accelerations[0].linear) for pt in msg.points])
     times = np.array([duration_to_sec(pt.time_from_start) for pt in msg.points])
+    return com_plan_from_arrays(stamp_to_sec(msg.header.stamp), times, pos, vel, acc)
+
+
+def com_plan_from_arrays(start_time: float, times: np.ndarray, position: np.ndarray,
+                         velocity: np.ndarray, acceleration: np.ndarray) -> ComPlan:
+    """A ``com_plan``'s samples (``times`` from its start, s) checked: evenly spaced and
+    finite (``ValueError`` otherwise). Shared by both decoders (this module, ``cdr.py``)."""
     dt = float(times[1] - times[0])
     if dt <= 0 or not np.allclose(np.diff(times), dt, atol=1e-6):
         raise ValueError('com_plan samples must be evenly spaced')
-    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel)) and np.all(np.isfinite(acc))):
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))
+            and np.all(np.isfinite(acceleration))):
         raise ValueError('com_plan holds non-finite values')
-    return ComPlan(start_time=stamp_to_sec(msg.header.stamp), dt=dt, position=pos,
-                   velocity=vel, acceleration=acc)
+    return ComPlan(start_time=start_time, dt=dt, position=position, velocity=velocity,
+                   acceleration=acceleration)
 
 
 def path_msg(start_time: float, dt: float, points: np.ndarray,

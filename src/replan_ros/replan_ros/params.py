@@ -402,9 +402,6 @@ SIM = (
     _p('debounce_ticks', 2, 'ticks the force must stay above/below the threshold', 'ticks',
        min=1, max=100),
     _p('lock_step', True, 'advance one tick per joint_torque_cmd of the current stamp'),
-    _p('truth_first', True, 'publish ground_truth/* before imu and joint_states (for a '
-       'controller that reads the truth: the ideal world); false: after them, off the '
-       "lock-step chain (the realistic profile's controller reads only the sensors)"),
     _p('republish_period', 0.1, 'lock-step: republish the state after this long without its '
        'command', 'wall s', min=0.001, max=10.0),
     _p('command_timeout', 3.0, "without a command this long: damping mode (above the "

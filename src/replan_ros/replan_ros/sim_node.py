@@ -68,6 +68,7 @@ from replan_ros.interfaces import (
     stamp_to_ns,
     torque_cmd_from_msg,
 )
+from replan_ros.on_demand import helper_name
 from replan_ros.params import declare_node_parameters
 from replan_ros.tick_budget import TickBudget
 
@@ -167,7 +168,10 @@ class SimNode(Node):
         self._tick_start_ns: int | None = None     # perf_counter_ns of the last lock-step
         self._published_ns: int | None = None      # command, and of its joint_states publish
         self.lock_step: bool = p['lock_step']
-        self.truth_first: bool = p['truth_first']
+        # Whether the controller reads the truth (the ideal world): then the truth goes out
+        # before imu/joint_states, so that it does not wait for it. Derived from the graph
+        # when lock-step starts (_controller_reads_truth), not configured.
+        self.truth_first = False
         self.republish_period: float = p['republish_period']
         self.command_timeout: float = p['command_timeout']
         self.damping_gain: float = p['damping_gain']
@@ -189,6 +193,7 @@ class SimNode(Node):
                                                  event_callbacks=qos.INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', qos.COMMAND,
                                               event_callbacks=qos.INTERNAL_PUB_EVENTS)
+        self.cmd_topic = self.resolve_topic_name('joint_torque_cmd')
         command_sub = self.create_subscription(
             JointState, 'joint_torque_cmd', self._on_command, qos.COMMAND,
             event_callbacks=qos.INTERNAL_SUB_EVENTS)
@@ -357,6 +362,16 @@ class SimNode(Node):
             self.truth_contacts_pub.publish(truth_contacts)
         return t1 - t0, clock() - t1
 
+    def _controller_reads_truth(self) -> bool:
+        """True if a node that publishes joint_torque_cmd (or its on-demand helper) reads
+        ground_truth/odom or ground_truth/contacts: the ideal world's controller."""
+        controllers = {info.node_name for info in self.get_publishers_info_by_topic(
+            self.cmd_topic)}
+        controllers |= {helper_name(name) for name in controllers}
+        return any(info.node_name in controllers
+                   for pub in (self.truth_odom_pub, self.truth_contacts_pub)
+                   for info in self.get_subscriptions_info_by_topic(pub.topic_name))
+
     def _begin_next(self) -> None:
         """Start the next control period: the wrenches due at this tick, then the physics
         steps the actuator delay keeps from the coming command (SimWorld.begin_step), which
@@ -392,6 +407,8 @@ class SimNode(Node):
     def _set_mode(self, mode: str) -> None:
         if mode == self.mode:
             return
+        if mode == LOCK_STEP:          # the first command, or a controller back
+            self.truth_first = self._controller_reads_truth()
         if mode in (FREE_RUN, DAMPING):
             self._free_ref = (time.monotonic(), self.world.tick)
             if self.free_timer.is_canceled():
@@ -556,6 +573,7 @@ class SimNode(Node):
         else:
             level, message = diagnostics.OK, self.mode.replace('_', '-')
         values = {'mode': self.mode, 'sim_time': self.world.time, 'tick': self.world.tick,
+                  'truth_first': self.truth_first,
                   'real_time_factor': self._rtf(), 'commands_rejected': self.rejected,
                   'commands_ignored': self.ignored,
                   'damping_since_s': self._damping_since if self.mode == DAMPING else '',

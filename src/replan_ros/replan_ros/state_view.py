@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import math
 import os
-import struct
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,7 +43,7 @@ from replan_core.metrics import cop_margins
 from replan_core.support import convex_hull
 from replan_core.types import WORLD_FRAME
 from replan_ros.bag_io import message_definition, normalize_type_name
-from replan_ros.cdr import CdrWriter
+from replan_ros.cdr import POSE, CdrWriter
 from replan_ros.interfaces import contacts_from_msg, joint_state_from_msg, ns_to_stamp
 from replan_ros.stamped_buffer import cdr_header_stamp_ns
 
@@ -69,7 +68,6 @@ DERIVED_TOPICS = tuple(TYPES)
 INPUT_TOPICS = ('/odom', '/joint_states', '/ground_truth/contacts', '/diagnostics',
                 '/velocity_setpoint')
 _PAIRING = 16            # recent stamps of /odom and /joint_states kept to pair them
-_POSE = struct.Struct('<7d')
 
 
 @dataclass(frozen=True)
@@ -111,7 +109,7 @@ def encode_tf(stamp_ns: int, transforms) -> bytes:
         w.time(stamp_ns)
         w.string(t.parent)
         w.string(t.child)
-        w.packed(_POSE, 8, *t.translation, *t.rotation)
+        w.packed(POSE, 8, *t.translation, *t.rotation)
     return w.bytes()
 
 
