@@ -145,19 +145,29 @@ def torque_cmd_from_msg(msg: JointStateMsg) -> tuple[int, np.ndarray]:
 # Base state <-> nav_msgs/Odometry (twist in the child frame, REP-105)
 
 
+def odom_values(bs: BaseState) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(pose: x y z qx qy qz qw, twist in ``base_link``: vx vy vz wx wy wz) of the
+    odometry of ``bs`` (REP-105); shared by ``odom_from_base_state`` and ``tick_cdr``."""
+    p, q = bs.position, bs.quaternion
+    to_base = rotations.conjugate(rotations.normalized(q))     # twist in base_link (REP-105)
+    linear = rotations.rotate(to_base, bs.linear_velocity)
+    angular = rotations.rotate(to_base, bs.angular_velocity)
+    pose = (float(p[0]), float(p[1]), float(p[2]),
+            float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+    return pose, tuple(float(v) for v in (*linear, *angular))
+
+
 def odom_from_base_state(bs: BaseState) -> Odometry:
     msg = Odometry()
     msg.header = header(bs.stamp, WORLD_FRAME)
     msg.child_frame_id = BASE_FRAME
-    p, q = bs.position, bs.quaternion
+    pose, twist = odom_values(bs)
     position, orientation = msg.pose.pose.position, msg.pose.pose.orientation
-    position.x, position.y, position.z = float(p[0]), float(p[1]), float(p[2])
-    orientation.x, orientation.y = float(q[0]), float(q[1])
-    orientation.z, orientation.w = float(q[2]), float(q[3])
+    position.x, position.y, position.z = pose[:3]
+    orientation.x, orientation.y, orientation.z, orientation.w = pose[3:]
     linear, angular = msg.twist.twist.linear, msg.twist.twist.angular
-    to_base = rotations.conjugate(rotations.normalized(q))     # twist in base_link (REP-105)
-    linear.x, linear.y, linear.z = rotations.rotate(to_base, bs.linear_velocity)
-    angular.x, angular.y, angular.z = rotations.rotate(to_base, bs.angular_velocity)
+    linear.x, linear.y, linear.z = twist[:3]
+    angular.x, angular.y, angular.z = twist[3:]
     return msg
 
 
@@ -182,21 +192,35 @@ def base_state_from_odom(msg: Odometry) -> BaseState:
 # IMU <-> sensor_msgs/Imu (base_link axes; no orientation: REP-145's covariance[0] = -1)
 
 
+def imu_values(reading: ImuReading, gyro_variance: float = 0.0,
+               accel_variance: float = 0.0) -> tuple[float, ...]:
+    """The 37 numbers of ``imu_to_msg`` in field order: orientation (x y z w, not provided),
+    its covariance (``[0] = -1``), angular velocity, its covariance, linear acceleration, its
+    covariance (the variances of one sample on the diagonals); shared with ``tick_cdr``."""
+    w, a = reading.angular_velocity, reading.linear_acceleration
+    gyro_cov = (gyro_variance, 0.0, 0.0, 0.0, gyro_variance, 0.0, 0.0, 0.0, gyro_variance)
+    accel_cov = (accel_variance, 0.0, 0.0, 0.0, accel_variance, 0.0, 0.0, 0.0, accel_variance)
+    return ((0.0, 0.0, 0.0, 1.0, -1.0) + (0.0,) * 8
+            + (float(w[0]), float(w[1]), float(w[2])) + tuple(float(v) for v in gyro_cov)
+            + (float(a[0]), float(a[1]), float(a[2])) + tuple(float(v) for v in accel_cov))
+
+
 def imu_to_msg(reading: ImuReading, gyro_variance: float = 0.0,
                accel_variance: float = 0.0) -> Imu:
     """The IMU sample in ``base_link``; the variances (per axis, of one sample) fill the
     diagonal covariances; the orientation is marked as not provided."""
+    values = imu_values(reading, gyro_variance, accel_variance)
     msg = Imu()
     msg.header = header(reading.stamp, BASE_FRAME)
-    msg.orientation_covariance[0] = -1.0
-    w, a = reading.angular_velocity, reading.linear_acceleration
-    msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = (
-        float(w[0]), float(w[1]), float(w[2]))
-    msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = (
-        float(a[0]), float(a[1]), float(a[2]))
-    for i in (0, 4, 8):
-        msg.angular_velocity_covariance[i] = gyro_variance
-        msg.linear_acceleration_covariance[i] = accel_variance
+    o = msg.orientation
+    o.x, o.y, o.z, o.w = values[:4]
+    msg.orientation_covariance = values[4:13]
+    v = msg.angular_velocity
+    v.x, v.y, v.z = values[13:16]
+    msg.angular_velocity_covariance = values[16:25]
+    v = msg.linear_acceleration
+    v.x, v.y, v.z = values[25:28]
+    msg.linear_acceleration_covariance = values[28:37]
     return msg
 
 
@@ -221,7 +245,7 @@ _FIELD_OF_NUMPY = {np.dtype(v).str: k for k, v in _NUMPY_OF_FIELD.items()}
 
 
 @functools.lru_cache(maxsize=16)
-def _point_fields(dtype: np.dtype) -> tuple[PointField, ...]:
+def point_fields(dtype: np.dtype) -> tuple[PointField, ...]:
     """The PointField layout of a table dtype, built once (never modified afterwards)."""
     return tuple(PointField(name=name, offset=dtype.fields[name][1],
                             datatype=_FIELD_OF_NUMPY[dtype.fields[name][0].str], count=1)
@@ -230,7 +254,7 @@ def _point_fields(dtype: np.dtype) -> tuple[PointField, ...]:
 
 def table_to_cloud(hdr: Header, table: np.ndarray) -> PointCloud2:
     """Pack a 1-D numpy structured array (no padding) into a PointCloud2."""
-    fields = list(_point_fields(table.dtype))
+    fields = list(point_fields(table.dtype))
     msg = PointCloud2(header=hdr, height=1, width=len(table), fields=fields,
                       is_bigendian=False, point_step=table.dtype.itemsize,
                       row_step=table.dtype.itemsize * len(table), is_dense=True)
@@ -286,7 +310,8 @@ FOOTHOLD_DTYPE = np.dtype([('x', '<f8'), ('y', '<f8'), ('z', '<f8'), ('leg', 'u1
                            ('max_extension', '<f8')])
 
 
-def _contact_table(cs: ContactState, rows: np.ndarray) -> np.ndarray:
+def contact_rows(cs: ContactState, rows: np.ndarray) -> np.ndarray:
+    """The contact table's rows ``rows`` (legs) of ``cs``; shared with ``tick_cdr``."""
     table = np.zeros(len(rows), dtype=CONTACT_DTYPE)
     position, force = np.asarray(cs.foot_position)[rows], np.asarray(cs.force)[rows]
     table['x'], table['y'], table['z'] = position[:, 0], position[:, 1], position[:, 2]
@@ -299,7 +324,7 @@ def _contact_table(cs: ContactState, rows: np.ndarray) -> np.ndarray:
 
 
 def contacts_to_msg(cs: ContactState) -> PointCloud2:
-    return table_to_cloud(header(cs.stamp), _contact_table(cs, np.arange(4)))
+    return table_to_cloud(header(cs.stamp), contact_rows(cs, np.arange(4)))
 
 
 def contact_events_to_msg(cs: ContactState) -> PointCloud2 | None:
@@ -307,7 +332,7 @@ def contact_events_to_msg(cs: ContactState) -> PointCloud2 | None:
     rows = np.flatnonzero(np.asarray(cs.touchdown) | np.asarray(cs.liftoff))
     if len(rows) == 0:
         return None
-    return table_to_cloud(header(cs.stamp), _contact_table(cs, rows))
+    return table_to_cloud(header(cs.stamp), contact_rows(cs, rows))
 
 
 def contacts_from_msg(msg: PointCloud2) -> ContactState:

@@ -58,19 +58,18 @@ from replan_core.sim_world import STANDING_POSE, ActuatorParams, SimWorld
 from replan_core.types import JOINT_NAMES, WORLD_FRAME
 from replan_ros import diagnostics, qos
 from replan_ros.direct_take import DirectTake
-from replan_ros.interfaces import (
-    contacts_to_msg,
-    imu_to_msg,
-    joint_state_to_msg,
-    ns_to_stamp,
-    odom_from_base_state,
-    sec_to_ns,
-    stamp_to_ns,
-    torque_cmd_from_msg,
-)
+from replan_ros.interfaces import ns_to_stamp, sec_to_ns, stamp_to_ns
 from replan_ros.on_demand import helper_name
 from replan_ros.params import declare_node_parameters
+from replan_ros.stamped_buffer import cdr_header_stamp_ns
 from replan_ros.tick_budget import TickBudget
+from replan_ros.tick_cdr import (
+    encode_contacts,
+    encode_imu,
+    encode_joint_state,
+    encode_odom,
+    torque_command_from_cdr,
+)
 
 WAITING, LOCK_STEP, FREE_RUN, DAMPING = 'waiting_first_command', 'lock_step', 'free_run', 'damping'
 _LOG_THROTTLE = 1.0          # wall s between two log lines of the same kind
@@ -196,7 +195,7 @@ class SimNode(Node):
         self.cmd_topic = self.resolve_topic_name('joint_torque_cmd')
         command_sub = self.create_subscription(
             JointState, 'joint_torque_cmd', self._on_command, qos.COMMAND,
-            event_callbacks=qos.INTERNAL_SUB_EVENTS)
+            event_callbacks=qos.INTERNAL_SUB_EVENTS, raw=True)
         wrench_sub = self.create_subscription(WrenchStamped, 'external_wrench', self._on_wrench,
                                               qos.SCHEDULE)
         # A wrench goes to the executor as soon as it comes (direct_take.py).
@@ -271,13 +270,15 @@ class SimNode(Node):
         imu = self.imu_sensor.measure(w.time, omega_body, specific_force)
         joints = self.joint_sensor.measure(w.joint_state())
         t1 = time.perf_counter_ns()
-        # Built when first published to a reader: a topic nobody reads (the truth without the
-        # recorder, the imu in the ideal profile) costs no conversion (volatile topics: a
-        # sample published to no reader is lost anyway). The samples are drawn all the same.
+        # Serialized when first published to a reader: a topic nobody reads (the truth without
+        # the recorder, the imu in the ideal profile) costs nothing (volatile topics: a sample
+        # published to no reader is lost anyway). The samples are drawn all the same. The
+        # messages are CDR bytes written by hand (tick_cdr.py), which rclpy publishes as they
+        # are.
         self._tick_sources = [
-            None, None, (self.imu_pub, imu_to_msg,
+            None, None, (self.imu_pub, encode_imu,
                          (imu, self._gyro_variance, self._accel_variance))]
-        self._tick_messages = [None, None, None, joint_state_to_msg(joints)]
+        self._tick_messages = [None, None, None, encode_joint_state(joints)]
         self._tick_message(2)
         budget = self.budget
         budget.add('sim_sensing', t1 - t0)
@@ -287,8 +288,8 @@ class SimNode(Node):
         """The current tick's truth (read before the next period's lead physics steps)."""
         w = self.world
         t0 = time.perf_counter_ns()
-        self._tick_sources[0] = (self.truth_odom_pub, odom_from_base_state, (w.base_state(),))
-        self._tick_sources[1] = (self.truth_contacts_pub, contacts_to_msg, (w.contact_state(),))
+        self._tick_sources[0] = (self.truth_odom_pub, encode_odom, (w.base_state(),))
+        self._tick_sources[1] = (self.truth_contacts_pub, encode_contacts, (w.contact_state(),))
         t1 = time.perf_counter_ns()
         self._tick_message(0)
         self._tick_message(1)
@@ -426,17 +427,19 @@ class SimNode(Node):
         self.mode = mode
 
     # ------------------------------------------------------------------ inputs
-    def _on_command(self, msg: JointState, info: dict) -> None:
+    def _on_command(self, data: bytes, info: dict) -> None:
+        """A serialized ``joint_torque_cmd`` (subscribed raw: tick_cdr.py decodes it)."""
         start_ns = time.perf_counter_ns()
         start_wall_ns = time.time_ns()
         try:
-            stamp_ns, torques = torque_cmd_from_msg(msg)
+            stamp_ns, torques = torque_command_from_cdr(data)
         except ValueError as err:
             self.rejected += 1
-            stamp = stamp_to_ns(msg.header.stamp) * 1e-9
+            stamp = cdr_header_stamp_ns(data)
+            stamped = f' stamped {stamp * 1e-9:.3f} s' if stamp is not None else ''
             self._log_throttled(
                 'warn', f'reject:{err}',
-                f'rejected joint_torque_cmd stamped {stamp:.3f} s: {err}; keeping the previous '
+                f'rejected joint_torque_cmd{stamped}: {err}; keeping the previous '
                 f'command ({self.rejected} rejected so far)')
             return
         if not self.lock_step:

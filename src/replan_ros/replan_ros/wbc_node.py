@@ -65,17 +65,11 @@ from replan_ros.cdr import com_plan_from_cdr
 from replan_ros.direct_take import DirectTake
 from replan_ros.interfaces import (
     base_state_from_odom,
-    contact_events_to_msg,
     contacts_from_msg,
-    contacts_to_msg,
     footholds_from_msg,
-    imu_from_msg,
-    joint_state_from_msg,
     ns_to_stamp,
-    odom_from_base_state,
     sec_to_ns,
     stamp_to_ns,
-    torque_cmd_to_msg,
 )
 from replan_ros.on_demand import OnDemandSubscriptions
 from replan_ros.params import declare_node_parameters
@@ -88,7 +82,17 @@ from replan_ros.qos import (
     SENSOR,
     SENSOR_PUB,
 )
+from replan_ros.stamped_buffer import cdr_header_stamp_ns
 from replan_ros.tick_budget import TickBudget
+from replan_ros.tick_cdr import (
+    deserializer,
+    encode_contact_events,
+    encode_contacts,
+    encode_odom,
+    encode_torque_command,
+    imu_from_cdr,
+    joint_state_from_cdr,
+)
 
 _NS = 1_000_000_000
 _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead of the ticks)
@@ -185,7 +189,7 @@ class WbcNode(Node):
         self._pending: tuple[int, int] | None = None  # (plan stamp, tick it takes effect)
         self._footholds: dict[int, FootholdPlan] = {}
         self._com_plans: dict[int, ComPlan] = {}
-        self._commands: dict[int, JointStateMsg] = {}
+        self._commands: dict[int, bytes] = {}    # serialized
         self._last_answered: int | None = None
         self._started = False
         self._follower: PlanFollower | None = None
@@ -233,19 +237,19 @@ class WbcNode(Node):
         # their queues (on_demand.py; waited for up to _STATE_WAIT if late).
         joint_states_sub = self.create_subscription(
             JointStateMsg, 'joint_states', self._on_joint_states, SENSOR,
-            event_callbacks=INTERNAL_SUB_EVENTS)
+            event_callbacks=INTERNAL_SUB_EVENTS, raw=True)
         self.state_input = OnDemandSubscriptions(self)
         self._needed: list[dict] = []
         if self.estimator is not None:
-            self.state_input.subscribe(Imu, 'imu', SENSOR, self._on_imu, raw=False)
+            self.state_input.subscribe(Imu, 'imu', SENSOR, self._on_imu)
             self._needed.append(self._imu)
         if not self.state_estimation:
             self.state_input.subscribe(Odometry, 'ground_truth/odom', SENSOR,
-                                       self._on_truth_odom, raw=False)
+                                       self._on_truth_odom)
             self._needed.append(self._truth_odom)
         if not self.contact_estimation:
             self.state_input.subscribe(PointCloud2, 'ground_truth/contacts', CONTACTS,
-                                       self._on_truth_contacts, raw=False)
+                                       self._on_truth_contacts)
             self._needed.append(self._truth_contacts)
         footholds_sub = self.create_subscription(
             PointCloud2, 'footholds', self._on_footholds, LATCHED,
@@ -282,21 +286,25 @@ class WbcNode(Node):
             self._warn(f'rejected {what}: {error}')
             return None
 
-    def _on_imu(self, msg: Imu) -> None:
-        reading = self._decoded(imu_from_msg, msg, 'imu')
-        if reading is not None:
-            self._keep_input(self._imu, stamp_to_ns(msg.header.stamp), reading)
+    def _on_imu(self, data: bytes) -> None:
+        decoded = self._decoded(imu_from_cdr, data, 'imu')
+        if decoded is not None:
+            self._keep_input(self._imu, *decoded)
 
-    def _on_truth_odom(self, msg: Odometry) -> None:
-        base = self._decoded(base_state_from_odom, msg, 'ground_truth/odom')
-        if base is not None:
-            self._keep_input(self._truth_odom, stamp_to_ns(msg.header.stamp), (msg, base))
+    def _on_truth_odom(self, data: bytes) -> None:
+        msg = self._decoded(deserializer(Odometry), data, 'ground_truth/odom')
+        base = None if msg is None else self._decoded(base_state_from_odom, msg,
+                                                      'ground_truth/odom')
+        if base is not None:       # passed on as it came: the ideal profile's odom
+            self._keep_input(self._truth_odom, stamp_to_ns(msg.header.stamp), (data, base))
 
-    def _on_truth_contacts(self, msg: PointCloud2) -> None:
-        contacts = self._decoded(contacts_from_msg, msg, 'ground_truth/contacts')
+    def _on_truth_contacts(self, data: bytes) -> None:
+        msg = self._decoded(deserializer(PointCloud2), data, 'ground_truth/contacts')
+        contacts = None if msg is None else self._decoded(contacts_from_msg, msg,
+                                                          'ground_truth/contacts')
         if contacts is not None:
             self._keep_input(self._truth_contacts, stamp_to_ns(msg.header.stamp),
-                             (msg, contacts))
+                             (data, contacts))
 
     @staticmethod
     def _keep_input(buffer: dict, stamp: int, value) -> None:
@@ -304,11 +312,15 @@ class WbcNode(Node):
         while len(buffer) > _KEEP_STATES:
             del buffer[min(buffer)]
 
-    def _on_joint_states(self, msg: JointStateMsg, info: dict) -> None:
+    def _on_joint_states(self, data: bytes, info: dict) -> None:
+        """A serialized ``joint_states`` (subscribed raw: tick_cdr.py decodes it)."""
         clock = time.perf_counter_ns
         t0 = clock()
         wall0 = time.time_ns()
-        stamp = stamp_to_ns(msg.header.stamp)
+        stamp = cdr_header_stamp_ns(data)
+        if stamp is None:
+            self._warn('rejected joint_states: too short for a header')
+            return
         if stamp in self._state_msgs:
             # The sim republished a tick we have estimated: the same state and command again
             # (a lost odom, contacts or command heals; the estimator never runs twice).
@@ -323,9 +335,10 @@ class WbcNode(Node):
         budget.discard_tick()                        # a tick never answered is not counted
         self._budget_tick = stamp
         budget.add_delivery(info, wall0, 'wbc_transport_in', 'wbc_wake')
-        joints = self._decoded(joint_state_from_msg, msg, 'joint_states')
-        if joints is None:
+        decoded = self._decoded(joint_state_from_cdr, data, 'joint_states')
+        if decoded is None:
             return
+        joints = decoded[1]
         t1 = clock()
         # The tick's other samples were published before joint_states; should one have been
         # lost (best effort), the sim's republish of the tick brings it again.
@@ -340,7 +353,7 @@ class WbcNode(Node):
             return
         base, contacts, odom_msg, contacts_msg = self._estimate(stamp, joints)
         t3 = clock()
-        events = contact_events_to_msg(contacts)
+        events = encode_contact_events(contacts, stamp)
         budget.add('wbc_state_msgs', clock() - t3)
         # Published right after the command (_command), so that the sim steps while they go
         # out; a tick not answered now (held for its plans) publishes them below, before the
@@ -379,8 +392,7 @@ class WbcNode(Node):
             self.budget.add('wbc_estimator', time.perf_counter_ns() - t0)
         if self.state_estimation:
             base = estimate[0]
-            odom_msg = odom_from_base_state(base)
-            odom_msg.header.stamp = ns_to_stamp(stamp)
+            odom_msg = encode_odom(base, stamp)
         else:
             odom_msg, base = self._truth_odom[stamp]
         if not self.contact_estimation:
@@ -390,8 +402,7 @@ class WbcNode(Node):
         if not self.state_estimation:      # the estimated forces at the true feet
             contacts = dataclasses.replace(contacts,
                                            foot_position=self.robot.foot_positions(base, joints))
-        contacts_msg = contacts_to_msg(contacts)
-        contacts_msg.header.stamp = ns_to_stamp(stamp)
+        contacts_msg = encode_contacts(contacts, stamp)
         return base, contacts, odom_msg, contacts_msg
 
     def _forget_states_before(self, floor: int) -> None:
@@ -707,9 +718,7 @@ class WbcNode(Node):
 
     def _command(self, stamp: int, result) -> None:
         """Publish and keep the torques answering tick ``stamp``; the per-tick bookkeeping."""
-        t = stamp / _NS
-        msg = torque_cmd_to_msg(t, result.torque)
-        msg.header.stamp = ns_to_stamp(stamp)        # exactly the stamp answered
+        msg = encode_torque_command(stamp, result.torque)     # exactly the stamp answered
         self.cmd_pub.publish(msg)
         counted = self._budget_tick == stamp
         if counted:

@@ -1,0 +1,321 @@
+"""Hand-written CDR for the lock-step's per-tick messages, byte for byte what rclpy writes
+(XCDR1, little endian; unit tests compare with rclpy's serializer and decoder).
+
+Every tick the sim publishes ``imu``, ``joint_states`` (and, to a reader, the truth), the
+controller decodes them, publishes ``joint_torque_cmd`` and its estimate (``odom``,
+``contacts``), and the sim decodes the command: all on the lock-step chain or beside it. Each
+message through rclpy's Python classes costs a Python object per field both ways (about 10 us
+per message on an idle core, several times that inside the running graph:
+``python -m replan_ros.tools.bench_tick_msgs``). The layouts here are fixed (our joint names
+in ``JOINT_NAMES`` order, our frames), so each message is one ``struct`` pack or unpack. A
+decoder returns ``None`` for any other layout (another joint order, a frame it does not
+know, another byte order, a truncated payload); the ``*_from_cdr`` functions then use rclpy's
+generic decoder, so a message from another tool is still read, with the same checks and
+error messages as before (``interfaces``).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import struct
+from collections.abc import Callable
+
+import numpy as np
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import Imu
+from sensor_msgs.msg import JointState as JointStateMsg
+
+from replan_core.types import (
+    BASE_FRAME,
+    JOINT_NAMES,
+    WORLD_FRAME,
+    BaseState,
+    ContactState,
+    ImuReading,
+    JointState,
+)
+from replan_ros.cdr import ENCAPSULATION, CdrWriter
+from replan_ros.interfaces import (
+    CONTACT_DTYPE,
+    contact_rows,
+    imu_from_msg,
+    imu_values,
+    joint_state_from_msg,
+    odom_values,
+    point_fields,
+    torque_cmd_from_msg,
+)
+
+_NS = 1_000_000_000
+_STAMP = struct.Struct('<iI')
+
+
+def _pad(pos: int, n: int) -> int:
+    return -pos % n
+
+
+class _Strings:
+    """Constant strings and string sequences (a str, or a tuple of str) from body offset
+    ``pos``: their struct format, with ``x`` for CDR's padding (zero when written, skipped
+    when read: rclpy does not zero it), the values it packs, and the offset after them."""
+
+    def __init__(self, pos: int, *parts) -> None:
+        fmt, values = [], []
+
+        def align4() -> None:
+            nonlocal pos
+            if _pad(pos, 4):
+                fmt.append(f'{_pad(pos, 4)}x')
+                pos += _pad(pos, 4)
+
+        for part in parts:
+            texts = (part,) if isinstance(part, str) else part
+            if not isinstance(part, str):
+                align4()
+                fmt.append('I')
+                values.append(len(texts))
+                pos += 4
+            for text in texts:
+                data = text.encode() + b'\x00'
+                align4()
+                fmt.append(f'I{len(data)}s')
+                values += [len(data), data]
+                pos += 4 + len(data)
+        self.fmt = ''.join(fmt)
+        self.values = tuple(values)
+        self.end = pos
+
+
+def _double_sequences(pos: int, counts: tuple[int, ...]) -> tuple[str, int]:
+    """The struct format of sequences of ``counts`` doubles from body offset ``pos``."""
+    fmt = ''
+    for count in counts:
+        if _pad(pos, 4):
+            fmt += f'{_pad(pos, 4)}x'
+            pos += _pad(pos, 4)
+        fmt += 'I'
+        pos += 4
+        if count:
+            if _pad(pos, 8):
+                fmt += f'{_pad(pos, 8)}x'
+                pos += _pad(pos, 8)
+            fmt += f'{count}d'
+            pos += 8 * count
+    return fmt, pos
+
+
+def _stamp(ns: int) -> tuple[int, int]:
+    sec, nanosec = divmod(int(ns), _NS)
+    return sec, nanosec
+
+
+class JointStateCodec:
+    """``sensor_msgs/JointState`` with ``frame_id`` and ``names`` fixed and ``counts`` values
+    of position, velocity and effort (0: an empty sequence)."""
+
+    def __init__(self, counts: tuple[int, int, int], names: tuple[str, ...] = JOINT_NAMES,
+                 frame_id: str = '') -> None:
+        self.counts = counts
+        strings = _Strings(8, frame_id, tuple(names))
+        sequences, _ = _double_sequences(strings.end, counts)
+        self._struct = struct.Struct(f'<4siI{strings.fmt}{sequences}')
+        self._constant = strings.values
+        # Where the constant strings, each value sequence's count and its values are in the
+        # unpacked tuple.
+        index = 3 + len(strings.values)
+        self._strings = slice(3, index)
+        self._slices = []
+        for count in counts:
+            self._slices.append((index, slice(index + 1, index + 1 + count)))
+            index += 1 + count
+
+    def encode(self, stamp_ns: int, *arrays) -> bytes:
+        """The message stamped ``stamp_ns`` with the ``counts`` non-empty arrays in order
+        (position, velocity, effort; one per non-zero count)."""
+        values = [ENCAPSULATION, *_stamp(stamp_ns), *self._constant]
+        given = iter(arrays)
+        for count in self.counts:
+            values.append(count)
+            if count:
+                values.extend(np.asarray(next(given), dtype=float).tolist())
+        return self._struct.pack(*values)
+
+    def decode(self, data: bytes) -> tuple[int, tuple[np.ndarray, ...]] | None:
+        """(stamp ns, (position, velocity, effort)) with an empty array for an empty
+        sequence; None for any other layout. Bytes after the message are ignored (rclpy's
+        serializer leaves some after empty sequences)."""
+        if len(data) < self._struct.size or bytes(data[:2]) != ENCAPSULATION[:2]:
+            return None
+        values = self._struct.unpack_from(data)
+        if values[self._strings] != self._constant:
+            return None
+        arrays = []
+        for (index, values_slice), count in zip(self._slices, self.counts, strict=True):
+            if values[index] != count:
+                return None
+            arrays.append(np.array(values[values_slice], dtype=float))
+        return values[1] * _NS + values[2], tuple(arrays)
+
+
+_N = len(JOINT_NAMES)
+JOINT_STATES = JointStateCodec((_N, _N, _N))      # the sim's joint_states
+TORQUE_COMMAND = JointStateCodec((0, 0, _N))      # the controller's joint_torque_cmd
+
+
+def encode_joint_state(js: JointState) -> bytes:
+    """``interfaces.joint_state_to_msg(js)`` serialized."""
+    return JOINT_STATES.encode(round(js.stamp * 1e9), js.position, js.velocity, js.effort)
+
+
+def joint_state_from_cdr(data: bytes) -> tuple[int, JointState]:
+    """(stamp ns, joint state) of a serialized ``JointState``; ``ValueError`` as
+    ``interfaces.joint_state_from_msg`` gives it."""
+    decoded = JOINT_STATES.decode(data)
+    if decoded is None:
+        msg = _deserialize(data, JointStateMsg)
+        js = joint_state_from_msg(msg)
+        return msg.header.stamp.sec * _NS + msg.header.stamp.nanosec, js
+    stamp_ns, (position, velocity, effort) = decoded
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))):
+        raise ValueError('joint_states: non-finite joint positions or velocities')
+    sec, nanosec = divmod(stamp_ns, _NS)
+    return stamp_ns, JointState(sec + nanosec * 1e-9, position, velocity, effort)
+
+
+def encode_torque_command(stamp_ns: int, torques: np.ndarray) -> bytes:
+    """``interfaces.torque_cmd_to_msg`` stamped exactly ``stamp_ns``, serialized."""
+    return TORQUE_COMMAND.encode(stamp_ns, torques)
+
+
+def torque_command_from_cdr(data: bytes) -> tuple[int, np.ndarray]:
+    """(stamp ns, torques in ``JOINT_NAMES`` order); ``ValueError`` as
+    ``interfaces.torque_cmd_from_msg`` gives it."""
+    decoded = TORQUE_COMMAND.decode(data)
+    if decoded is None:
+        return torque_cmd_from_msg(_deserialize(data, JointStateMsg))
+    stamp_ns, (_, _, torques) = decoded
+    if not np.all(np.isfinite(torques)):
+        return torque_cmd_from_msg(_deserialize(data, JointStateMsg))   # its message
+    return stamp_ns, torques
+
+
+# ---------------------------------------------------------------------------------------------
+# sensor_msgs/Imu: a header, then 37 doubles (orientation, 3 x (vector), 3 covariances)
+
+_IMU_FRAME = _Strings(8, BASE_FRAME)
+_IMU = struct.Struct(f'<4siI{_IMU_FRAME.fmt}{_pad(_IMU_FRAME.end, 8)}x37d')
+_IMU_VALUES = struct.Struct('<37d')
+
+
+def encode_imu(reading: ImuReading, gyro_variance: float = 0.0,
+               accel_variance: float = 0.0) -> bytes:
+    """``interfaces.imu_to_msg`` serialized."""
+    return _IMU.pack(ENCAPSULATION, *_stamp(round(reading.stamp * 1e9)), *_IMU_FRAME.values,
+                     *imu_values(reading, gyro_variance, accel_variance))
+
+
+def imu_from_cdr(data: bytes) -> tuple[int, ImuReading]:
+    """(stamp ns, reading) of a serialized ``Imu``, any frame; ``ValueError`` as
+    ``interfaces.imu_from_msg`` gives it."""
+    try:
+        if bytes(data[:2]) != ENCAPSULATION[:2]:
+            raise ValueError
+        sec, nanosec = _STAMP.unpack_from(data, 4)
+        (frame_size,) = struct.unpack_from('<I', data, 12)
+        pos = 12 + frame_size               # body offset after the frame's bytes
+        pos += _pad(pos, 8)
+        if not _IMU_VALUES.size <= len(data) - 4 - pos < _IMU_VALUES.size + 4:
+            raise ValueError
+        values = _IMU_VALUES.unpack_from(data, 4 + pos)
+    except (ValueError, struct.error):
+        msg = _deserialize(data, Imu)
+        return msg.header.stamp.sec * _NS + msg.header.stamp.nanosec, imu_from_msg(msg)
+    measured = values[13:16] + values[25:28]      # angular velocity, linear acceleration
+    if not all(math.isfinite(v) for v in measured):
+        raise ValueError('imu: non-finite angular velocity or acceleration')
+    return sec * _NS + nanosec, ImuReading(stamp=sec + nanosec * 1e-9,
+                                           angular_velocity=np.array(measured[:3]),
+                                           linear_acceleration=np.array(measured[3:]))
+
+
+# ---------------------------------------------------------------------------------------------
+# nav_msgs/Odometry: a header, the child frame, then 85 doubles (pose, covariance, twist,
+# covariance); the covariances are zero (interfaces.odom_from_base_state)
+
+_ODOM_FRAMES = _Strings(8, WORLD_FRAME, BASE_FRAME)
+_ODOM = struct.Struct(f'<4siI{_ODOM_FRAMES.fmt}{_pad(_ODOM_FRAMES.end, 8)}x7d288x6d288x')
+
+
+def encode_odom(base: BaseState, stamp_ns: int | None = None) -> bytes:
+    """``interfaces.odom_from_base_state(base)`` serialized, stamped ``stamp_ns`` if given."""
+    if stamp_ns is None:
+        stamp_ns = round(base.stamp * 1e9)
+    pose, twist = odom_values(base)
+    return _ODOM.pack(ENCAPSULATION, *_stamp(stamp_ns), *_ODOM_FRAMES.values, *pose, *twist)
+
+
+# ---------------------------------------------------------------------------------------------
+# sensor_msgs/PointCloud2 contact tables (interfaces.contacts_to_msg)
+
+def _fields_bytes(dtype: np.dtype) -> bytes:
+    """The ``fields`` sequence of a table from a 4-aligned offset (it ends 4-aligned)."""
+    w = CdrWriter()
+    fields = point_fields(dtype)
+    w.u32(len(fields))
+    for field in fields:
+        w.string(field.name)
+        w.u32(field.offset)
+        w.buf.append(field.datatype)
+        w.u32(field.count)
+    return bytes(w.buf[4:])
+
+
+_CONTACT_FRAME = _Strings(8, WORLD_FRAME)
+_CONTACT_HEADER = struct.Struct(f'<iI{_CONTACT_FRAME.fmt}{_pad(_CONTACT_FRAME.end, 4)}xII')
+_CONTACT_FIELDS = _fields_bytes(CONTACT_DTYPE)
+_CLOUD_STEPS = struct.Struct('<3xIII')        # (is_bigendian before), point_step, row_step,
+#                                               the data's length
+
+
+def _encode_table(stamp_ns: int, table: np.ndarray) -> bytes:
+    data = table.tobytes()
+    step = table.dtype.itemsize
+    out = bytearray(ENCAPSULATION)
+    out += _CONTACT_HEADER.pack(*_stamp(stamp_ns), *_CONTACT_FRAME.values, 1, len(table))
+    out += _CONTACT_FIELDS
+    out.append(0)                                   # is_bigendian
+    out += _CLOUD_STEPS.pack(step, step * len(table), len(data))
+    out += data
+    out.append(1)                                   # is_dense
+    return bytes(out)
+
+
+def encode_contacts(cs: ContactState, stamp_ns: int | None = None) -> bytes:
+    """``interfaces.contacts_to_msg(cs)`` serialized, stamped ``stamp_ns`` if given."""
+    if stamp_ns is None:
+        stamp_ns = round(cs.stamp * 1e9)
+    return _encode_table(stamp_ns, contact_rows(cs, np.arange(4)))
+
+
+def encode_contact_events(cs: ContactState, stamp_ns: int | None = None) -> bytes | None:
+    """``interfaces.contact_events_to_msg(cs)`` serialized; None if no flag changed."""
+    rows = np.flatnonzero(np.asarray(cs.touchdown) | np.asarray(cs.liftoff))
+    if len(rows) == 0:
+        return None
+    if stamp_ns is None:
+        stamp_ns = round(cs.stamp * 1e9)
+    return _encode_table(stamp_ns, contact_rows(cs, rows))
+
+
+def _deserialize(data: bytes, msg_type: type):
+    try:
+        return deserialize_message(data, msg_type)
+    except Exception as err:       # rclpy raises its own error types on bad CDR
+        raise ValueError(f'cannot deserialize {msg_type.__name__}: {err}') from err
+
+
+def deserializer(msg_type: type) -> Callable[[bytes], object]:
+    """rclpy's generic decoder of ``msg_type``, raising ``ValueError`` on bad CDR."""
+    return functools.partial(_deserialize, msg_type=msg_type)
+
