@@ -276,7 +276,7 @@ class MpcNode(Node):
 
     def _publish_plan(self, t: float, res: MpcResult) -> None:
         # Serialized by hand (cdr.py: 0.19 ms against 4.05 ms through rclpy's messages,
-        # python -m replan_ros.tools.bench_plan_msgs), the controller's com_plan first: the
+        # python -m replan_ros.tools.bench_msgs), the controller's com_plan first: the
         # re-plan waits for it.
         plan = res.plan
         stamp_ns = sec_to_ns(t)                   # exactly the footholds' stamp

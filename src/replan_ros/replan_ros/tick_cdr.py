@@ -4,14 +4,15 @@
 Every tick the sim publishes ``imu``, ``joint_states`` (and, to a reader, the truth), the
 controller decodes them, publishes ``joint_torque_cmd`` and its estimate (``odom``,
 ``contacts``), and the sim decodes the command: all on the lock-step chain or beside it. Each
-message through rclpy's Python classes costs a Python object per field both ways (about 10 us
-per message on an idle core, several times that inside the running graph:
-``python -m replan_ros.tools.bench_tick_msgs``). The layouts here are fixed (our joint names
-in ``JOINT_NAMES`` order, our frames), so each message is one ``struct`` pack or unpack. A
-decoder returns ``None`` for any other layout (another joint order, a frame it does not
-know, another byte order, a truncated payload); the ``*_from_cdr`` functions then use rclpy's
-generic decoder, so a message from another tool is still read, with the same checks and
-error messages as before (``interfaces``).
+message through rclpy's Python classes costs a Python object per field both ways: 12-27 us
+per message to build and serialize or to decode, against 1-7 us here, on an idle core
+(``python -m replan_ros.tools.bench_msgs``); in the running graph the difference was worth
+about a fifth of the real-time factor (docs/ARCHITECTURE.md, "Per-tick budget"). The
+layouts here are fixed (our joint names in ``JOINT_NAMES`` order, our frames), so each
+message is one ``struct`` pack or unpack. A decoder returns ``None`` for any other layout
+(another joint order, a frame it does not know, another byte order, a truncated payload); the
+``*_from_cdr`` functions then use rclpy's generic decoder, so a message from another tool is
+still read, with the same checks and error messages as before (``interfaces``).
 """
 
 from __future__ import annotations
@@ -141,21 +142,27 @@ class JointStateCodec:
                 values.extend(np.asarray(next(given), dtype=float).tolist())
         return self._struct.pack(*values)
 
-    def decode(self, data: bytes) -> tuple[int, tuple[np.ndarray, ...]] | None:
-        """(stamp ns, (position, velocity, effort)) with an empty array for an empty
-        sequence; None for any other layout. Bytes after the message are ignored (rclpy's
-        serializer leaves some after empty sequences)."""
+    def decode(self, data: bytes) -> tuple[int, tuple[tuple[float, ...], ...]] | None:
+        """(stamp ns, (position, velocity, effort)) as tuples, empty for an empty sequence;
+        None for any other layout. Bytes after the message are ignored (rclpy's serializer
+        leaves some after empty sequences)."""
         if len(data) < self._struct.size or bytes(data[:2]) != ENCAPSULATION[:2]:
             return None
         values = self._struct.unpack_from(data)
         if values[self._strings] != self._constant:
             return None
-        arrays = []
+        sequences = []
         for (index, values_slice), count in zip(self._slices, self.counts, strict=True):
             if values[index] != count:
                 return None
-            arrays.append(np.array(values[values_slice], dtype=float))
-        return values[1] * _NS + values[2], tuple(arrays)
+            sequences.append(values[values_slice])
+        return values[1] * _NS + values[2], tuple(sequences)
+
+
+def _all_finite(values: tuple[float, ...]) -> bool:
+    # A sum is finite when every term is, short of an overflow (then numpy decides): one
+    # call instead of numpy's per-array overhead, several us per tick.
+    return math.isfinite(sum(values)) or bool(np.all(np.isfinite(values)))
 
 
 _N = len(JOINT_NAMES)
@@ -177,10 +184,11 @@ def joint_state_from_cdr(data: bytes) -> tuple[int, JointState]:
         js = joint_state_from_msg(msg)
         return msg.header.stamp.sec * _NS + msg.header.stamp.nanosec, js
     stamp_ns, (position, velocity, effort) = decoded
-    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))):
+    if not _all_finite(position + velocity):
         raise ValueError('joint_states: non-finite joint positions or velocities')
     sec, nanosec = divmod(stamp_ns, _NS)
-    return stamp_ns, JointState(sec + nanosec * 1e-9, position, velocity, effort)
+    return stamp_ns, JointState(sec + nanosec * 1e-9, np.array(position), np.array(velocity),
+                                np.array(effort))
 
 
 def encode_torque_command(stamp_ns: int, torques: np.ndarray) -> bytes:
@@ -195,9 +203,9 @@ def torque_command_from_cdr(data: bytes) -> tuple[int, np.ndarray]:
     if decoded is None:
         return torque_cmd_from_msg(_deserialize(data, JointStateMsg))
     stamp_ns, (_, _, torques) = decoded
-    if not np.all(np.isfinite(torques)):
+    if not _all_finite(torques):
         return torque_cmd_from_msg(_deserialize(data, JointStateMsg))   # its message
-    return stamp_ns, torques
+    return stamp_ns, np.array(torques)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -232,7 +240,7 @@ def imu_from_cdr(data: bytes) -> tuple[int, ImuReading]:
         msg = _deserialize(data, Imu)
         return msg.header.stamp.sec * _NS + msg.header.stamp.nanosec, imu_from_msg(msg)
     measured = values[13:16] + values[25:28]      # angular velocity, linear acceleration
-    if not all(math.isfinite(v) for v in measured):
+    if not _all_finite(measured):
         raise ValueError('imu: non-finite angular velocity or acceleration')
     return sec * _NS + nanosec, ImuReading(stamp=sec + nanosec * 1e-9,
                                            angular_velocity=np.array(measured[:3]),

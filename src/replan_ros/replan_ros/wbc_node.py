@@ -421,7 +421,7 @@ class WbcNode(Node):
 
     def _on_com_plan(self, data: bytes) -> None:
         # Raw: decoding the 201 points from the bytes takes 0.29 ms, through rclpy's message
-        # 4.38 ms (python -m replan_ros.tools.bench_plan_msgs).
+        # 4.38 ms (python -m replan_ros.tools.bench_msgs).
         decoded = self._decoded(com_plan_from_cdr, data, 'com_plan')
         if decoded is not None:
             self._keep(self._com_plans, *decoded)

@@ -97,12 +97,12 @@ def test_path_bytes_are_rclpys(frame_id, width):
     assert deserialize_message(data, Path) == msg
 
 
-def test_bench_plan_msgs_times_every_operation(capsys):
-    from replan_ros.tools import bench_plan_msgs
+def test_bench_msgs_times_every_operation(capsys):
+    from replan_ros.tools import bench_msgs
 
-    results = bench_plan_msgs.measure(repeats=3)
-    assert len(results) == 6
+    results = bench_msgs.measure(repeats=3)
+    assert len(results) == 6 + 16          # plans; ticks: 8 operations, two ways each
     assert all(0.0 < median <= p90 for median, p90 in results.values())
-    assert bench_plan_msgs.main(['--repeats', '2', '--json']) == 0
+    assert bench_msgs.main(['--repeats', '2', '--json']) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith('operation') and len(out) == 8
+    assert out[0].startswith('operation') and len(out) == 2 + len(results)

@@ -197,3 +197,13 @@ def test_contact_tables_are_rclpys(t):
     one = _contacts(t, [True, False, False, False], [False] * 4)
     _same_bytes_as_rclpy(tick_cdr.encode_contact_events(one), contact_events_to_msg(one),
                          PointCloud2)
+
+
+def test_huge_but_finite_values_are_accepted():
+    # Their sum overflows; the check must not call them non-finite.
+    js = JointState(1.0, np.full(12, 1e308), np.full(12, 1e308), np.zeros(12))
+    _, decoded = tick_cdr.joint_state_from_cdr(tick_cdr.encode_joint_state(js))
+    np.testing.assert_array_equal(decoded.position, js.position)
+    _, torques = tick_cdr.torque_command_from_cdr(
+        tick_cdr.encode_torque_command(0, np.full(12, -1e308)))
+    np.testing.assert_array_equal(torques, np.full(12, -1e308))
