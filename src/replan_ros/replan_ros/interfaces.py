@@ -175,17 +175,24 @@ def base_state_from_odom(msg: Odometry) -> BaseState:
     """Base state with the twist in the world frame; ValueError on a non-finite pose or twist
     or a quaternion that is not one."""
     p, o = msg.pose.pose.position, msg.pose.pose.orientation
-    q = (o.x, o.y, o.z, o.w)
     lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
-    values = (p.x, p.y, p.z, lin.x, lin.y, lin.z, ang.x, ang.y, ang.z, *q)
+    return base_state_from_values(stamp_to_sec(msg.header.stamp),
+                                  (p.x, p.y, p.z, o.x, o.y, o.z, o.w),
+                                  (lin.x, lin.y, lin.z, ang.x, ang.y, ang.z))
+
+
+def base_state_from_values(stamp: float, pose, twist) -> BaseState:
+    """``base_state_from_odom`` of an odometry's pose (x y z qx qy qz qw) and twist in the
+    child frame (vx vy vz wx wy wz); shared with ``tick_cdr``."""
+    q = tuple(pose[3:7])
+    values = (*pose[:3], *twist, *q)
     if not (all(math.isfinite(v) for v in values)
             and abs(math.sqrt(sum(c * c for c in q)) - 1.0) < 0.1):
         raise ValueError('odom: non-finite pose or twist, or not a unit quaternion')
     unit = rotations.normalized(q)
-    return BaseState(stamp=stamp_to_sec(msg.header.stamp),
-                     position=np.array([p.x, p.y, p.z]), quaternion=np.array(q),
-                     linear_velocity=np.array(rotations.rotate(unit, (lin.x, lin.y, lin.z))),
-                     angular_velocity=np.array(rotations.rotate(unit, (ang.x, ang.y, ang.z))))
+    return BaseState(stamp=stamp, position=np.array(pose[:3]), quaternion=np.array(q),
+                     linear_velocity=np.array(rotations.rotate(unit, tuple(twist[:3]))),
+                     angular_velocity=np.array(rotations.rotate(unit, tuple(twist[3:6]))))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -336,13 +343,18 @@ def contact_events_to_msg(cs: ContactState) -> PointCloud2 | None:
 
 
 def contacts_from_msg(msg: PointCloud2) -> ContactState:
-    table = cloud_to_table(msg, CONTACT_DTYPE.names)
+    return contacts_from_table(stamp_to_sec(msg.header.stamp),
+                               cloud_to_table(msg, CONTACT_DTYPE.names))
+
+
+def contacts_from_table(stamp: float, table: np.ndarray) -> ContactState:
+    """``contacts_from_msg`` of an unpacked table; shared with ``tick_cdr``."""
     if len(table) != 4 or sorted(table['leg']) != [0, 1, 2, 3]:
         raise ValueError(f'contacts table must have one row per leg, got legs {list(table["leg"])}')
     _require_finite(table, ('x', 'y', 'z', 'fx', 'fy', 'fz'), 'contacts')
     table = table[np.argsort(table['leg'])]
     return ContactState(
-        stamp=stamp_to_sec(msg.header.stamp),
+        stamp=stamp,
         foot_position=np.stack([table['x'], table['y'], table['z']], axis=1).astype(float),
         force=np.stack([table['fx'], table['fy'], table['fz']], axis=1).astype(float),
         contact=table['contact'].astype(bool), touchdown=table['touchdown'].astype(bool),

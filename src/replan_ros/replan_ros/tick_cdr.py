@@ -17,14 +17,13 @@ still read, with the same checks and error messages as before (``interfaces``).
 
 from __future__ import annotations
 
-import functools
 import math
 import struct
-from collections.abc import Callable
 
 import numpy as np
+from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, PointCloud2
 from sensor_msgs.msg import JointState as JointStateMsg
 
 from replan_core.types import (
@@ -39,7 +38,11 @@ from replan_core.types import (
 from replan_ros.cdr import ENCAPSULATION, CdrWriter
 from replan_ros.interfaces import (
     CONTACT_DTYPE,
+    base_state_from_odom,
+    base_state_from_values,
     contact_rows,
+    contacts_from_msg,
+    contacts_from_table,
     imu_from_msg,
     imu_values,
     joint_state_from_msg,
@@ -255,6 +258,33 @@ _ODOM_FRAMES = _Strings(8, WORLD_FRAME, BASE_FRAME)
 _ODOM = struct.Struct(f'<4siI{_ODOM_FRAMES.fmt}{_pad(_ODOM_FRAMES.end, 8)}x7d288x6d288x')
 
 
+_ODOM_VALUES = struct.Struct('<7d288x6d')
+
+
+def base_state_from_cdr(data: bytes) -> tuple[int, BaseState]:
+    """(stamp ns, base state, twist in the world frame) of a serialized ``Odometry``, any
+    frames; ``ValueError`` as ``interfaces.base_state_from_odom`` gives it."""
+    try:
+        if bytes(data[:2]) != ENCAPSULATION[:2]:
+            raise ValueError
+        sec, nanosec = _STAMP.unpack_from(data, 4)
+        pos = 8
+        for _ in range(2):                   # frame_id, child_frame_id
+            pos += _pad(pos, 4)
+            (size,) = struct.unpack_from('<I', data, 4 + pos)
+            pos += 4 + size
+        pos += _pad(pos, 8)
+        if len(data) - 4 - pos < _ODOM_VALUES.size + 288:
+            raise ValueError
+        values = _ODOM_VALUES.unpack_from(data, 4 + pos)
+    except (ValueError, struct.error):
+        msg = _deserialize(data, Odometry)
+        stamp = msg.header.stamp
+        return stamp.sec * _NS + stamp.nanosec, base_state_from_odom(msg)
+    return sec * _NS + nanosec, base_state_from_values(sec + nanosec * 1e-9, values[:7],
+                                                        values[7:])
+
+
 def encode_odom(base: BaseState, stamp_ns: int | None = None) -> bytes:
     """``interfaces.odom_from_base_state(base)`` serialized, stamped ``stamp_ns`` if given."""
     if stamp_ns is None:
@@ -299,6 +329,36 @@ def _encode_table(stamp_ns: int, table: np.ndarray) -> bytes:
     return bytes(out)
 
 
+_CONTACT_TABLE_AT = struct.calcsize(_CONTACT_HEADER.format) + len(_CONTACT_FIELDS) + 16
+_CONTACT_STEPS = struct.Struct('<BxxxIII')
+
+
+def contacts_from_cdr(data: bytes) -> tuple[int, ContactState]:
+    """(stamp ns, contacts) of a serialized contacts table; ``ValueError`` as
+    ``interfaces.contacts_from_msg`` gives it. Only our layout (frame, fields, little endian)
+    is read here; any other goes to rclpy's decoder."""
+    try:
+        if bytes(data[:2]) != ENCAPSULATION[:2] or len(data) < 4 + _CONTACT_TABLE_AT:
+            raise ValueError
+        header = _CONTACT_HEADER.unpack_from(data, 4)
+        start = 4 + _CONTACT_HEADER.size
+        if (header[2:-2] != _CONTACT_FRAME.values or header[-2] != 1
+                or bytes(data[start:start + len(_CONTACT_FIELDS)]) != _CONTACT_FIELDS):
+            raise ValueError
+        big, step, _, size = _CONTACT_STEPS.unpack_from(data, start + len(_CONTACT_FIELDS))
+        width = header[-1]
+        if big or step != CONTACT_DTYPE.itemsize or size != width * step:
+            raise ValueError
+        table = np.frombuffer(data, dtype=CONTACT_DTYPE, count=width,
+                              offset=4 + _CONTACT_TABLE_AT)
+    except (ValueError, struct.error):
+        msg = _deserialize(data, PointCloud2)
+        stamp = msg.header.stamp
+        return stamp.sec * _NS + stamp.nanosec, contacts_from_msg(msg)
+    sec, nanosec = header[0], header[1]
+    return sec * _NS + nanosec, contacts_from_table(sec + nanosec * 1e-9, table)
+
+
 def encode_contacts(cs: ContactState, stamp_ns: int | None = None) -> bytes:
     """``interfaces.contacts_to_msg(cs)`` serialized, stamped ``stamp_ns`` if given."""
     if stamp_ns is None:
@@ -321,9 +381,4 @@ def _deserialize(data: bytes, msg_type: type):
         return deserialize_message(data, msg_type)
     except Exception as err:       # rclpy raises its own error types on bad CDR
         raise ValueError(f'cannot deserialize {msg_type.__name__}: {err}') from err
-
-
-def deserializer(msg_type: type) -> Callable[[bytes], object]:
-    """rclpy's generic decoder of ``msg_type``, raising ``ValueError`` on bad CDR."""
-    return functools.partial(_deserialize, msg_type=msg_type)
 

@@ -64,8 +64,6 @@ from replan_ros import diagnostics
 from replan_ros.cdr import com_plan_from_cdr
 from replan_ros.direct_take import DirectTake
 from replan_ros.interfaces import (
-    base_state_from_odom,
-    contacts_from_msg,
     footholds_from_msg,
     ns_to_stamp,
     sec_to_ns,
@@ -85,7 +83,8 @@ from replan_ros.qos import (
 from replan_ros.stamped_buffer import cdr_header_stamp_ns
 from replan_ros.tick_budget import TickBudget
 from replan_ros.tick_cdr import (
-    deserializer,
+    base_state_from_cdr,
+    contacts_from_cdr,
     encode_contact_events,
     encode_contacts,
     encode_odom,
@@ -292,19 +291,16 @@ class WbcNode(Node):
             self._keep_input(self._imu, *decoded)
 
     def _on_truth_odom(self, data: bytes) -> None:
-        msg = self._decoded(deserializer(Odometry), data, 'ground_truth/odom')
-        base = None if msg is None else self._decoded(base_state_from_odom, msg,
-                                                      'ground_truth/odom')
-        if base is not None:       # passed on as it came: the ideal profile's odom
-            self._keep_input(self._truth_odom, stamp_to_ns(msg.header.stamp), (data, base))
+        decoded = self._decoded(base_state_from_cdr, data, 'ground_truth/odom')
+        if decoded is not None:    # passed on as it came: the ideal profile's odom
+            stamp, base = decoded
+            self._keep_input(self._truth_odom, stamp, (data, base))
 
     def _on_truth_contacts(self, data: bytes) -> None:
-        msg = self._decoded(deserializer(PointCloud2), data, 'ground_truth/contacts')
-        contacts = None if msg is None else self._decoded(contacts_from_msg, msg,
-                                                          'ground_truth/contacts')
-        if contacts is not None:
-            self._keep_input(self._truth_contacts, stamp_to_ns(msg.header.stamp),
-                             (data, contacts))
+        decoded = self._decoded(contacts_from_cdr, data, 'ground_truth/contacts')
+        if decoded is not None:
+            stamp, contacts = decoded
+            self._keep_input(self._truth_contacts, stamp, (data, contacts))
 
     @staticmethod
     def _keep_input(buffer: dict, stamp: int, value) -> None:

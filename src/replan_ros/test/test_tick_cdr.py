@@ -18,7 +18,9 @@ from replan_core import rotations
 from replan_core.types import JOINT_NAMES, BaseState, ContactState, ImuReading, JointState
 from replan_ros import tick_cdr
 from replan_ros.interfaces import (
+    base_state_from_odom,
     contact_events_to_msg,
+    contacts_from_msg,
     contacts_to_msg,
     imu_from_msg,
     imu_to_msg,
@@ -207,3 +209,50 @@ def test_huge_but_finite_values_are_accepted():
     _, torques = tick_cdr.torque_command_from_cdr(
         tick_cdr.encode_torque_command(0, np.full(12, -1e308)))
     np.testing.assert_array_equal(torques, np.full(12, -1e308))
+
+
+@pytest.mark.parametrize('t', STAMPS)
+def test_odom_decodes_as_the_generic_decoder(t):
+    rng = np.random.default_rng(8)
+    base = BaseState(t, rng.normal(size=3), np.asarray(rotations.normalized(rng.normal(size=4))),
+                     rng.normal(size=3), rng.normal(size=3))
+    for data in (tick_cdr.encode_odom(base), bytes(serialize_message(odom_from_base_state(base)))):
+        stamp_ns, fast = tick_cdr.base_state_from_cdr(data)
+        msg = deserialize_message(data, Odometry)
+        generic = base_state_from_odom(msg)
+        assert stamp_ns == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        assert fast.stamp == generic.stamp
+        for name in ('position', 'quaternion', 'linear_velocity', 'angular_velocity'):
+            np.testing.assert_array_equal(getattr(fast, name), getattr(generic, name))
+    framed = odom_from_base_state(base)
+    framed.header.frame_id, framed.child_frame_id = 'map', 'trunk_of_the_robot'
+    _, decoded = tick_cdr.base_state_from_cdr(bytes(serialize_message(framed)))
+    np.testing.assert_array_equal(decoded.position, base.position)
+    bad = odom_from_base_state(base)
+    bad.pose.pose.orientation.w = 5.0
+    with pytest.raises(ValueError, match='not a unit quaternion'):
+        tick_cdr.base_state_from_cdr(bytes(serialize_message(bad)))
+    with pytest.raises(ValueError, match='cannot deserialize'):
+        tick_cdr.base_state_from_cdr(tick_cdr.encode_odom(base)[:60])
+
+
+@pytest.mark.parametrize('t', STAMPS)
+def test_contacts_decode_as_the_generic_decoder(t):
+    cs = _contacts(t, [False, True, False, False], [False, False, False, True])
+    for data in (tick_cdr.encode_contacts(cs), bytes(serialize_message(contacts_to_msg(cs)))):
+        stamp_ns, fast = tick_cdr.contacts_from_cdr(data)
+        msg = deserialize_message(data, PointCloud2)
+        generic = contacts_from_msg(msg)
+        assert stamp_ns == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        assert fast.stamp == generic.stamp
+        for name in ('foot_position', 'force', 'contact', 'touchdown', 'liftoff'):
+            np.testing.assert_array_equal(getattr(fast, name), getattr(generic, name))
+    events = tick_cdr.encode_contact_events(cs)       # two rows: not a contacts table
+    with pytest.raises(ValueError, match='one row per leg'):
+        tick_cdr.contacts_from_cdr(events)
+    bad = _contacts(t, [False] * 4, [False] * 4)
+    bad.force[2, 1] = math.nan
+    with pytest.raises(ValueError, match='non-finite fy'):
+        tick_cdr.contacts_from_cdr(tick_cdr.encode_contacts(bad))
+    with pytest.raises(ValueError, match='cannot deserialize'):
+        tick_cdr.contacts_from_cdr(tick_cdr.encode_contacts(cs)[:50])

@@ -4,7 +4,7 @@ and with the hand-written CDR the nodes use.
 - A re-plan (``replan_ros/cdr.py``): a 201-point ``com_plan`` and a 201-pose ``nav_msgs/Path``
   built and serialized, and ``com_plan`` decoded.
 - A tick (``replan_ros/tick_cdr.py``): ``joint_states``, ``imu``, ``joint_torque_cmd``,
-  ``odom`` and ``contacts`` built and serialized, and the first three decoded.
+  ``odom`` and ``contacts`` built and serialized, and decoded.
 
 Prints one row per operation (median and p90 over ``--repeats``, ms) and, with ``--json``, one
 JSON line. rclpy's ``publish`` of a message object converts it as ``serialize_message`` does,
@@ -20,8 +20,9 @@ import json
 import time
 
 import numpy as np
+from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, PointCloud2
 from sensor_msgs.msg import JointState as JointStateMsg
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
@@ -29,8 +30,10 @@ from replan_core import rotations
 from replan_core.types import WORLD_FRAME, BaseState, ComPlan, ContactState, ImuReading, JointState
 from replan_ros import cdr, tick_cdr
 from replan_ros.interfaces import (
+    base_state_from_odom,
     com_plan_from_msg,
     com_plan_to_msg,
+    contacts_from_msg,
     contacts_to_msg,
     imu_from_msg,
     imu_to_msg,
@@ -98,6 +101,8 @@ def _tick_messages(repeats: int) -> dict[str, tuple[float, float]]:
     joints_cdr = tick_cdr.encode_joint_state(joints)
     command_cdr = tick_cdr.encode_torque_command(stamp_ns, torques)
     imu_cdr = tick_cdr.encode_imu(imu, 1e-4, 1e-3)
+    odom_cdr = tick_cdr.encode_odom(base)
+    contacts_cdr = tick_cdr.encode_contacts(contacts)
     rows = {
         'joint_states encode': (lambda: serialize_message(joint_state_to_msg(joints)),
                                 lambda: tick_cdr.encode_joint_state(joints)),
@@ -115,8 +120,13 @@ def _tick_messages(repeats: int) -> dict[str, tuple[float, float]]:
             lambda: tick_cdr.torque_command_from_cdr(command_cdr)),
         'odom encode': (lambda: serialize_message(odom_from_base_state(base)),
                         lambda: tick_cdr.encode_odom(base)),
+        'odom decode': (lambda: base_state_from_odom(deserialize_message(odom_cdr, Odometry)),
+                        lambda: tick_cdr.base_state_from_cdr(odom_cdr)),
         'contacts encode': (lambda: serialize_message(contacts_to_msg(contacts)),
                             lambda: tick_cdr.encode_contacts(contacts)),
+        'contacts decode': (
+            lambda: contacts_from_msg(deserialize_message(contacts_cdr, PointCloud2)),
+            lambda: tick_cdr.contacts_from_cdr(contacts_cdr)),
     }
     results = {}
     for name, (generic, ours) in rows.items():
