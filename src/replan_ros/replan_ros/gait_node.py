@@ -56,7 +56,6 @@ from replan_core.types import LEGS, WORLD_FRAME, ContactState, FootholdPlan
 from replan_ros import diagnostics
 from replan_ros.interfaces import (
     base_state_from_odom,
-    contacts_from_msg,
     footholds_from_msg,
     footholds_to_msg,
     header,
@@ -76,7 +75,8 @@ from replan_ros.qos import (
     SENSOR,
     with_depth,
 )
-from replan_ros.stamped_buffer import RawStampedBuffer
+from replan_ros.stamped_buffer import RawStampedBuffer, cdr_header_stamp_ns
+from replan_ros.tick_cdr import contacts_from_cdr
 
 # Leg colours of the markers (r, g, b), LEGS order.
 _LEG_COLOURS = ((0.9, 0.2, 0.2), (0.2, 0.7, 0.2), (0.2, 0.4, 0.9), (0.9, 0.7, 0.1))
@@ -120,11 +120,11 @@ class GaitNode(Node):
         # every contacts_poll_period; odom only at a re-plan.
         self.state_input = OnDemandSubscriptions(self)
         self.state_input.subscribe(PointCloud2, 'contacts', with_depth(CONTACTS, _CONTACTS_QUEUE),
-                                   self._on_contacts, raw=False)
+                                   self._on_contacts)
         self.state_input.subscribe(Odometry, 'odom', with_depth(SENSOR, _ODOM_QUEUE),
                                    self._on_odom)
         self.create_subscription(PointCloud2, 'contact_events', self._on_contact_events,
-                                 CONTACTS, event_callbacks=INTERNAL_SUB_EVENTS)
+                                 CONTACTS, event_callbacks=INTERNAL_SUB_EVENTS, raw=True)
         self.create_timer(float(p['contacts_poll_period']), self._poll,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -282,9 +282,9 @@ class GaitNode(Node):
             return
         self.latest_stamp = max(self.latest_stamp, ns * 1e-9)
 
-    def _on_contacts(self, msg: PointCloud2) -> None:
+    def _on_contacts(self, cdr: bytes) -> None:
         try:
-            cs = contacts_from_msg(msg)
+            _, cs = contacts_from_cdr(cdr)
             if not np.all(np.isfinite(cs.foot_position)):
                 raise ValueError('non-finite foot positions')
         except ValueError as err:
@@ -293,9 +293,12 @@ class GaitNode(Node):
         self.latest_stamp = max(self.latest_stamp, cs.stamp)
         self.unprocessed.append(cs)
 
-    def _on_contact_events(self, msg: PointCloud2) -> None:
+    def _on_contact_events(self, cdr: bytes) -> None:
         """A contact edge at t_k: read the contacts up to t_k now, not at the next poll."""
-        ns = stamp_to_ns(msg.header.stamp)
+        ns = cdr_header_stamp_ns(cdr)
+        if ns is None:
+            self._warn('contact_events', 'contact_events rejected: no readable header stamp')
+            return
         self.state_input.drain(lambda: round(self.latest_stamp * 1e9) >= ns,
                                timeout=_STATE_WAIT)
         self._process()

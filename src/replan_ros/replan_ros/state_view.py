@@ -24,28 +24,26 @@ from __future__ import annotations
 
 import math
 import os
+import struct
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point, TwistStamped, Vector3Stamped
-from nav_msgs.msg import Odometry
+from geometry_msgs.msg import TwistStamped
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import JointState as JointStateMsg
-from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import ColorRGBA, Float64, String
-from visualization_msgs.msg import Marker, MarkerArray
+from std_msgs.msg import String
+from visualization_msgs.msg import Marker
 
 from replan_core.frames import LinkFrames, base_transform
 from replan_core.metrics import cop_margins
 from replan_core.support import convex_hull
 from replan_core.types import WORLD_FRAME
 from replan_ros.bag_io import message_definition, normalize_type_name
-from replan_ros.cdr import POSE, CdrWriter
-from replan_ros.interfaces import contacts_from_msg, joint_state_from_msg, ns_to_stamp
+from replan_ros.cdr import ENCAPSULATION, POSE, CdrWriter
 from replan_ros.stamped_buffer import cdr_header_stamp_ns
+from replan_ros.tick_cdr import contacts_from_cdr, joint_state_from_cdr, odom_fields_from_cdr
 
 DESCRIPTION_TOPIC = '/robot_description'
 TF_TOPIC = '/tf'
@@ -68,6 +66,10 @@ DERIVED_TOPICS = tuple(TYPES)
 INPUT_TOPICS = ('/odom', '/joint_states', '/ground_truth/contacts', '/diagnostics',
                 '/velocity_setpoint')
 _PAIRING = 16            # recent stamps of /odom and /joint_states kept to pair them
+_D3 = struct.Struct('<3d')
+_F4 = struct.Struct('<4f')
+_I3 = struct.Struct('<3i')
+_FLOAT64 = struct.Struct('<4sd')
 
 
 @dataclass(frozen=True)
@@ -113,8 +115,68 @@ def encode_tf(stamp_ns: int, transforms) -> bytes:
     return w.bytes()
 
 
-def _color(r: float, g: float, b: float, a: float = 1.0) -> ColorRGBA:
-    return ColorRGBA(r=r, g=g, b=b, a=a)
+@dataclass(frozen=True)
+class MarkerSpec:
+    """The fields of a ``visualization_msgs/Marker`` that the view sets; the others keep
+    their defaults (identity orientation, no lifetime, no colours, texture, text or mesh)."""
+
+    ns: str = ''
+    marker_id: int = 0
+    kind: int = Marker.ARROW
+    action: int = Marker.ADD
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    scale: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    color: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)     # r g b a
+    points: tuple[tuple[float, float, float], ...] = ()
+    stamp_ns: int = 0
+    frame_id: str = ''
+
+
+def encode_markers(markers: list[MarkerSpec]) -> bytes:
+    """CDR (little endian) of a ``visualization_msgs/MarkerArray``: rclpy's bytes for the same
+    message but for the padding, zero here (test_tf_bag.py compares them). Building the
+    message from rclpy's classes and serializing it took 0.45 ms per array here, each marker
+    being some 40 Python objects; the view writes one array per 0.04 s of sim time."""
+    w = CdrWriter()
+    w.u32(len(markers))
+    for m in markers:
+        w.header(m.stamp_ns, m.frame_id)
+        w.string(m.ns)
+        w.packed(_I3, 4, m.marker_id, m.kind, m.action)
+        w.packed(POSE, 8, *m.position, 0.0, 0.0, 0.0, 1.0)
+        w.packed(_D3, 8, *m.scale)
+        w.packed(_F4, 4, *m.color)
+        w.time(0)                            # lifetime
+        w.buf.append(0)                      # frame_locked
+        w.u32(len(m.points))
+        for point in m.points:
+            w.packed(_D3, 8, *point)
+        w.u32(0)                             # colors
+        w.string('')                         # texture_resource
+        w.header(0, '')                      # texture: header, format, data
+        w.string('')
+        w.u32(0)
+        w.u32(0)                             # uv_coordinates
+        w.string('')                         # text
+        w.string('')                         # mesh_resource
+        w.string('')                         # mesh_file: filename, data
+        w.u32(0)
+        w.buf.append(0)                      # mesh_use_embedded_materials
+    return w.bytes()
+
+
+def encode_float64(value: float) -> bytes:
+    """CDR of a ``std_msgs/Float64``."""
+    return _FLOAT64.pack(ENCAPSULATION, value)
+
+
+def encode_vector3_stamped(stamp_ns: int, frame_id: str, x: float, y: float,
+                           z: float) -> bytes:
+    """CDR of a ``geometry_msgs/Vector3Stamped``."""
+    w = CdrWriter()
+    w.header(stamp_ns, frame_id)
+    w.packed(_D3, 8, x, y, z)
+    return w.bytes()
 
 
 class StateView:
@@ -177,27 +239,24 @@ class StateView:
             mine.popitem(last=False)
         if stamp not in other or not self._due('tf', stamp):
             return []
-        odom = deserialize_message(self._odom[stamp], Odometry)
-        joints = joint_state_from_msg(deserialize_message(self._joints[stamp], JointStateMsg))
-        return [self.transforms(stamp, odom, joints.position), *self._velocity_error(odom)]
+        odom_stamp, frame_id, child_frame_id, pose, twist = odom_fields_from_cdr(
+            self._odom[stamp])
+        _, joints = joint_state_from_cdr(self._joints[stamp])
+        return [self.transforms(stamp, pose, joints.position, frame_id, child_frame_id),
+                Derived(VELOCITY_ERROR_TOPIC, TYPES[VELOCITY_ERROR_TOPIC],
+                        encode_vector3_stamped(odom_stamp, frame_id,
+                                               twist[0] - self._setpoint[0],
+                                               twist[1] - self._setpoint[1],
+                                               twist[5] - self._setpoint[2]), odom_stamp)]
 
-    def transforms(self, stamp: int, odom: Odometry, joint_positions) -> Derived:
-        """``/tf`` of one state: the base from ``odom``, the links from the joint angles."""
-        p, o = odom.pose.pose.position, odom.pose.pose.orientation
-        items = [base_transform((p.x, p.y, p.z), (o.x, o.y, o.z, o.w),
-                                odom.header.frame_id or WORLD_FRAME,
-                                odom.child_frame_id or 'base_link')]
+    def transforms(self, stamp: int, pose, joint_positions, frame_id: str = '',
+                   child_frame_id: str = '') -> Derived:
+        """``/tf`` of one state: the base from an odometry ``pose`` (x y z qx qy qz qw) in
+        ``frame_id`` (default odom), the links from the joint angles."""
+        items = [base_transform(tuple(pose[:3]), tuple(pose[3:7]), frame_id or WORLD_FRAME,
+                                child_frame_id or 'base_link')]
         items += self.frames.link_transforms(np.asarray(joint_positions, dtype=float))
         return Derived(TF_TOPIC, TF_TYPE, encode_tf(stamp, items), stamp)
-
-    def _velocity_error(self, odom: Odometry) -> list[Derived]:
-        twist = odom.twist.twist
-        msg = Vector3Stamped()
-        msg.header = odom.header
-        msg.vector.x = twist.linear.x - self._setpoint[0]
-        msg.vector.y = twist.linear.y - self._setpoint[1]
-        msg.vector.z = twist.angular.z - self._setpoint[2]
-        return [self._derived(VELOCITY_ERROR_TOPIC, msg, _ns(odom.header.stamp))]
 
     # ------------------------------------------------------------------ forces and CoP
 
@@ -205,58 +264,48 @@ class StateView:
         stamp = cdr_header_stamp_ns(data)
         if stamp is None or not self._due('contacts', stamp):
             return []
-        contacts = contacts_from_msg(deserialize_message(data, PointCloud2))
+        _, contacts = contacts_from_cdr(data)
         feet, forces = contacts.foot_position, contacts.force
         cop, margin = cop_margins(feet[None], forces[None], self.min_normal_force)
         markers = self.force_markers(stamp, feet, forces, cop[0], float(margin[0]))
-        out = [self._derived(FORCES_TOPIC, markers, stamp)]
+        out = [Derived(FORCES_TOPIC, TYPES[FORCES_TOPIC], encode_markers(markers), stamp)]
         if math.isfinite(margin[0]):
-            out.append(self._derived(COP_MARGIN_TOPIC, Float64(data=float(margin[0])), stamp))
+            out.append(Derived(COP_MARGIN_TOPIC, TYPES[COP_MARGIN_TOPIC],
+                               encode_float64(float(margin[0])), stamp))
         return out
 
     def force_markers(self, stamp: int, feet: np.ndarray, forces: np.ndarray,
-                      cop: np.ndarray, margin: float) -> MarkerArray:
-        """Arrows of the loaded feet's forces, the CoP and the polygon of the loaded feet."""
-        header_stamp = ns_to_stamp(stamp)
-
-        def marker(ns: str, marker_id: int, kind: int) -> Marker:
-            m = Marker()
-            m.header.stamp = header_stamp
-            m.header.frame_id = WORLD_FRAME
-            m.ns, m.id, m.type, m.action = ns, marker_id, kind, Marker.ADD
-            m.pose.orientation.w = 1.0
-            return m
-
-        clear = Marker()
-        clear.action = Marker.DELETEALL      # feet that lift off lose their arrow
-        out = [clear]
-        loaded = forces[:, 2] > self.min_normal_force
-        for leg in np.flatnonzero(loaded):
-            arrow = marker('contact_force', int(leg), Marker.ARROW)
-            tip = feet[leg] + self.force_scale * forces[leg]
-            arrow.points = [Point(x=float(a), y=float(b), z=float(c))
-                            for a, b, c in (feet[leg], tip)]
-            arrow.scale.x, arrow.scale.y, arrow.scale.z = 0.015, 0.03, 0.04   # m
-            arrow.color = _color(1.0, 0.55, 0.0)
-            out.append(arrow)
-        if np.any(loaded):
-            height = float(np.mean(feet[loaded, 2]))
-            hull = convex_hull(feet[loaded, :2])
+                      cop: np.ndarray, margin: float) -> list[MarkerSpec]:
+        """Arrows of the loaded feet's forces, the CoP and the polygon of the loaded feet;
+        the first marker deletes the previous ones (feet that lift off lose their arrow)."""
+        out = [MarkerSpec(action=Marker.DELETEALL)]
+        feet_xyz = feet.tolist()
+        tips = (feet + self.force_scale * forces).tolist()
+        loaded = (forces[:, 2] > self.min_normal_force).tolist()
+        for leg in range(len(loaded)):
+            if loaded[leg]:
+                out.append(MarkerSpec(
+                    'contact_force', leg, Marker.ARROW, scale=(0.015, 0.03, 0.04),   # m
+                    color=(1.0, 0.55, 0.0, 1.0), points=(tuple(feet_xyz[leg]),
+                                                         tuple(tips[leg])),
+                    stamp_ns=stamp, frame_id=WORLD_FRAME))
+        if any(loaded):
+            mask = np.array(loaded)
+            height = float(np.mean(feet[mask, 2]))
+            hull = convex_hull(feet[mask, :2]).tolist()
             if len(hull) >= 2:
-                polygon = marker('support_polygon', 0, Marker.LINE_STRIP)
-                polygon.points = [Point(x=float(x), y=float(y), z=height)
-                                  for x, y in [*hull, hull[0]]]
-                polygon.scale.x = 0.008
-                polygon.color = _color(0.2, 0.5, 1.0)
-                out.append(polygon)
+                out.append(MarkerSpec(
+                    'support_polygon', 0, Marker.LINE_STRIP, scale=(0.008, 0.0, 0.0),
+                    color=(0.2, 0.5, 1.0, 1.0),
+                    points=tuple((x, y, height) for x, y in [*hull, hull[0]]),
+                    stamp_ns=stamp, frame_id=WORLD_FRAME))
             if np.all(np.isfinite(cop)):
-                sphere = marker('centre_of_pressure', 0, Marker.SPHERE)
-                sphere.pose.position = Point(x=float(cop[0]), y=float(cop[1]), z=height)
-                sphere.scale.x = sphere.scale.y = sphere.scale.z = 0.03
-                sphere.color = (_color(0.1, 0.8, 0.1) if margin >= 0.0
-                                else _color(0.9, 0.1, 0.1))
-                out.append(sphere)
-        return MarkerArray(markers=out)
+                out.append(MarkerSpec(
+                    'centre_of_pressure', 0, Marker.SPHERE,
+                    position=(float(cop[0]), float(cop[1]), height), scale=(0.03, 0.03, 0.03),
+                    color=(0.1, 0.8, 0.1, 1.0) if margin >= 0.0 else (0.9, 0.1, 0.1, 1.0),
+                    stamp_ns=stamp, frame_id=WORLD_FRAME))
+        return out
 
     # ------------------------------------------------------------------ planner figures
 
@@ -274,12 +323,8 @@ class StateView:
                                ('zmp_margin_m', ZMP_MARGIN_TOPIC)):
                 value = float(values.get(key, 'nan'))
                 if math.isfinite(value):
-                    out.append(self._derived(topic, Float64(data=value), stamp))
+                    out.append(Derived(topic, TYPES[topic], encode_float64(value), stamp))
         return out
-
-    @staticmethod
-    def _derived(topic: str, msg, stamp: int) -> Derived:
-        return Derived(topic, TYPES[topic], bytes(serialize_message(msg)), stamp)
 
 
 def _ns(stamp) -> int:

@@ -285,6 +285,38 @@ def base_state_from_cdr(data: bytes) -> tuple[int, BaseState]:
                                                         values[7:])
 
 
+def odom_fields_from_cdr(data: bytes) -> tuple[int, str, str, tuple[float, ...],
+                                               tuple[float, ...]]:
+    """(stamp ns, frame_id, child_frame_id, pose: x y z qx qy qz qw, twist in the child
+    frame: vx vy vz wx wy wz) of a serialized ``Odometry``, unchecked (what a viewer draws);
+    ``ValueError`` if rclpy's decoder cannot read it either."""
+    try:
+        if bytes(data[:2]) != ENCAPSULATION[:2]:
+            raise ValueError
+        sec, nanosec = _STAMP.unpack_from(data, 4)
+        pos = 8
+        frames = []
+        for _ in range(2):                   # frame_id, child_frame_id
+            pos += _pad(pos, 4)
+            (size,) = struct.unpack_from('<I', data, 4 + pos)
+            if size < 1:
+                raise ValueError
+            frames.append(bytes(data[8 + pos:8 + pos + size - 1]).decode())
+            pos += 4 + size
+        pos += _pad(pos, 8)
+        if len(data) - 4 - pos < _ODOM_VALUES.size + 288:
+            raise ValueError
+        values = _ODOM_VALUES.unpack_from(data, 4 + pos)
+    except (ValueError, struct.error, UnicodeDecodeError):
+        msg = _deserialize(data, Odometry)
+        p, o = msg.pose.pose.position, msg.pose.pose.orientation
+        v, w = msg.twist.twist.linear, msg.twist.twist.angular
+        return (msg.header.stamp.sec * _NS + msg.header.stamp.nanosec, msg.header.frame_id,
+                msg.child_frame_id, (p.x, p.y, p.z, o.x, o.y, o.z, o.w),
+                (v.x, v.y, v.z, w.x, w.y, w.z))
+    return sec * _NS + nanosec, frames[0], frames[1], values[:7], values[7:]
+
+
 def encode_odom(base: BaseState, stamp_ns: int | None = None) -> bytes:
     """``interfaces.odom_from_base_state(base)`` serialized, stamped ``stamp_ns`` if given."""
     if stamp_ns is None:

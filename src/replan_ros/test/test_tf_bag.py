@@ -10,9 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from geometry_msgs.msg import Point, Vector3Stamped
+from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.highlevel import AnyReader
-from std_msgs.msg import Float64
+from std_msgs.msg import ColorRGBA, Float64
 from visualization_msgs.msg import Marker, MarkerArray
 
 from replan_core.frames import LinkFrames, base_transform
@@ -27,11 +29,16 @@ from replan_ros.state_view import (
     TF_TOPIC,
     TF_TYPE,
     VELOCITY_ERROR_TOPIC,
+    MarkerSpec,
     StateView,
     default_urdf_path,
     definition,
+    encode_float64,
+    encode_markers,
     encode_tf,
+    encode_vector3_stamped,
 )
+from replan_ros.tick_cdr import encode_odom, odom_fields_from_cdr
 
 STAND_Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
 DT = 0.004
@@ -166,3 +173,72 @@ def test_tf_encoder_writes_the_bytes_of_the_generic_encoder(view):
         for t in transforms]})
     assert encode_tf(stamp, transforms) == bytes(expected)
     assert encode_tf(0, []) == bytes(generic({'transforms': []}))
+
+
+def same_as_rclpy(data: bytes, msg) -> None:
+    """``data`` is rclpy's bytes of ``msg`` but for the padding (rclpy does not zero it; ours
+    is zero), and rclpy decodes both alike (float32 colours rounded in both)."""
+    theirs = bytes(serialize_message(msg))
+    assert len(data) == len(theirs)
+    assert all(ours in (their, 0) for ours, their in zip(data, theirs, strict=True))
+    assert deserialize_message(data, type(msg)) == deserialize_message(theirs, type(msg))
+
+
+def marker_array_msg(specs: list[MarkerSpec]) -> MarkerArray:
+    """The same markers built from rclpy's classes: the reference for ``encode_markers``."""
+    out = []
+    for spec in specs:
+        m = Marker()
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(spec.stamp_ns, 1_000_000_000)
+        m.header.frame_id = spec.frame_id
+        m.ns, m.id, m.type, m.action = spec.ns, spec.marker_id, spec.kind, spec.action
+        m.pose.position = Point(x=spec.position[0], y=spec.position[1], z=spec.position[2])
+        m.scale.x, m.scale.y, m.scale.z = spec.scale
+        m.color = ColorRGBA(r=spec.color[0], g=spec.color[1], b=spec.color[2], a=spec.color[3])
+        m.points = [Point(x=x, y=y, z=z) for x, y, z in spec.points]
+        out.append(m)
+    return MarkerArray(markers=out)
+
+
+@pytest.mark.parametrize('loaded_legs', [(0, 1, 2, 3), (0, 3), (2,), ()])
+def test_marker_encoder_writes_rclpys_bytes(view, loaded_legs):
+    rng = np.random.default_rng(7)
+    feet = rng.uniform(-0.5, 0.5, (4, 3))
+    forces = np.zeros((4, 3))
+    forces[list(loaded_legs)] = rng.uniform(5.0, 400.0, (len(loaded_legs), 3))
+    for cop, margin in (((0.1, -0.05), 0.02), ((0.3, 0.4), -0.1), ((np.nan, np.nan), np.nan)):
+        specs = view.force_markers(3_000_000_123, feet, forces, np.array(cop), margin)
+        assert specs[0].action == Marker.DELETEALL
+        same_as_rclpy(encode_markers(specs), marker_array_msg(specs))
+    same_as_rclpy(encode_markers([]), MarkerArray())
+
+
+def test_float64_and_vector3_stamped_encoders_write_rclpys_bytes():
+    for value in (0.0, -1.25e-3, 1e300, np.inf):
+        assert encode_float64(value) == bytes(serialize_message(Float64(data=value)))
+    for frame in ('odom', '', 'a_longer_frame'):
+        msg = Vector3Stamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 5
+        msg.header.frame_id = frame
+        msg.vector.x, msg.vector.y, msg.vector.z = 0.1, -0.2, 0.3
+        same_as_rclpy(encode_vector3_stamped(7_000_000_005, frame, 0.1, -0.2, 0.3), msg)
+
+
+def test_odom_fields_read_any_frames_and_fall_back_to_rclpy():
+    base = BaseState(2.5, np.array([1.0, -2.0, 0.6]),
+                     np.array([0.0, 0.0, np.sin(0.2), np.cos(0.2)]), np.array([0.3, 0.1, 0.0]),
+                     np.array([0.0, 0.0, 0.4]))
+    ours = encode_odom(base)
+    msg = odom_from_base_state(base)
+    assert odom_fields_from_cdr(ours) == odom_fields_from_cdr(bytes(serialize_message(msg)))
+    stamp, frame, child, pose, twist = odom_fields_from_cdr(ours)
+    assert (stamp, frame, child) == (2_500_000_000, 'odom', 'base_link')
+    np.testing.assert_allclose(pose, [1.0, -2.0, 0.6, 0.0, 0.0, np.sin(0.2), np.cos(0.2)])
+    other = Odometry()
+    other.header.frame_id, other.child_frame_id = 'map', 'robot/base'
+    other.twist.twist.angular.z = -0.7
+    _, frame, child, _, twist = odom_fields_from_cdr(bytes(serialize_message(other)))
+    assert (frame, child, twist[5]) == ('map', 'robot/base', -0.7)
+    big_endian = b'\x00\x00\x00\x00' + bytes(serialize_message(other))[4:]
+    with pytest.raises(ValueError, match='cannot deserialize Odometry'):
+        odom_fields_from_cdr(big_endian[:20])
