@@ -20,6 +20,7 @@ from replan_ros import tick_cdr
 from replan_ros.interfaces import (
     base_state_from_odom,
     contact_events_to_msg,
+    contact_rows,
     contacts_from_msg,
     contacts_to_msg,
     imu_from_msg,
@@ -247,6 +248,14 @@ def test_contacts_decode_as_the_generic_decoder(t):
         assert fast.stamp == generic.stamp
         for name in ('foot_position', 'force', 'contact', 'touchdown', 'liftoff'):
             np.testing.assert_array_equal(getattr(fast, name), getattr(generic, name))
+            assert getattr(fast, name).dtype == getattr(generic, name).dtype
+    # Rows out of leg order (not ours, still a valid table): sorted as the generic decoder.
+    shuffled = tick_cdr._encode_table(round(t * 1e9), contact_rows(cs, np.array([2, 0, 3, 1])))
+    _, fast = tick_cdr.contacts_from_cdr(shuffled)
+    generic = contacts_from_msg(deserialize_message(shuffled, PointCloud2))
+    for name in ('foot_position', 'force', 'contact', 'touchdown', 'liftoff'):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(generic, name))
+    np.testing.assert_array_equal(fast.foot_position, cs.foot_position)
     events = tick_cdr.encode_contact_events(cs)       # two rows: not a contacts table
     with pytest.raises(ValueError, match='one row per leg'):
         tick_cdr.contacts_from_cdr(events)
