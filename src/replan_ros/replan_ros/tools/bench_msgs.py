@@ -5,6 +5,9 @@ and with the hand-written CDR the nodes use.
   built and serialized, and ``com_plan`` decoded.
 - A tick (``replan_ros/tick_cdr.py``): ``joint_states``, ``imu``, ``joint_torque_cmd``,
   ``odom`` and ``contacts`` built and serialized, and decoded.
+- What the recorder and the live view derive per 0.04 s of sim time (``state_view.py``):
+  the contact force markers and CoP margin from ``ground_truth/contacts``, and ``/tf`` with the
+  velocity error from a pair of ``odom`` and ``joint_states``.
 
 Prints one row per operation (median and p90 over ``--repeats``, ms) and, with ``--json``, one
 JSON line. rclpy's ``publish`` of a message object converts it as ``serialize_message`` does,
@@ -45,6 +48,7 @@ from replan_ros.interfaces import (
     torque_cmd_from_msg,
     torque_cmd_to_msg,
 )
+from replan_ros.state_view import StateView
 
 _HORIZON = 200            # samples: 8 s at 0.04 s, the paper's horizon (config/mpc.yaml)
 
@@ -61,7 +65,7 @@ def _timed(fn, repeats: int) -> tuple[float, float]:
 
 def measure(repeats: int) -> dict[str, tuple[float, float]]:
     """(median, p90) in ms of each operation, on one fixed-seed plan and tick."""
-    return {**_plan_messages(repeats), **_tick_messages(repeats)}
+    return {**_plan_messages(repeats), **_tick_messages(repeats), **_view(repeats)}
 
 
 def _plan_messages(repeats: int) -> dict[str, tuple[float, float]]:
@@ -133,6 +137,28 @@ def _tick_messages(repeats: int) -> dict[str, tuple[float, float]]:
         results[f'{name}, rclpy'] = _timed(generic, repeats)
         results[f'{name}, tick_cdr.py'] = _timed(ours, repeats)
     return results
+
+
+def _view(repeats: int) -> dict[str, tuple[float, float]]:
+    rng = np.random.default_rng(2)
+    t = 12.344
+    feet = rng.uniform(-0.4, 0.4, (4, 3))
+    forces = np.column_stack([rng.normal(size=(4, 2)), [300.0, 250.0, 280.0, 0.0]])
+    contacts_cdr = tick_cdr.encode_contacts(ContactState(
+        t, feet, forces, np.array([1, 1, 1, 0], bool), np.zeros(4, bool), np.zeros(4, bool)))
+    joints_cdr = tick_cdr.encode_joint_state(JointState(t, *(rng.normal(size=12)
+                                                             for _ in range(3))))
+    odom_cdr = tick_cdr.encode_odom(BaseState(t, rng.normal(size=3), np.array([0, 0, 0, 1.0]),
+                                              rng.normal(size=3), rng.normal(size=3)))
+    view = StateView(period=0.0)          # every input is due
+
+    def state_pair():
+        view.feed('/joint_states', joints_cdr)
+        return view.feed('/odom', odom_cdr)
+
+    return {'view: contacts -> markers + CoP margin':
+            _timed(lambda: view.feed('/ground_truth/contacts', contacts_cdr), repeats),
+            'view: odom + joint_states -> /tf + velocity error': _timed(state_pair, repeats)}
 
 
 def main(argv=None) -> int:
