@@ -95,6 +95,14 @@ def test_dead_node_is_reported_and_respawned_and_cmd_vel_steers(ros_domain, tmp_
         assert launch.process.returncode == 0, launch.output
         assert 'reached 30.0 s of sim time' in launch.output
         assert (tmp_path / 'run' / 'logs' / 'mpc.log').read_text().count('start #') == 2
+        # The CPU time of every node per sim s, the respawned mpc's new process included.
+        cpu = re.search(r'CPU time per sim s since the first tick: (.*); all (\d+) ms',
+                        launch.output)
+        assert cpu, launch.output
+        per_node = {name: int(ms) for name, ms in re.findall(r'(\w+) (\d+) ms', cpu.group(1))}
+        assert set(per_node) == {'sim', 'gait', 'mpc', 'wbc'}, cpu.group(0)
+        assert all(ms > 0 for ms in per_node.values()), cpu.group(0)
+        assert sum(per_node.values()) <= int(cpu.group(2)) + len(per_node), cpu.group(0)
     finally:
         launch.stop()
 

@@ -74,3 +74,29 @@ def test_replan_path_rows_for_the_recorded_setups():
     assert row == [('median 11.00 (10.00-12.00), max 25.00 (20.00-30.00) ms', 'n/a')]
     assert summary['replan_wall_realistic+recorder'] == {'median_ms': 11.0, 'max_ms': 25.0}
     assert 'replan_wall_realistic+recorder+live' not in summary
+
+
+def test_cpu_rows_per_setup_with_the_nodes_it_ran():
+    rtf = {'ideal': 2.0, 'realistic': 1.9, 'realistic+recorder': 1.8,
+           'realistic+recorder+live': 1.7}
+    rounds = []
+    for scale in (1.0, 1.2, 0.9):
+        r = _round(rtf, {'ideal': 9.0, 'realistic': 8.0})
+        for setup in SETUPS:
+            cpu = {'sim': 250.0 * scale, 'wbc': 240.0 * scale, 'gait': 50.0, 'mpc': 40.0}
+            if 'recorder' in setup:
+                cpu['recorder'] = 100.0 * scale
+            if 'live' in setup:
+                cpu['live_view'] = 80.0
+            r['graph'][setup]['cpu_ms_per_sim_s'] = cpu
+        rounds.append(r)
+    rows, summary = summarise(rounds, {'median_ms': 1.0, 'p99_ms': 2.0})
+    cpu_rows = {t: f for t, f, v in rows if t.startswith('CPU time per sim s')}
+    assert cpu_rows['CPU time per sim s (no target): realistic'] == (
+        'all 580.00 (531.00-678.00) ms: sim 250, wbc 240, gait 50, mpc 40')
+    assert cpu_rows['CPU time per sim s (no target): realistic+recorder+live'].endswith(
+        'recorder 100, live_view 80')
+    assert summary['cpu_ms_per_sim_s_realistic+recorder']['recorder'] == 100.0
+    # A run without the figures (an older result file): no row, no error.
+    assert not any(t.startswith('CPU') for t, _, _ in summarise(
+        [_round(rtf, {'ideal': 9.0, 'realistic': 8.0})], {'median_ms': 1.0, 'p99_ms': 2.0})[0])

@@ -10,6 +10,7 @@ from replan_ros.tools.launch_graph import (
     PROGRESS_TTY_PERIOD,
     ProgressLine,
     RunProgress,
+    cpu_per_sim_s,
     format_progress,
     is_terminal,
 )
@@ -90,3 +91,10 @@ def test_a_closed_or_odd_stream_is_no_terminal():
     stream.close()
     assert not is_terminal(stream)
     assert not is_terminal(object())
+
+
+def test_cpu_per_sim_s_counts_each_node_once_and_a_respawn_from_its_start():
+    before = {'sim:100': 1.0, 'wbc:101': 2.0, 'mpc:102': 0.5}
+    after = {'sim:100': 3.0, 'wbc:101': 4.5, 'mpc:200': 0.4}      # mpc respawned as pid 200
+    assert cpu_per_sim_s(before, after, 10.0) == pytest.approx(
+        {'sim': 200.0, 'wbc': 250.0, 'mpc': 40.0})

@@ -109,7 +109,8 @@ def graph_run(setup: str, out: Path, duration: float, log) -> dict:
     finally:
         if viewer is not None:
             viewer.stop()
-    result: dict = {'setup': setup, 'exit_code': code, 'real_time_factor': graph.real_time_factor}
+    result: dict = {'setup': setup, 'exit_code': code, 'real_time_factor': graph.real_time_factor,
+                    'cpu_ms_per_sim_s': graph.cpu_ms_per_sim_s}
     budgets = read_budgets(graph.log_dir)
     if {'sim', 'wbc'} <= set(budgets):
         totals = table(budgets['sim'], budgets['wbc'])[1]
@@ -132,6 +133,9 @@ def mpc_solve_times(log_path: Path) -> dict:
         return {}
     found = re.findall(re.escape(SOLVE_TIMES_LOG) + r' (\{.*\})', log_path.read_text())
     return json.loads(found[-1]) if found else {}
+
+
+_NODE_ORDER = ('sim', 'wbc', 'gait', 'mpc', 'recorder', 'live_view')
 
 
 def _median(values: list) -> float | None:
@@ -207,6 +211,17 @@ def summarise(rounds: list[dict], mpc_bench: dict,
         rows.append((f'MPC in the graph <= {MPC_GRAPH_FACTOR_TARGET} x alone: {setup}',
                      f'median {_span(medians)}, p99 {_span(p99s)}, CPU median '
                      f'{_span(cpus)} ms', _verdict(ok)))
+    for setup in SETUPS:
+        cpu = [r['graph'][setup].get('cpu_ms_per_sim_s') or {} for r in rounds]
+        if not any(cpu):
+            continue
+        nodes = sorted({name for c in cpu for name in c}, key=_NODE_ORDER.index)
+        per_node = {name: _median([c.get(name) for c in cpu]) for name in nodes}
+        totals = [sum(c.values()) if c else None for c in cpu]
+        summary[f'cpu_ms_per_sim_s_{setup}'] = {**per_node, 'all': _median(totals)}
+        rows.append((f'CPU time per sim s (no target): {setup}',
+                     f'all {_span(totals)} ms: '
+                     + ', '.join(f'{name} {ms:.0f}' for name, ms in per_node.items()), 'n/a'))
     for setup in SETUPS:
         latencies = [r['graph'][setup].get('replan_wall') for r in rounds]
         if not any(latencies):

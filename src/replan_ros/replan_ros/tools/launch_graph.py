@@ -230,6 +230,9 @@ class Graph:
         self.failed: list[str] = []
         self.peak_memory_mb: dict[str, float] = {}     # filled by run_graph before stopping
         self.real_time_factor: float | None = None     # sim s per wall s from the first tick
+        # CPU time (user + system) per sim s of each node, ms, from the first tick to the stop:
+        # the graph's cost that does not depend on how loaded the machine was.
+        self.cpu_ms_per_sim_s: dict[str, float] = {}
 
     def start(self, watch: ClockWatch | None = None, deliveries=()) -> None:
         """Start every node. With a ``watch`` node, the wbc (whose first command lets the sim
@@ -310,6 +313,23 @@ class Graph:
             node.respawn_at = now + delay
             self.log(f'[launch {_stamp()}] respawning {node.name} in {delay:.0f} s')
         return None
+
+    def cpu_seconds(self) -> dict[str, float]:
+        """CPU time used so far (user + system, s) by each running node process, by pid, so
+        that a respawned node does not count its predecessor's."""
+        ticks = os.sysconf('SC_CLK_TCK')
+        used = {}
+        for node in self.nodes:
+            if node.process is None or node.process.poll() is not None:
+                continue
+            try:
+                stat = Path(f'/proc/{node.process.pid}/stat').read_text()
+            except OSError:
+                continue
+            # Fields after the command name (which may hold spaces): utime, stime are 14, 15.
+            fields = stat.rsplit(')', 1)[1].split()
+            used[f'{node.name}:{node.process.pid}'] = (int(fields[11]) + int(fields[12])) / ticks
+        return used
 
     def memory_peaks_mb(self) -> dict[str, float]:
         """Peak resident memory (VmHWM, MB) of each running node process."""
@@ -607,6 +627,7 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
     code = 0
     start_wall = time.monotonic()
     first_tick: tuple[float, float] | None = None      # (wall, sim) when the sim first moved
+    cpu_at_first_tick: dict[str, float] = {}
     try:
         deliveries = on_start(watch.node) if on_start is not None else None
         graph.start(watch, deliveries or ())
@@ -614,6 +635,7 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
             watch.spin(0.1)
             if first_tick is None and watch.sim_time > 0.0:
                 first_tick = (time.monotonic(), watch.sim_time)
+                cpu_at_first_tick = graph.cpu_seconds()
             if on_tick is not None:
                 on_tick(watch.sim_time)
             if progress is not None:
@@ -641,11 +663,18 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
         graph.peak_memory_mb = graph.memory_peaks_mb()
         if first_tick is not None and watch.sim_time > first_tick[1]:
             wall = time.monotonic() - first_tick[0]
-            graph.real_time_factor = (watch.sim_time - first_tick[1]) / wall
+            sim = watch.sim_time - first_tick[1]
+            graph.real_time_factor = sim / wall
+            graph.cpu_ms_per_sim_s = cpu_per_sim_s(cpu_at_first_tick, graph.cpu_seconds(), sim)
             graph.log(f'[launch {_stamp()}] {watch.sim_time:.1f} s of sim time, real-time '
                       f'factor {graph.real_time_factor:.2f} (from the first tick); peak memory '
                       f'{sum(graph.peak_memory_mb.values()):.0f} MB in '
                       f'{len(graph.peak_memory_mb)} nodes')
+            if graph.cpu_ms_per_sim_s:
+                graph.log(f'[launch {_stamp()}] CPU time per sim s since the first tick: '
+                          + ', '.join(f'{name} {ms:.0f} ms' for name, ms
+                                      in graph.cpu_ms_per_sim_s.items())
+                          + f'; all {sum(graph.cpu_ms_per_sim_s.values()):.0f} ms')
     finally:
         if progress is not None:
             progress.clear()
@@ -655,6 +684,18 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
     return code
+
+
+def cpu_per_sim_s(before: dict[str, float], after: dict[str, float],
+                  sim_seconds: float) -> dict[str, float]:
+    """CPU ms per sim s of each node (``name:pid`` keys of ``Graph.cpu_seconds``) between two
+    samples; for a node respawned meanwhile, its new process's whole CPU time (the old
+    process's went with it)."""
+    used: dict[str, float] = {}
+    for key, seconds in after.items():
+        name = key.split(':', 1)[0]
+        used[name] = used.get(name, 0.0) + seconds - before.get(key, 0.0)
+    return {name: 1e3 * seconds / sim_seconds for name, seconds in used.items()}
 
 
 def add_live_option(parser: argparse.ArgumentParser) -> None:

@@ -132,6 +132,11 @@ def _rtf_from_launch_log(text: str) -> float | None:
     return float(found[-1]) if found else None
 
 
+def _cpu_line_from_launch_log(text: str) -> str | None:
+    found = re.findall(r'(CPU time per sim s since the first tick: .*)', text)
+    return found[-1] if found else None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog='tick_budget.sh', description=__doc__.split('\n\n')[0],
@@ -165,11 +170,12 @@ def main(argv: list[str] | None = None) -> int:
     if status != 0:
         print(f'tick_budget: {cmd[0]} exited with {status} (see {out})', file=sys.stderr)
         return 1
+    launch_log = (out / 'launch.log').read_text()
     if args.scenario is not None:
         metrics = json.loads((out / 'scenario' / 'metrics.json').read_text())
         rtf = metrics.get('real_time_factor')
     else:
-        rtf = _rtf_from_launch_log((out / 'launch.log').read_text())
+        rtf = _rtf_from_launch_log(launch_log)
     budgets = read_budgets(log_dir)
     if not {'sim', 'wbc'} <= set(budgets):
         print(f'tick_budget: no tick budget line from sim and wbc in {log_dir}', file=sys.stderr)
@@ -179,6 +185,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f'tick budget: {what}, profile {args.profile}, recorder '
           f'{"on" if args.record or args.scenario else "off"} ({out})')
     print_table(rows, totals, rtf)
+    cpu = _cpu_line_from_launch_log(launch_log)
+    if cpu is not None:
+        print(cpu)
     if args.json:
         print(json.dumps({'real_time_factor': rtf, **{k: round(v, 4) for k, v in totals.items()},
                           'phases_mean_ms': {label: round(mean, 4)
