@@ -282,3 +282,17 @@ def test_solve_reports_its_cpu_time_next_to_its_wall_time():
         # One thread: it cannot use more CPU than wall time (the CPU clock's span is a few
         # calls longer; 0.2 ms covers it).
         assert res.solve_cpu_ms <= res.solve_time_ms + 0.2
+
+
+def test_bench_idle_modes_solve_the_same_problems():
+    """The benchmark's idle modes change only what happens between re-plans, not the problems
+    solved; an unknown mode is refused."""
+    from replan_core.bench.mpc_bench import run
+
+    results = [run(MpcSettings(), replans=4, idle=0.002, idle_mode=mode)
+               for mode in ('sleep', 'spin', 'evict')]
+    assert [r['idle_mode'] for r in results] == ['sleep', 'spin', 'evict']
+    for key in ('n_variables', 'triangle_samples_first_plan', 'quad_samples_first_plan'):
+        assert len({r[key] for r in results}) == 1, key
+    with pytest.raises(ValueError, match='idle_mode'):
+        run(MpcSettings(), replans=2, idle=0.001, idle_mode='nap')

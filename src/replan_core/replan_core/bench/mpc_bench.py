@@ -61,11 +61,31 @@ def velocity_profile(i: int) -> np.ndarray:
     return np.array([[0.05, 0.0], [0.12, 0.0], [0.08, 0.04], [0.10, -0.03]][phase])
 
 
+IDLE_MODES = ('sleep', 'spin', 'evict')
+
+
+def _idle(seconds: float, mode: str, sweep: np.ndarray | None) -> None:
+    if mode == 'sleep':
+        time.sleep(seconds)
+        return
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        if sweep is not None:
+            sweep += 1.0
+
+
 def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float = 0.03,
-        pos_noise: float = 0.003, vel_noise: float = 0.01, idle: float = 0.0) -> dict:
-    """Run the crawl and return the figures (times in ms). ``idle`` (wall s): sleep before
-    each re-plan (not timed), as the mpc node idles between touchdowns in the graph: a solve
-    then starts with cold caches (``cpu_median_ms`` tells that from waiting for a core)."""
+        pos_noise: float = 0.003, vel_noise: float = 0.01, idle: float = 0.0,
+        idle_mode: str = 'sleep') -> dict:
+    """Run the crawl and return the figures (times in ms). ``idle`` (wall s) before each
+    re-plan (not timed), as the mpc node idles between touchdowns in the graph; ``idle_mode``
+    says how: ``sleep`` (the core is free: as in the graph), ``spin`` (a busy loop that
+    touches little memory: the core never idles, the caches keep the solver's data) or
+    ``evict`` (busy writing a 64 MB buffer: the core never idles, the caches lose the
+    solver's data). ``cpu_median_ms`` tells a slower solve from waiting for a core."""
+    if idle_mode not in IDLE_MODES:
+        raise ValueError(f'idle_mode must be one of {IDLE_MODES}: {idle_mode!r}')
+    sweep = np.zeros(8 << 20) if idle_mode == 'evict' else None      # 64 MB of float64
     rng = np.random.default_rng(seed)
     t_build = time.perf_counter()
     mpc = LipMpc(settings)
@@ -83,7 +103,7 @@ def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float 
         v_ref = velocity_profile(i)
         plan = crawl_plan(t, com, 0.0, feet, leg, v_ref, rng)
         if idle > 0.0:
-            time.sleep(idle)
+            _idle(idle, idle_mode, sweep)
         t0 = time.perf_counter()
         res = mpc.solve(t, com, vel, acc, plan, v_ref=v_ref)
         times.append((time.perf_counter() - t0) * 1e3)
@@ -124,6 +144,7 @@ def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float 
         'median_ms': round(float(np.median(arr[1:])), 3),
         'cpu_median_ms': round(float(np.median(cpu_times[1:])), 3),
         'idle_s': idle,
+        'idle_mode': idle_mode,
         'mean_ms': round(float(np.mean(arr[1:])), 3),
         'std_ms': round(float(np.std(arr[1:], ddof=1)) if len(arr) > 2 else 0.0, 3),
         'p99_ms': round(float(np.percentile(arr[1:], 99)), 3),
@@ -151,6 +172,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument('--idle', type=float, default=0.0,
                     help='wall s of sleep before each re-plan (not timed): cold solves as in '
                          'the graph, where the mpc idles between touchdowns')
+    ap.add_argument('--idle-mode', default='sleep', choices=IDLE_MODES,
+                    help='sleep (default; the core is free), spin (busy, caches kept) or evict '
+                         '(busy writing 64 MB: caches lost)')
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--eps-abs', type=float, default=MpcSettings.eps_abs)
     ap.add_argument('--max-iter', type=int, default=MpcSettings.max_iter)
@@ -175,7 +199,8 @@ def main(argv: list[str] | None = None) -> None:
                            drop_inactive=not args.keep_inactive,
                            add_peaks_only=not args.add_all_violated,
                            exact_dual=not args.proxsuite_dual)
-    print(json.dumps(run(settings, args.replans, args.seed, idle=args.idle)))
+    print(json.dumps(run(settings, args.replans, args.seed, idle=args.idle,
+                         idle_mode=args.idle_mode)))
 
 
 if __name__ == '__main__':
