@@ -430,7 +430,7 @@ RECORDER = (
     _p('discovery_period', 0.5, 'graph poll for new topics', 's', min=0.01, max=60.0),
     _p('queue_depth', 1000, 'history depth of each subscription', 'messages', min=1,
        max=1_000_000),
-    _p('take_period', 0.02, 'take and write the queued messages this often', 'wall s',
+    _p('take_period', 0.1, 'take and write the queued messages this often', 'wall s',
        min=0.001, max=10.0),
     _p('chunk_size', 1 << 20, 'close a chunk at this size (uncompressed)', 'bytes', min=1024,
        max=_INT_MAX),

@@ -10,8 +10,9 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
 - The subscription QoS follows the publishers, as rosbag2 does: reliable only if every publisher
   is reliable, transient local only if every publisher is (so latched plans are received).
 - Times: ``log_time`` = the node clock (sim time with ``use_sim_time``, as
-  ``ros2 bag record --use-sim-time``) when the message was taken, within ``take_period`` of its
-  arrival; ``publish_time`` per ``publish_time`` parameter: ``source``
+  ``ros2 bag record --use-sim-time``) when the message arrived: its DDS reception time placed
+  between the clock readings of two takes (``arrival_time``), so log times do not step by
+  ``take_period``; ``publish_time`` per ``publish_time`` parameter: ``source``
   (the DDS source timestamp, wall clock: what rosbag2 writes), ``header`` (``header.stamp`` where
   the type has a header, else the receive time) or ``receive``.
 - Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s (checked at every take, so also
@@ -118,7 +119,7 @@ class RecorderNode(Node):
         self._declare('discovery_period', 0.5, 'period of the graph poll for new topics, s')
         self._declare('queue_depth', 1000,
                       'history depth of each subscription: messages kept until taken')
-        self._declare('take_period', 0.02, 'wall s between two takes of the queued messages')
+        self._declare('take_period', 0.1, 'wall s between two takes of the queued messages')
         self._declare('chunk_size', 1 << 20,
                       'close an mcap chunk at this many uncompressed bytes (bounds SIGKILL loss)')
         self._declare('chunk_interval', 1.0,
@@ -169,6 +170,7 @@ class RecorderNode(Node):
 
         self._input = OnDemandSubscriptions(self)
         self._batch: list[tuple[int, int, _Topic, bytes, int]] = []
+        self._last_take: tuple[int, int] | None = None     # (wall ns, node clock ns)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
                                                event_callbacks=INTERNAL_PUB_EVENTS)
         # Discovery and diagnostics run on the steady clock: a ROS timer under sim time would
@@ -349,8 +351,10 @@ class RecorderNode(Node):
             return 0
         self._input.drain()
         self._batch.sort(key=lambda item: (item[0], item[1]))
-        log_time = self.get_clock().now().nanoseconds
-        for _, _, entry, data, source_time in self._batch:
+        take = (time.time_ns(), self.get_clock().now().nanoseconds)
+        previous, self._last_take = self._last_take, take
+        for received, _, entry, data, source_time in self._batch:
+            log_time = arrival_time(received, previous, take)
             publish_time = None
             if self._publish_time == 'source':
                 publish_time = source_time or None
@@ -452,6 +456,19 @@ class RecorderNode(Node):
     def destroy_node(self) -> None:
         self.close()
         super().destroy_node()
+
+
+def arrival_time(received_wall_ns: int, previous: tuple[int, int] | None,
+                 take: tuple[int, int]) -> int:
+    """The node clock's time (sim time under ``use_sim_time``) when a message arrived: its DDS
+    reception time (wall, CLOCK_REALTIME) placed between the previous take and this one, each a
+    (wall ns, node clock ns) pair, linearly. A message that arrived before the previous take
+    gets that take's time; without a previous take or a reception time, this take's. So log
+    times follow arrival, not the take grid, and never decrease while the clock does not."""
+    if previous is None or received_wall_ns <= 0 or take[0] <= previous[0]:
+        return take[1]
+    fraction = min(max((received_wall_ns - previous[0]) / (take[0] - previous[0]), 0.0), 1.0)
+    return previous[1] + round(fraction * (take[1] - previous[1]))
 
 
 DRAIN_QUIET = 0.3     # s without a new message: the subscriptions are drained
