@@ -87,6 +87,21 @@ def test_node_started_alone_with_a_misspelt_key_exits_non_zero(launcher, tmp_pat
            '(did you mean horizon?)' in mpc.log()
 
 
+def test_recorder_started_alone_with_a_bad_regex_exits_non_zero(launcher, tmp_path):
+    """The recorder checks its parameters as every node does (until stop 25 it logged a bad
+    regex and recorded everything or nothing)."""
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text("recorder:\n  ros__parameters:\n    exclude_regex: '^/(tf'\n")
+    recorder = launcher.start('recorder_node', params_file=CONFIG_DIR / 'recorder.yaml',
+                              params={'output': str(tmp_path / 'never.mcap')},
+                              ros_args=['--params-file', str(bad)])
+    recorder.process.wait(30)
+    assert recorder.process.returncode == 2
+    assert f"config error: {bad}: recorder.exclude_regex = '^/(tf' is not a valid regular " \
+        'expression' in recorder.log()
+    assert not (tmp_path / 'never.mcap').exists()
+
+
 def _set(probe, client, name, value):
     future = client.set_parameters([Parameter(name, value=value)])
     assert probe.spin_until(future.done, 10.0)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import json
 import math
 import re
 import sys
@@ -36,6 +37,7 @@ _INT_MAX = 2 ** 31 - 1
 # Declared by rclpy itself in every node; allowed in every section.
 BUILTIN = {'use_sim_time': bool, 'start_type_description_service': bool}
 KINDS = ('bool', 'int', 'float', 'str', 'bool[]', 'int[]', 'float[]', 'str[]')
+_SYNTAXES = {'': '', 'regex': 'a Python regular expression', 'json_object': 'a JSON object'}
 _KIND_NAMES = {'bool': 'a bool', 'int': 'an int', 'float': 'a float (an int is accepted)',
                'str': 'a string', 'bool[]': 'a list of bools', 'int[]': 'a list of ints',
                'float[]': 'a list of floats (ints accepted)', 'str[]': 'a list of strings'}
@@ -75,6 +77,7 @@ class ParamSpec:
     read_only: bool = True
     length: int | None = None
     kind: str = ''
+    syntax: str = ''          # a string's syntax when not empty: 'regex' or 'json_object'
 
     def __post_init__(self) -> None:
         if not self.kind:
@@ -82,6 +85,7 @@ class ParamSpec:
         if isinstance(self.default, tuple):
             object.__setattr__(self, 'default', list(self.default))
         assert self.kind in KINDS, self.kind
+        assert self.syntax in _SYNTAXES, self.syntax
 
     @property
     def is_list(self) -> bool:
@@ -98,6 +102,8 @@ class ParamSpec:
             parts.append(f'of {self.length} values')
         if self.choices:
             parts.append('one of ' + ', '.join(map(str, self.choices)))
+        if self.syntax:
+            parts.append(_SYNTAXES[self.syntax])
         if self.min is not None or self.max is not None:
             parts.append(f'in {self.range_text()}')
         return ' '.join(parts)
@@ -418,14 +424,13 @@ SIM = (
     _p('diagnostics_period', 1.0, '/diagnostics period', 'wall s', min=0.01, max=3600.0),
 )
 
-# The recorder declares its own parameters (recorder_node.py); this table lets the launcher
-# check a run's files for it too (a unit test keeps the two in step with config/recorder.yaml).
+# The recorder (recorder_node.py) declares these through declare_node_parameters, as every node.
 RECORDER = (
     _p('output', '', "bag file (*.mcap) or directory; '' = output_dir"),
     _p('output_dir', '', "directory for <dir>/replan_<date>_<time>.mcap; both '' = ./runs/"),
     _p('topics', [], 'exact topic names to record', kind='str[]'),
-    _p('topics_regex', '', 'also record topics whose name matches this regex'),
-    _p('exclude_regex', '', 'never record topics matching this regex'),
+    _p('topics_regex', '', 'also record topics whose name matches this regex', syntax='regex'),
+    _p('exclude_regex', '', 'never record topics matching this regex', syntax='regex'),
     _p('include_hidden', False, 'record hidden topics too'),
     _p('discovery_period', 0.5, 'graph poll for new topics', 's', min=0.01, max=60.0),
     _p('queue_depth', 1000, 'history depth of each subscription', 'messages', min=1,
@@ -440,7 +445,8 @@ RECORDER = (
     _p('publish_time', 'source', 'mcap publish_time', choices=('source', 'header', 'receive')),
     _p('config_files', [], 'parameter YAML files of the run, stored in the bag', kind='str[]'),
     _p('scenario_file', '', 'scenario file of the run, stored in the bag'),
-    _p('metadata_json', '', 'JSON object of extra key/values stored in the bag'),
+    _p('metadata_json', '', 'JSON object of extra key/values stored in the bag',
+       syntax='json_object'),
     _p('diagnostics_period', 1.0, '/diagnostics status period', 's', min=0.01, max=3600.0),
 )
 
@@ -533,11 +539,30 @@ def _check_element(spec: ParamSpec, value: Any, kind: str) -> tuple[Any, str | N
         return value, f'has the wrong type: expected {_KIND_NAMES[spec.kind]}'
     if spec.choices and value not in spec.choices:
         return value, 'is not one of ' + ', '.join(map(str, spec.choices))
+    if spec.syntax and value:
+        reason = _syntax_error(spec.syntax, value)
+        if reason:
+            return value, reason
     if kind in ('int', 'float') and (
             (spec.min is not None and value < spec.min)
             or (spec.max is not None and value > spec.max)):
         return value, f'is out of range {spec.range_text()}'
     return value, None
+
+
+def _syntax_error(syntax: str, text: str) -> str | None:
+    """Why ``text`` is not a valid ``syntax`` string, or None."""
+    if syntax == 'regex':
+        try:
+            re.compile(text)
+        except re.error as err:
+            return f'is not a valid regular expression ({err})'
+        return None
+    try:
+        parsed = json.loads(text)
+    except ValueError as err:
+        return f'is not valid JSON ({err})'
+    return None if isinstance(parsed, dict) else 'is not a JSON object ({...})'
 
 
 def check_value(spec: ParamSpec, value: Any) -> Any:

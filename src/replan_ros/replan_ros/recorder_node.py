@@ -43,12 +43,9 @@ from pathlib import Path
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
@@ -62,6 +59,7 @@ from replan_ros.bag_io import (
 )
 from replan_ros.introspection import message_class
 from replan_ros.on_demand import OnDemandSubscriptions
+from replan_ros.params import declare_node_parameters
 from replan_ros.qos import COMMAND, INTERNAL_PUB_EVENTS, LATCHED
 from replan_ros.stamped_buffer import cdr_header_stamp_ns
 from replan_ros.state_view import (
@@ -72,8 +70,6 @@ from replan_ros.state_view import (
     StateView,
     definition,
 )
-
-_PUBLISH_TIME_SOURCES = ('source', 'header', 'receive')
 
 
 def _git(root: Path, *args: str) -> str:
@@ -106,50 +102,16 @@ class RecorderNode(Node):
 
     def __init__(self) -> None:
         super().__init__('recorder')
-        self._declare(
-            'output', '', 'bag file (*.mcap) or directory for <dir>/replan_<date>_<time>.mcap; '
-            'empty: output_dir')
-        self._declare('output_dir', '', 'directory for <dir>/replan_<date>_<time>.mcap when '
-                      'output is empty; both empty: ./runs/')
-        self._declare('topics', Parameter.Type.STRING_ARRAY,
-                      'topics to record (exact names); with topics_regex empty too: all topics')
-        self._declare('topics_regex', '', 'record the topics whose full name matches this regex')
-        self._declare('exclude_regex', '', 'never record topics matching this regex')
-        self._declare('include_hidden', False, 'also record hidden topics (a part starts with _)')
-        self._declare('discovery_period', 0.5, 'period of the graph poll for new topics, s')
-        self._declare('queue_depth', 1000,
-                      'history depth of each subscription: messages kept until taken')
-        self._declare('take_period', 0.1, 'wall s between two takes of the queued messages')
-        self._declare('chunk_size', 1 << 20,
-                      'close an mcap chunk at this many uncompressed bytes (bounds SIGKILL loss)')
-        self._declare('chunk_interval', 1.0,
-                      'close an mcap chunk at least this often, wall s (bounds SIGKILL loss)')
-        self._declare('compression', 'zstd', 'chunk compression: zstd, lz4 or none')
-        self._declare('publish_time', 'source',
-                      'mcap publish_time: source (DDS source timestamp, as rosbag2), header '
-                      '(header.stamp where there is one, else receive time) or receive')
-        self._declare('config_files', Parameter.Type.STRING_ARRAY,
-                      'parameter YAML files of the run, stored in the bag (metadata replan_config)')
-        self._declare('scenario_file', '', 'scenario file of the run, stored in the bag')
-        self._declare('metadata_json', '',
-                      'JSON object of extra key/values stored in the bag (metadata replan_user)')
-        self._declare('diagnostics_period', 1.0, 'period of the /diagnostics status, wall s')
-
-        p = self._params()
+        # Every parameter from params.RECORDER (default, range, syntax): a wrong value stops
+        # the start with one line naming the file and key, as in every node.
+        p = declare_node_parameters(self)
+        for name in ('topics', 'config_files'):
+            p[name] = [v for v in (p[name] or []) if v]
         self._topics_wanted = set(p['topics'])
-        self._include = self._regex(p['topics_regex'], 'topics_regex', '(?!)')
-        self._exclude = self._regex(p['exclude_regex'], 'exclude_regex', None)
-        if p['compression'] not in ('zstd', 'lz4', 'none'):
-            self.get_logger().error(f'compression must be zstd, lz4 or none: '
-                                    f'{p["compression"]!r}; using zstd')
-            p['compression'] = 'zstd'
+        self._include = re.compile(p['topics_regex']) if p['topics_regex'] else None
+        self._exclude = re.compile(p['exclude_regex']) if p['exclude_regex'] else None
         self._include_hidden = p['include_hidden']
-        self._queue_depth = max(int(p['queue_depth']), 1)
-        if p['publish_time'] not in _PUBLISH_TIME_SOURCES:
-            self.get_logger().error(
-                f'publish_time must be one of {_PUBLISH_TIME_SOURCES}: {p["publish_time"]!r}; '
-                'using source')
-            p['publish_time'] = 'source'
+        self._queue_depth = int(p['queue_depth'])
         self._publish_time = p['publish_time']
 
         self.path = self._bag_path(p['output'] or p['output_dir'])
@@ -185,35 +147,6 @@ class RecorderNode(Node):
         self._discover()
 
     # ------------------------------------------------------------------ parameters, config
-
-    def _declare(self, name: str, default, description: str) -> None:
-        self.declare_parameter(name, default, ParameterDescriptor(description=description))
-
-    def _regex(self, pattern: str, name: str, fallback: str | None):
-        if not pattern:
-            return None
-        try:
-            return re.compile(pattern)
-        except re.error as err:
-            effect = 'matches nothing' if fallback else 'ignored'
-            self.get_logger().error(f'{name} {pattern!r} is not a valid regex ({err}): {effect}')
-            return re.compile(fallback) if fallback else None
-
-    def _params(self) -> dict:
-        names = ('output', 'output_dir', 'topics', 'topics_regex', 'exclude_regex',
-                 'include_hidden',
-                 'discovery_period', 'queue_depth', 'take_period', 'chunk_size', 'chunk_interval',
-                 'compression', 'publish_time', 'config_files', 'scenario_file',
-                 'metadata_json', 'diagnostics_period')
-        values = {}
-        for name in names:
-            try:
-                values[name] = self.get_parameter(name).value
-            except ParameterUninitializedException:   # a list left empty (`[]` in YAML)
-                values[name] = None
-        for name in ('topics', 'config_files'):
-            values[name] = [v for v in (values[name] or []) if v]
-        return values
 
     @staticmethod
     def _bag_path(output: str) -> Path:
