@@ -78,6 +78,14 @@ class WbcParams:
     stand_up_hold: float = 0.5      # s, then held before the base estimate is started over
     stand_up_kp: float = 400.0      # N m/rad
     stand_up_kd: float = 15.0       # N m s/rad
+    # A trunk tilted further than this from upright (the angle of its z axis to the vertical)
+    # has fallen: no contact plan can right it, and tracking one swings the legs at their torque
+    # limits. The joints are then only damped, until the controller is restarted.
+    fall_tilt: float = 1.0          # rad (57 deg)
+    # N m s/rad, joint damping of a fallen robot. Low on purpose: applied at the control rate
+    # through the actuator delay, 5 made the light lower legs chatter at +-100 N m (realistic
+    # profile, stop 25); 1 and 2.5 did not.
+    fall_damping: float = 2.0
     qp_max_iter: int = 200
     qp_eps_abs: float = 1e-6
 
@@ -290,6 +298,14 @@ class JointStandUp:
 
     def done(self, t: float) -> bool:
         return t >= self.start_time + self.duration + self.hold
+
+
+def trunk_tilt(quaternion) -> float:
+    """rad in [0, pi]: the angle between the trunk's z axis and the world's vertical, for a
+    unit quaternion (x, y, z, w) base to world (0 upright, pi upside down)."""
+    x, y, _, _ = (float(v) for v in quaternion)
+    cos_tilt = 1.0 - 2.0 * (x * x + y * y)          # R[2, 2]
+    return math.acos(min(max(cos_tilt, -1.0), 1.0))
 
 
 class WholeBodyController:
@@ -575,6 +591,24 @@ class WholeBodyController:
             swing_error=np.zeros(N_LEGS), stance=np.ones(N_LEGS, bool),
             active_contacts=np.asarray(contact, bool), qp_status='stand_up', qp_iterations=0,
             fallback=False, message='', compute_time=time.perf_counter() - start,
+            saturated=int(np.count_nonzero(clipped != torque)))
+
+    def fallen(self, joints: JointState, contact: np.ndarray) -> WbcResult:
+        """Torques of a fallen robot: joint damping only (``fall_damping``), so the legs
+        neither flail nor hold a posture that loads them; finite for any input."""
+        start = time.perf_counter()
+        qd = np.nan_to_num(np.asarray(joints.velocity, dtype=float), nan=0.0, posinf=0.0,
+                           neginf=0.0)
+        torque = -self.params.fall_damping * qd
+        clipped = np.clip(torque, -self._limit, self._limit)
+        self._qp_initialized = False    # whatever follows starts the QP cold
+        contact = np.asarray(contact, bool)
+        return WbcResult(
+            torque=clipped, forces=np.zeros((N_LEGS, 3)), com_error=np.zeros(3),
+            com_velocity_error=np.zeros(3), orientation_error=np.zeros(3),
+            swing_error=np.zeros(N_LEGS), stance=np.zeros(N_LEGS, bool),
+            active_contacts=contact, qp_status='fallen', qp_iterations=0, fallback=False,
+            message='', compute_time=time.perf_counter() - start,
             saturated=int(np.count_nonzero(clipped != torque)))
 
     def _fallback(self, joints: JointState, contact: np.ndarray, stance: np.ndarray,

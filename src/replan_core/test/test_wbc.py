@@ -22,6 +22,7 @@ from replan_core.wbc import (
     WholeBodyController,
     haptic_reference,
     swing_reference,
+    trunk_tilt,
 )
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -372,3 +373,50 @@ def test_damping_mode_sits_down_without_rolling_over(urdf, robot, lifted_leg, si
     which one is chaotic: python -m replan_core.bench.damping_bench compares them.)"""
     roll, sat = sit_down(urdf, robot, lifted_leg, sideways, abduction_stiffness=200.0)
     assert roll < 15.0 and 0.25 < sat < 0.4, (roll, sat)
+
+
+@pytest.mark.parametrize(('quaternion', 'tilt'), [
+    ((0.0, 0.0, 0.0, 1.0), 0.0),                                        # upright
+    ((0.0, 0.0, np.sin(0.6), np.cos(0.6)), 0.0),                        # yaw only
+    ((np.sin(0.25), 0.0, 0.0, np.cos(0.25)), 0.5),                      # roll 0.5 rad
+    ((0.0, np.sin(0.5), 0.0, np.cos(0.5)), 1.0),                        # pitch 1 rad
+    ((1.0, 0.0, 0.0, 0.0), np.pi),                                      # on its back
+])
+def test_trunk_tilt_is_the_angle_of_the_trunk_z_axis_to_the_vertical(quaternion, tilt):
+    assert trunk_tilt(np.array(quaternion)) == pytest.approx(tilt, abs=1e-12)
+
+
+def test_fallen_torques_only_damp_the_joints(world, robot):
+    """A fallen robot's legs get -fall_damping * qd, within the limits, finite for NaN input;
+    never a posture to hold or a force to push with."""
+    wbc = WholeBodyController(robot, WbcParams(fall_damping=4.0))
+    _, joints, contact = _state(world)
+    rng = np.random.default_rng(3)
+    velocity = rng.uniform(-2.0, 2.0, 12)
+    moving = JointState(joints.stamp, joints.position, velocity, joints.effort)
+    result = wbc.fallen(moving, contact.contact)
+    np.testing.assert_allclose(result.torque, -4.0 * velocity, rtol=0, atol=1e-12)
+    assert result.qp_status == 'fallen' and not result.fallback and result.saturated == 0
+    assert not result.stance.any() and not result.forces.any()
+    fast = JointState(joints.stamp, joints.position, np.full(12, 1e3), joints.effort)
+    clipped = wbc.fallen(fast, contact.contact)
+    assert clipped.saturated == 12 and np.all(clipped.torque < 0.0)
+    assert np.all(np.abs(clipped.torque) <= world.effort_limit + 1e-9)
+    broken = JointState(joints.stamp, joints.position, np.full(12, np.nan), joints.effort)
+    assert np.all(wbc.fallen(broken, contact.contact).torque == 0.0)
+
+
+def test_fallen_torques_let_a_tipped_robot_come_to_rest(world, robot):
+    """Rolled over in the simulator (a torque about the trunk's x axis) and given the fallen
+    torques, the robot comes to rest: the joints slow down instead of swinging at their
+    limits."""
+    wbc = WholeBodyController(robot)
+    speeds = []
+    for k in range(round(3.0 / DT)):
+        world.set_external_wrench(np.zeros(3), np.array([600.0 if k * DT < 0.3 else 0.0, 0, 0]))
+        joints = world.joint_state()
+        result = wbc.fallen(joints, world.contact_state().contact)
+        world.step(result.torque)
+        speeds.append(float(np.abs(joints.velocity).max()))
+    assert trunk_tilt(world.base_state().quaternion) > WbcParams().fall_tilt
+    assert max(speeds[-50:]) < 0.2, max(speeds[-50:])

@@ -295,6 +295,11 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
            min=0.0, max=5000.0),
         _p('stand_up_kd', _W.stand_up_kd, 'joint PD damping of the stand-up', 'N m s/rad',
            min=0.0, max=500.0),
+        _p('fall_tilt', _W.fall_tilt, 'a trunk tilted further than this from upright has '
+           'fallen: joints damped, plans ignored, /diagnostics ERROR, until the wbc is '
+           'restarted', 'rad', min=0.1, max=math.pi),
+        _p('fall_damping', _W.fall_damping, 'joint damping of a fallen robot', 'N m s/rad',
+           min=0.0, max=500.0),
         _p('first_plan_timeout', 30.0, 'wait this long for the very first plans before standing',
            'wall s', min=0.0, max=3600.0),
         _p('plan_max_age', 6.0, 'a plan pair older than this (or past its horizon) -> stand',

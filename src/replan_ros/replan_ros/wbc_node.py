@@ -59,7 +59,14 @@ from replan_core.estimator import EstimatorParams, StateEstimator
 from replan_core.robot_model import RobotModel
 from replan_core.rotations import yaw_of
 from replan_core.types import STANDING_POSE, ComPlan, ContactState, FootholdPlan, JointState
-from replan_core.wbc import JointStandUp, PlanFollower, StandHold, WbcParams, WholeBodyController
+from replan_core.wbc import (
+    JointStandUp,
+    PlanFollower,
+    StandHold,
+    WbcParams,
+    WholeBodyController,
+    trunk_tilt,
+)
 from replan_ros import diagnostics
 from replan_ros.cdr import com_plan_from_cdr
 from replan_ros.direct_take import DirectTake
@@ -137,7 +144,8 @@ class WbcNode(Node):
             touchdown_depth=float(p['touchdown_depth']),
             fallback_kp=float(p['fallback_kp']), fallback_kd=float(p['fallback_kd']),
             stand_up_time=float(p['stand_up_time']), stand_up_hold=float(p['stand_up_hold']),
-            stand_up_kp=float(p['stand_up_kp']), stand_up_kd=float(p['stand_up_kd']))
+            stand_up_kp=float(p['stand_up_kp']), stand_up_kd=float(p['stand_up_kd']),
+            fall_tilt=float(p['fall_tilt']), fall_damping=float(p['fall_damping']))
         self.plan_timeout = float(p['plan_timeout'])
         self.missed_replans_to_stand = int(p['missed_replans_to_stand'])
         self.first_plan_timeout = float(p['first_plan_timeout'])
@@ -197,6 +205,8 @@ class WbcNode(Node):
         self._stand_reason = 'no plan yet'
         self._stand_since = 0.0                   # sim s the current stand began
         self._stand_up: JointStandUp | None = None   # a robot that sat down standing up
+        self._fallen: tuple[float, float] | None = None   # (sim s, tilt rad) of the fall
+        self._tilt = 0.0                                # rad, trunk tilt of the last tick
         self._stand_floor = 0                     # ns: a stand ends with plans from here on
         self._waiting: int | None = None          # tick (ns) held until its plans arrive
         self._waiting_first = False               # the wait is the first tick's
@@ -474,6 +484,13 @@ class WbcNode(Node):
             return                                   # an old stamp: nothing to answer
         if not self._listeners_ready and not self._listeners_subscribed():
             return          # the sim's republish of the tick (every 0.1 s) asks again
+        self._tilt = trunk_tilt(self._odom[stamp].quaternion)
+        if self._fallen is None and self._tilt > self.wbc.params.fall_tilt:
+            self._fall(stamp)
+        if self._fallen is not None:        # latched: no plan can right a fallen robot
+            self._started = True
+            self._answer_fallen(stamp)
+            return
         t = stamp / _NS
         contacts = self._contacts[stamp]
         if not self._started:
@@ -525,6 +542,27 @@ class WbcNode(Node):
                     self._wait(stamp, first=False)
                     return
         self._answer(stamp)
+
+    def _fall(self, stamp: int) -> None:
+        """The trunk tilted beyond ``fall_tilt``: damp the joints from now on, until the
+        node is restarted (README, "Faults and recovery")."""
+        p = self.wbc.params
+        self._fallen = (stamp / _NS, self._tilt)
+        self._follower = None
+        self._pending = None
+        self._stand = None
+        self._stand_up = None
+        self.get_logger().error(
+            f'fallen at t = {stamp / _NS:.3f} s: the trunk is tilted '
+            f'{math.degrees(self._tilt):.0f} deg from upright (fall_tilt '
+            f'{math.degrees(p.fall_tilt):.0f} deg): joints damped ({p.fall_damping:g} N m s/rad), '
+            'plans ignored; restart the wbc once the robot is upright')
+
+    def _answer_fallen(self, stamp: int) -> None:
+        self._budget_logic()
+        result = self.wbc.fallen(self._joints[stamp], self._contacts[stamp].contact)
+        self._controller_done()
+        self._command(stamp, result)
 
     def _budget_logic(self) -> None:
         """The plan logic of the tick so far (from _on_state or a wait's end)."""
@@ -748,10 +786,13 @@ class WbcNode(Node):
             # Figures over the period; a period without ticks (waiting) repeats the last one.
             times = np.array(self._times or [result.compute_time]) * 1e3
             errors = np.array(self._com_errors or [float(np.linalg.norm(result.com_error))])
-            mode = ('stand_up' if self._stand_up is not None
+            mode = ('fallen' if self._fallen is not None
+                    else 'stand_up' if self._stand_up is not None
                     else 'stand' if self._stand is not None else 'plan')
             values = {
                 'mode': mode,
+                'trunk_tilt_deg': math.degrees(self._tilt),
+                'fallen_at_s': self._fallen[0] if self._fallen is not None else '',
                 'stand_reason': self._stand_reason if self._stand is not None else '',
                 'stand_since_s': self._stand_since if self._stand is not None else '',
                 'compute_time_ms': times[-1],
@@ -777,7 +818,12 @@ class WbcNode(Node):
                 'fallbacks': self._fallbacks,
                 'waiting_for_plans': self._waiting is not None,
             }
-            if self._period_fallbacks:
+            if self._fallen is not None:
+                level, message = diagnostics.ERROR, (
+                    f'fallen at t = {self._fallen[0]:.3f} s (trunk tilted '
+                    f'{math.degrees(self._fallen[1]):.0f} deg): joints damped, plans ignored; '
+                    'restart the wbc once the robot is upright')
+            elif self._period_fallbacks:
                 level, message = diagnostics.ERROR, f'{self._period_fallbacks} fallback ticks'
             elif self._stand is not None and self._missed_replans:
                 level, message = diagnostics.ERROR, f'standing: {self._stand_reason}'
