@@ -295,6 +295,12 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
            min=0.0, max=5000.0),
         _p('stand_up_kd', _W.stand_up_kd, 'joint PD damping of the stand-up', 'N m s/rad',
            min=0.0, max=500.0),
+        _p('sat_down_height', 0.1, 'legs this much shorter (median of the four, base above '
+           'foot) than in the standing pose mean the robot sat down (the sim\'s damping mode): '
+           'it stands up in joint space before it walks', 'm', min=0.01, max=0.5),
+        _p('stand_adopt_age', 0.5, 'a stand ends only with a plan pair at most this old: one '
+           'that waited while the sim ran on would start seconds into its schedule', 'sim s',
+           min=0.004, max=10.0),
         _p('fall_tilt', _W.fall_tilt, 'a trunk tilted further than this from upright has '
            'fallen: joints damped, plans ignored, /diagnostics ERROR, until the wbc is '
            'restarted', 'rad', min=0.1, max=math.pi),

@@ -105,10 +105,6 @@ _KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead 
 _KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
 _KEEP_STATES = 50        # ticks of inputs kept per topic while waiting for the rest
 _STATE_WAIT = 0.01       # wall s to wait for the imu / ground truth of a joint_states tick
-# m: legs this much shorter (median over the four, base above foot) than in the standing pose
-# mean the robot sat down (the sim's damping mode): it stands up in joint space first.
-_SAT_DOWN = 0.1
-_STAND_ADOPT_AGE_NS = 500_000_000   # a stand ends only with plans at most 0.5 sim s old
 # Phases of an answered tick, from the sim's joint_states write to our command's publish.
 BUDGET_PHASES = (
     'wbc_transport_in',      # joint_states: the sim's DDS write -> our DDS reader
@@ -150,6 +146,8 @@ class WbcNode(Node):
         self.missed_replans_to_stand = int(p['missed_replans_to_stand'])
         self.first_plan_timeout = float(p['first_plan_timeout'])
         self.plan_max_age = float(p['plan_max_age'])
+        self.sat_down_height = float(p['sat_down_height'])
+        self.stand_adopt_age_ns = sec_to_ns(float(p['stand_adopt_age']))
         self.stale_gap_ns = sec_to_ns(int(p['stale_ticks']) / float(p['control_rate']))
         self.haptic_velocity = params.haptic_velocity
         self.touchdown_depth = params.touchdown_depth
@@ -519,7 +517,7 @@ class WbcNode(Node):
             # ran on (a slow or restarted planner) would start seconds into its schedule.
             # After a stand-up, only plans made from the estimate started over then.
             newer = [s for s in newer
-                     if stamp - s <= _STAND_ADOPT_AGE_NS and s >= self._stand_floor]
+                     if stamp - s <= self.stand_adopt_age_ns and s >= self._stand_floor]
         # A robot that sat down (the sim's damping mode) stands up before it walks: a plan
         # from the low posture asks the MPC for a CoM it cannot keep in the support.
         if newer and self._pending is None and self._stand_up is None and (
@@ -679,7 +677,7 @@ class WbcNode(Node):
         """The legs are folded (joint kinematics alone: the base estimate of a robot that
         sat down is not to be trusted)."""
         height = float(np.median(self.wbc.leg_heights(self._joints[stamp])))
-        return height < self._standing_leg_height - _SAT_DOWN
+        return height < self._standing_leg_height - self.sat_down_height
 
     def _enter_stand(self, stamp: int, reason: str) -> None:
         base, joints = self._odom[stamp], self._joints[stamp]
