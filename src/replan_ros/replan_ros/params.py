@@ -295,6 +295,9 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
            min=0.0, max=5000.0),
         _p('stand_up_kd', _W.stand_up_kd, 'joint PD damping of the stand-up', 'N m s/rad',
            min=0.0, max=500.0),
+        _p('standing_joint_positions', list(STANDING_POSE), 'the pose a robot that sat down '
+           'stands up to, JOINT_NAMES order; must equal sim.standing_joint_positions (set both, '
+           'or once in a /** section)', 'rad', min=-math.pi, max=math.pi, length=12),
         _p('sat_down_height', 0.1, 'legs this much shorter (median of the four, base above '
            'foot) than in the standing pose mean the robot sat down (the sim\'s damping mode): '
            'it stands up in joint space before it walks', 'm', min=0.01, max=0.5),
@@ -753,6 +756,12 @@ def cross_node_checks(r: Resolved) -> None:
             raise ConfigError(f'{_value_at(r, "wbc", "control_rate")} disagrees with '
                               f'{_value_at(r, "sim", "control_period")}: control_rate must be '
                               f'1 / control_period = {1.0 / period:g}')
+        sim_pose = r.values['sim']['standing_joint_positions']
+        wbc_pose = r.values['wbc']['standing_joint_positions']
+        if any(abs(a - b) > 1e-9 for a, b in zip(sim_pose, wbc_pose, strict=True)):
+            raise ConfigError(f'{_value_at(r, "wbc", "standing_joint_positions")} disagrees with '
+                              f'{_value_at(r, "sim", "standing_joint_positions")}: the robot '
+                              'stands up to the pose it spawns in (set both, or once in /**)')
         timeout, plan = r.values['sim']['command_timeout'], r.values['wbc']['plan_timeout']
         if timeout <= plan:
             raise ConfigError(f'{_value_at(r, "sim", "command_timeout")} must exceed '

@@ -58,7 +58,7 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 from replan_core.estimator import EstimatorParams, StateEstimator
 from replan_core.robot_model import RobotModel
 from replan_core.rotations import yaw_of
-from replan_core.types import STANDING_POSE, ComPlan, ContactState, FootholdPlan, JointState
+from replan_core.types import ComPlan, ContactState, FootholdPlan, JointState
 from replan_core.wbc import (
     JointStandUp,
     PlanFollower,
@@ -171,7 +171,8 @@ class WbcNode(Node):
             self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')
             raise SystemExit(1) from None
         self.wbc = WholeBodyController(self.robot, params)
-        standing = JointState(0.0, STANDING_POSE.copy(), np.zeros(12), np.zeros(12))
+        self.standing_pose = np.array(p['standing_joint_positions'], float)   # rad, the sim's
+        standing = JointState(0.0, self.standing_pose.copy(), np.zeros(12), np.zeros(12))
         self._standing_leg_height = float(np.median(self.wbc.leg_heights(standing)))
         self.estimator: StateEstimator | None = None
         if self.state_estimation or self.contact_estimation:
@@ -688,7 +689,7 @@ class WbcNode(Node):
         self._stand_since = stamp / _NS
         if self._stand_up is None and self._sat_down(stamp):
             p = self.wbc.params
-            self._stand_up = JointStandUp(stamp / _NS, joints.position, STANDING_POSE,
+            self._stand_up = JointStandUp(stamp / _NS, joints.position, self.standing_pose,
                                           p.stand_up_time, p.stand_up_hold)
             self.get_logger().warning(
                 f'standing up at t = {stamp / _NS:.3f} s: the legs are folded (median '

@@ -201,6 +201,12 @@ def test_cross_node_checks():
     assert 'must be below' in _error('wbc:\n  ros__parameters:\n    fz_min: 900.0\n')
     assert 'must be at least' in _error('mpc:\n  ros__parameters:\n    horizon: 0.2\n'
                                         '    dt: 0.3\n')
+    crouched = '[-0.2, 0.9, -1.8, -0.2, 0.9, -1.8, -0.2, -0.9, 1.8, -0.2, -0.9, 1.8]'
+    message = _error(f'sim:\n  ros__parameters:\n    standing_joint_positions: {crouched}\n')
+    assert message.startswith('wbc.standing_joint_positions = [-0.2, 0.75, -1.5') and (
+        'disagrees with sim.standing_joint_positions = [-0.2, 0.9, -1.8') in message, message
+    check_run([_source(f'/**:\n  ros__parameters:\n    standing_joint_positions: {crouched}\n')],
+              NODES)
 
 
 def test_later_files_win_and_are_checked_in_order():
