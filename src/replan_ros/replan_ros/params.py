@@ -307,6 +307,8 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
         _p('fall_tilt', _W.fall_tilt, 'a trunk tilted further than this from upright has '
            'fallen: joints damped, plans ignored, /diagnostics ERROR, until the wbc is '
            'restarted', 'rad', min=0.1, max=math.pi),
+        _p('fall_time', 0.1, 'the trunk tilted beyond fall_tilt for this long (every tick) '
+           'is a fall: one odd estimate is not', 'sim s', min=0.0, max=5.0),
         _p('fall_damping', _W.fall_damping, 'joint damping of a fallen robot', 'N m s/rad',
            min=0.0, max=500.0),
         _p('first_plan_timeout', 30.0, 'wait this long for the very first plans before standing',

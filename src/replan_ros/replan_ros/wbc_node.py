@@ -148,6 +148,7 @@ class WbcNode(Node):
         self.plan_max_age = float(p['plan_max_age'])
         self.sat_down_height = float(p['sat_down_height'])
         self.stand_adopt_age_ns = sec_to_ns(float(p['stand_adopt_age']))
+        self.fall_time_ns = sec_to_ns(float(p['fall_time']))
         self.stale_gap_ns = sec_to_ns(int(p['stale_ticks']) / float(p['control_rate']))
         self.haptic_velocity = params.haptic_velocity
         self.touchdown_depth = params.touchdown_depth
@@ -206,6 +207,7 @@ class WbcNode(Node):
         self._stand_up: JointStandUp | None = None   # a robot that sat down standing up
         self._fallen: tuple[float, float] | None = None   # (sim s, tilt rad) of the fall
         self._tilt = 0.0                                # rad, trunk tilt of the last tick
+        self._tilted_since: int | None = None           # ns, first tick beyond fall_tilt
         self._stand_floor = 0                     # ns: a stand ends with plans from here on
         self._waiting: int | None = None          # tick (ns) held until its plans arrive
         self._waiting_first = False               # the wait is the first tick's
@@ -484,7 +486,13 @@ class WbcNode(Node):
         if not self._listeners_ready and not self._listeners_subscribed():
             return          # the sim's republish of the tick (every 0.1 s) asks again
         self._tilt = trunk_tilt(self._odom[stamp].quaternion)
-        if self._fallen is None and self._tilt > self.wbc.params.fall_tilt:
+        if self._tilt <= self.wbc.params.fall_tilt:
+            self._tilted_since = None
+        elif self._tilted_since is None:
+            self._tilted_since = stamp
+        # Tilted for fall_time: one odd estimate is not a fall.
+        if (self._fallen is None and self._tilted_since is not None
+                and stamp - self._tilted_since >= self.fall_time_ns):
             self._fall(stamp)
         if self._fallen is not None:        # latched: no plan can right a fallen robot
             self._started = True
