@@ -229,7 +229,7 @@ def _planner_killed(walk: Walk, name: str, topic: str) -> None:
                                == 'cmd_vel_stamped', mark)
     assert steered is not None, walk.logs()
     walked = walk.walks()
-    assert walked > 0.4 * SPEED * 3.0, (walked, walk.logs())
+    assert walked > 0.4 * SPEED * 3.0, f'walked {walked:.3f} m\n{walk.logs()}'
     assert walk.min_z(t_kill) > STANDING_Z
     record(f'kill_{name}', fault=f'SIGKILL of {name} while walking {SPEED} m/s',
            noticed_by='wbc (its due re-plans get no ' + topic + f' from {name})',
@@ -275,7 +275,7 @@ def test_wbc_killed_the_sim_damps_the_robot_down_then_it_stands_up_and_walks(wal
     t_walk = walk.t
     assert t_walk - t_start < 10.0, (t_start, t_walk)
     walked = walk.walks()
-    assert walked > 0.4 * SPEED * 3.0, (walked, walk.logs())
+    assert walked > 0.4 * SPEED * 3.0, f'walked {walked:.3f} m\n{walk.logs()}'
     record('kill_wbc', fault=f'SIGKILL of wbc while walking {SPEED} m/s',
            noticed_by='sim (no joint_torque_cmd for command_timeout = 3 wall s; the sim time '
                       'does not advance meanwhile)',
@@ -329,7 +329,8 @@ def test_malformed_messages_are_rejected_with_one_line_and_the_robot_walks_on(wa
     for pub, _ in publishers.values():
         node.destroy_publisher(pub)                          # latched: never for a late joiner
     assert all(walk.procs[n].alive for n in Walk.NODES), walk.logs()
-    assert walked > 0.4 * SPEED * 4.0 and walk.min_z(t0) > STANDING_Z, (walked, walk.logs())
+    assert walked > 0.4 * SPEED * 4.0 and walk.min_z(t0) > STANDING_Z, (
+        f'walked {walked:.3f} m\n{walk.logs()}')
     lines = {
         'mpc (footholds)': [ln for ln in walk.log_of('mpc').splitlines()
                             if 'footholds rejected' in ln],
@@ -341,7 +342,7 @@ def test_malformed_messages_are_rejected_with_one_line_and_the_robot_walks_on(wa
                             if 'contacts rejected' in ln],
     }
     for receiver, found in lines.items():
-        assert found, (receiver, walk.logs())
+        assert found, f'{receiver}\n{walk.logs()}'
     for found in lines.values():
         assert not any('Traceback' in ln for ln in found)
     record('malformed_messages',
