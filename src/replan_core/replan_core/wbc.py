@@ -260,6 +260,29 @@ class StandHold:
         return (self.com, np.zeros(3), np.zeros(3)), self.yaw, stance, swing
 
 
+def first_swing_liftoff(footholds: FootholdPlan) -> float | None:
+    """s: the planned lift-off of the plan's first real swing (a zero-length trigger step of a
+    stand plan moves no foot), None if it has none."""
+    return min((s.liftoff_time for s in footholds.steps if s.touchdown_time > s.liftoff_time),
+               default=None)
+
+
+def plan_ends_stand(footholds: FootholdPlan, t: float, max_age: float,
+                    min_lead: float) -> bool:
+    """Whether the plan pair starting with ``footholds`` may end a stand at ``t`` (s).
+
+    It must be made for about now: at most ``max_age`` s old (one that waited while the sim
+    ran on starts seconds into its schedule), and its first swing must lift off at least
+    ``min_lead`` s after ``t``. Its CoM reference leaves the held CoM at the plan's start to be
+    over the other three feet at that lift-off; adopted later, it jumps there while a foot
+    lifts with the CoM still where the stand held it, and the robot tips onto the swing leg.
+    """
+    if t - footholds.start_time > max_age:
+        return False
+    liftoff = first_swing_liftoff(footholds)
+    return liftoff is None or liftoff - t >= min_lead - 1e-9     # s, float sums of ticks
+
+
 def _trunk_frame() -> BaseState:
     """The base at the world origin, level and at rest: kinematics in the trunk's axes."""
     return BaseState(0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), np.zeros(3))

@@ -20,7 +20,9 @@ from replan_core.wbc import (
     SwingReference,
     WbcParams,
     WholeBodyController,
+    first_swing_liftoff,
     haptic_reference,
+    plan_ends_stand,
     swing_reference,
     trunk_tilt,
 )
@@ -300,6 +302,61 @@ def test_stand_hold_lowers_a_lifted_leg(world, robot):
     assert world.contact_state().contact.all()
     assert hold.standing.all()
     assert max(np.linalg.norm(r.com_error) for *_, r in log) < 0.02
+
+
+def test_plan_ends_stand_only_made_for_about_now():
+    feet = np.array([[0.37, 0.3, 0.0], [0.37, -0.3, 0.0], [-0.37, 0.3, 0.0], [-0.37, -0.3, 0.0]])
+    footholds, _ = crawl_plan(10.0, feet, np.array([0.0, 0.0, 0.55]), shift_time=0.25)
+    assert first_swing_liftoff(footholds) == pytest.approx(10.25)
+    assert plan_ends_stand(footholds, 10.1, max_age=0.5, min_lead=0.1)
+    assert plan_ends_stand(footholds, 10.15, max_age=0.5, min_lead=0.1)
+    assert not plan_ends_stand(footholds, 10.16, max_age=0.5, min_lead=0.1)   # lead 0.09 s
+    assert not plan_ends_stand(footholds, 10.256, max_age=0.5, min_lead=0.1)  # lifted already
+    assert not plan_ends_stand(footholds, 10.05, max_age=0.04, min_lead=0.1)  # too old
+    # A stand plan's zero-length trigger step moves no foot: only the age counts.
+    footholds.steps = [Step(0, 10.5, 10.5, feet[0], 0.0, True, True, 0.0)]
+    assert first_swing_liftoff(footholds) is None
+    assert plan_ends_stand(footholds, 10.49, max_age=0.5, min_lead=0.1)
+
+
+def _tilt_after_adopting_late(world, robot, late: float) -> tuple[float, bool]:
+    """Stand (StandHold) 1 s, then a crawl plan made then, adopted ``late`` s after its
+    start: the largest trunk tilt (rad) over 3.5 s, and whether plan_ends_stand allowed it."""
+    wbc = WholeBodyController(robot)
+    base, joints, contacts = world.base_state(), world.joint_state(), world.contact_state()
+    hold = StandHold(world.time, robot.com_state(base, joints)[0], yaw_of(base.quaternion),
+                     contacts)
+    run(world, wbc, lambda t, b, c: hold.references(t, c), 1.0)
+    start = world.time
+    footholds, com_plan = crawl_plan(start, world.contact_state().foot_position,
+                                     initial_com(world, robot), cycles=1)
+    allowed = plan_ends_stand(footholds, start + late, max_age=10.0, min_lead=0.1)
+    follower = PlanFollower(footholds, com_plan)
+
+    def reference(t, base, contact):
+        if t < start + late - 1e-9:
+            return hold.references(t, contact)
+        follower.update(t, contact)
+        return follower.references(t)
+
+    log = run(world, wbc, reference, 3.5)
+    return max(trunk_tilt(b.quaternion) for _, b, *_ in log), allowed
+
+
+@pytest.mark.parametrize('late, allowed', [(0.7, True), (0.806, False)])
+def test_a_plan_adopted_from_a_stand_after_its_first_liftoff_tips_the_robot(world, robot, late,
+                                                                           allowed):
+    """Why plan_ends_stand asks for a lead: the crawl plan's CoM shifts over 0.8 s to the
+    three stance feet before the first lift-off. Adopted 0.1 s before that lift-off, the CoM
+    reference jumps the last part and the robot crawls on level; adopted 6 ms after it (a
+    restarted MPC's first plan in CI, stop 26), the foot lifts with the CoM between the four
+    and the trunk tips over the swing leg (48 deg)."""
+    tilt, ok = _tilt_after_adopting_late(world, robot, late)
+    assert ok is allowed
+    if allowed:
+        assert np.degrees(tilt) < 5.0
+    else:
+        assert np.degrees(tilt) > 20.0
 
 
 def test_plan_follower_yaw_ramps_through_the_planned_touchdowns():

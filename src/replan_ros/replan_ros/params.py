@@ -304,6 +304,10 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
         _p('stand_adopt_age', 0.5, 'a stand ends only with a plan pair at most this old: one '
            'that waited while the sim ran on would start seconds into its schedule', 'sim s',
            min=0.004, max=10.0),
+        _p('stand_adopt_lead', 0.1, 'a stand ends only with a plan whose first swing lifts off '
+           'at least this long after its adoption, so that the CoM reaches the support of the '
+           'other three feet first (a plan adopted after its lift-off tipped the robot over '
+           'the swing leg)', 'sim s', min=0.0, max=10.0),
         _p('fall_tilt', _W.fall_tilt, 'a trunk tilted further than this from upright has '
            'fallen: joints damped, plans ignored, /diagnostics ERROR, until the wbc is '
            'restarted', 'rad', min=0.1, max=math.pi),

@@ -65,6 +65,7 @@ from replan_core.wbc import (
     StandHold,
     WbcParams,
     WholeBodyController,
+    plan_ends_stand,
     trunk_tilt,
 )
 from replan_ros import diagnostics
@@ -147,7 +148,8 @@ class WbcNode(Node):
         self.first_plan_timeout = float(p['first_plan_timeout'])
         self.plan_max_age = float(p['plan_max_age'])
         self.sat_down_height = float(p['sat_down_height'])
-        self.stand_adopt_age_ns = sec_to_ns(float(p['stand_adopt_age']))
+        self.stand_adopt_age = float(p['stand_adopt_age'])
+        self.stand_adopt_lead = float(p['stand_adopt_lead'])
         self.fall_time_ns = sec_to_ns(float(p['fall_time']))
         self.stale_gap_ns = sec_to_ns(int(p['stale_ticks']) / float(p['control_rate']))
         self.haptic_velocity = params.haptic_velocity
@@ -506,8 +508,10 @@ class WbcNode(Node):
             if self._sat_down(stamp):
                 # Started (again) on a robot that sat down in the sim's damping mode.
                 self._enter_stand(stamp, 'started on a robot sitting: standing up first')
-            elif pairs:
+            elif pairs and self._ends_stand(pairs[-1], stamp):
                 self._adopt(pairs[-1], stamp)
+            elif pairs:
+                self._enter_stand(stamp, 'started mid-plan: waiting for plans made for now')
             else:
                 self._budget_logic()
                 self._wait(stamp, first=True)
@@ -522,11 +526,10 @@ class WbcNode(Node):
         newer = [s for s in self._pair_stamps()
                  if s <= stamp and (self._plan_stamp is None or s > self._plan_stamp)]
         if self._stand is not None:
-            # Leave a stand only for a plan made for about now: one that waited while the sim
-            # ran on (a slow or restarted planner) would start seconds into its schedule.
+            # Leave a stand only for a plan made for about now (wbc.plan_ends_stand).
             # After a stand-up, only plans made from the estimate started over then.
             newer = [s for s in newer
-                     if stamp - s <= self.stand_adopt_age_ns and s >= self._stand_floor]
+                     if s >= self._stand_floor and self._ends_stand(s, stamp)]
         # A robot that sat down (the sim's damping mode) stands up before it walks: a plan
         # from the low posture asks the MPC for a CoM it cannot keep in the support.
         if newer and self._pending is None and self._stand_up is None and (
@@ -681,6 +684,10 @@ class WbcNode(Node):
         if self._stand is not None:
             self.get_logger().info(f'plans stamped {plan_stamp / _NS:.3f} s: leaving the stand')
         self._stand = None
+
+    def _ends_stand(self, plan_stamp: int, stamp: int) -> bool:
+        return plan_ends_stand(self._footholds[plan_stamp], stamp / _NS, self.stand_adopt_age,
+                               self.stand_adopt_lead)
 
     def _sat_down(self, stamp: int) -> bool:
         """The legs are folded (joint kinematics alone: the base estimate of a robot that
