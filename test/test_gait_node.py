@@ -254,3 +254,21 @@ def test_idle_stance_stands_then_walks_off_at_the_next_trigger(launcher, probe):
     assert walk.steps[0].liftoff_time == pytest.approx(1.8 + TIMING['four_feet_duration'])
     assert all(s.target[0] > FEET[s.leg, 0] for s in walk.steps)
     assert 'idle stance at t=1.300' in launcher.processes[0].log()
+
+
+def test_a_replan_waiting_for_its_odom_says_so_then_plans_when_it_comes(launcher, probe):
+    """Contacts without odom (a restarted node whose odom reader is not matched yet): no plan,
+    and a warning naming the tick and what odom it holds, then the plan once odom comes."""
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
+                   params={**TIMING, 'warn_period': 0.5})
+    sim = FakeSim(probe)
+    sim.wait_connected(launcher)
+    for _ in range(30):                       # the sim republishes a tick while it waits
+        sim.tick(0.0, odom=False)
+        if 'has waited' in launcher.logs():
+            break
+    assert 're-plan at t=0.000 s has waited' in launcher.logs(), launcher.logs()
+    assert 'newest odom: none received yet' in launcher.logs()
+    assert not sim.footholds
+    plan = sim.replan_at(0.0, launcher)
+    assert plan.start_time == 0.0

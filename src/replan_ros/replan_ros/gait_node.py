@@ -136,6 +136,7 @@ class GaitNode(Node):
         self.rejected = 0
         self.forced = 0
         self._warned: dict[str, float] = {}
+        self._odom_wait: tuple[int, float] | None = None   # (re-plan stamp ns, wall s since)
         self._reset('start')
         self.get_logger().info(
             f'gait: crawl {"-".join(LEGS[i] for i in self.params.sequence)}, swing '
@@ -363,6 +364,7 @@ class GaitNode(Node):
             if not stamps or max(stamps) <= ns:
                 # May still come: the sim republishes while it waits, and the contacts of
                 # that republish bring us back here.
+                self._note_odom_wait(ns, stamps)
                 return False
             # A newer odom came: the one of this stamp was lost (best effort, free-run mode).
             nearest = min(stamps, key=lambda s: abs(s - ns))
@@ -433,6 +435,19 @@ class GaitNode(Node):
                                    f'{setpoint.tolist()}), {LEGS[self.schedule.next_leg]} '
                                    'first')
         return True
+
+    def _note_odom_wait(self, ns: int, stamps) -> None:
+        """Say so when a re-plan has waited long for its odom (wall s): a restarted node
+        that never gets it would otherwise sit silent."""
+        now = time.monotonic()
+        if self._odom_wait is None or self._odom_wait[0] != ns:
+            self._odom_wait = (ns, now)
+            return
+        waited = now - self._odom_wait[1]
+        if waited >= self.warn_period:
+            newest = f'{max(stamps) * 1e-9:.3f} s' if stamps else 'none received yet'
+            self._warn('odom wait', f're-plan at t={ns * 1e-9:.3f} s has waited {waited:.1f} '
+                       f'wall s for the odom of its tick (newest odom: {newest})')
 
     def _trigger_time(self, t: float) -> float:
         """When a stand plan's trigger lifts off: ``idle_replan_period`` after ``t``, half a
