@@ -12,6 +12,7 @@ import signal
 import subprocess
 import time
 
+import pytest
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Transform, Twist
@@ -196,6 +197,44 @@ def test_recorded_bag_decodes_to_the_published_messages(launcher, probe, tmp_pat
         [p.points[0].transforms[0].translation.z for p in ref_plans]
     assert [p.points[1].velocities[0].linear.x for p in plans] == \
         [p.points[1].velocities[0].linear.x for p in ref_plans]
+
+
+@pytest.mark.parametrize('log_time_clock', ['sim', 'wall'])
+def test_log_time_follows_the_clock_asked_for_even_with_clock_not_recorded(
+        launcher, probe, tmp_path, log_time_clock):
+    """/clock left out of the bag: ``sim`` log times still follow it (the recorder reads it
+    on demand for its time alone), within a take period of each message's stamp and never
+    decreasing; ``wall`` log times are the system clock while the messages came."""
+    publishers = _make_publishers(probe)
+    bag = tmp_path / 'clock.mcap'
+    recorder = launcher.start(
+        'recorder_node', params_file=CONFIG_DIR / 'recorder.yaml',
+        params={'output': str(bag), 'topics_regex': '^/rec/(odom|contacts)$',
+                'log_time_clock': log_time_clock})
+    assert _wait_subscribed(probe, ['/rec/odom', '/rec/contacts']), launcher.logs()
+    if log_time_clock == 'sim':
+        assert _wait_subscribed(probe, ['/clock']), launcher.logs()
+    probe.spin_for(1.0)
+    wall_start = time.time_ns()
+    _publish_ticks(probe, publishers, 0, 300)
+    probe.spin_for(0.5)
+    wall_end = time.time_ns()
+    assert recorder.stop() == 0, recorder.log()
+    log_times, offsets, topics = [], [], set()
+    for topic, log_time, _, msg in iter_decoded(bag):
+        topics.add(topic)
+        log_times.append(log_time)
+        offsets.append(log_time - (msg.header.stamp.sec * 1_000_000_000
+                                   + msg.header.stamp.nanosec))
+    assert topics == {'/rec/odom', '/rec/contacts'}
+    assert len(log_times) == 600
+    assert log_times == sorted(log_times)
+    if log_time_clock == 'sim':
+        # The recorder's sim clock is the newest /clock taken: behind a message's own tick by
+        # at most about a take period (0.1 s wall, here 0.1 s of sim).
+        assert max(abs(o) for o in offsets) < 0.25e9, (min(offsets), max(offsets))
+    else:
+        assert wall_start <= log_times[0] and log_times[-1] <= wall_end
 
 
 def test_sigkill_leaves_a_file_whose_finished_chunks_are_recovered(launcher, probe, tmp_path):

@@ -463,6 +463,9 @@ RECORDER = (
        max=3600.0),
     _p('compression', 'zstd', 'chunk compression', choices=('zstd', 'lz4', 'none')),
     _p('publish_time', 'source', 'mcap publish_time', choices=('source', 'header', 'receive')),
+    _p('log_time_clock', 'sim', "mcap log_time's clock: sim = the newest /clock taken (read "
+       "on demand with the recorded topics, so use_sim_time stays false), wall = the system "
+       'clock (a real robot)', choices=('sim', 'wall')),
     _p('config_files', [], 'parameter YAML files of the run, stored in the bag', kind='str[]'),
     _p('scenario_file', '', 'scenario file of the run, stored in the bag'),
     _p('metadata_json', '', 'JSON object of extra key/values stored in the bag',

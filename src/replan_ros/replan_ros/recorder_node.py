@@ -9,10 +9,14 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
   keeps the recorder from slowing the lock-step graph (README, "Performance").
 - The subscription QoS follows the publishers, as rosbag2 does: reliable only if every publisher
   is reliable, transient local only if every publisher is (so latched plans are received).
-- Times: ``log_time`` = the node clock (sim time with ``use_sim_time``, as
-  ``ros2 bag record --use-sim-time``) when the message arrived: its DDS reception time placed
-  between the clock readings of two takes (``arrival_time``), so log times do not step by
-  ``take_period``; ``publish_time`` per ``publish_time`` parameter: ``source``
+- Times: ``log_time`` = the ``log_time_clock`` (``sim``: the sim time, as
+  ``ros2 bag record --use-sim-time``; ``wall``: the system clock) when the message arrived: its
+  DDS reception time placed between the clock readings of two takes (``arrival_time``), so log
+  times do not step by ``take_period``. The sim time is the newest ``/clock`` message taken,
+  read on demand with the rest, not through rclpy's time source (``use_sim_time`` stays false):
+  its callback woke the recorder's executor at every ``/clock`` (every 20 ms of sim time), which
+  cost 2-6 % of the graph's real-time factor (docs/ARCHITECTURE.md, "Speed targets");
+  ``publish_time`` per ``publish_time`` parameter: ``source``
   (the DDS source timestamp, wall clock: what rosbag2 writes), ``header`` (``header.stamp`` where
   the type has a header, else the receive time) or ``receive``.
 - Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s (checked at every take, so also
@@ -48,6 +52,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock as ClockMsg
 
 from replan_ros import diagnostics
 from replan_ros.bag_io import (
@@ -57,6 +62,7 @@ from replan_ros.bag_io import (
     normalize_type_name,
     qos_profiles_yaml,
 )
+from replan_ros.interfaces import ns_to_stamp
 from replan_ros.introspection import message_class
 from replan_ros.on_demand import OnDemandSubscriptions
 from replan_ros.params import declare_node_parameters
@@ -70,6 +76,9 @@ from replan_ros.state_view import (
     StateView,
     definition,
 )
+
+CLOCK_TOPIC = '/clock'
+CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 
 
 def _git(root: Path, *args: str) -> str:
@@ -113,6 +122,8 @@ class RecorderNode(Node):
         self._include_hidden = p['include_hidden']
         self._queue_depth = int(p['queue_depth'])
         self._publish_time = p['publish_time']
+        self._log_time_clock = p['log_time_clock']
+        self._sim_ns = 0                # the newest /clock taken (ns of sim time), 0 before it
 
         self.path = self._bag_path(p['output'] or p['output_dir'])
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -173,6 +184,7 @@ class RecorderNode(Node):
             'ros_domain_id': os.environ.get('ROS_DOMAIN_ID', '0'),
             'command_line': ' '.join(sys.argv),
             'use_sim_time': str(self.get_parameter('use_sim_time').value).lower(),
+            'log_time_clock': p['log_time_clock'],
             'recorder_parameters': json.dumps(p, sort_keys=True),
             'config_files': json.dumps([str(Path(f).resolve()) for f in p['config_files']]),
             'scenario_file': str(Path(p['scenario_file']).resolve()) if p['scenario_file'] else '',
@@ -225,16 +237,44 @@ class RecorderNode(Node):
         for topic, types in self.get_topic_names_and_types():
             if topic in self._recorded or topic in self._skipped:
                 continue
-            if not self._selected(topic):
+            record = self._selected(topic)
+            # Sim time is read from /clock even when /clock is not recorded.
+            clock_only = (not record and topic == CLOCK_TOPIC
+                          and self._log_time_clock == 'sim' and CLOCK_TYPE in types)
+            if not record and not clock_only:
                 self._skipped.add(topic)
                 continue
             publishers = self.get_publishers_info_by_topic(topic)
             if not publishers:
                 continue   # only subscribers so far: the QoS to request is not known yet
+            if clock_only:
+                self._subscribe_clock_only(publishers)
+                continue
             if len(types) > 1:
                 self._warn_once(f'types:{topic}',
                                 f'{topic} has several types {types}; recording {types[0]}')
             self._subscribe(topic, types[0], publishers)
+
+    @staticmethod
+    def _qos_like(profiles) -> tuple[bool, bool]:
+        """(reliable, transient local): only if every publisher is, as rosbag2 does."""
+        return (all(q.reliability == ReliabilityPolicy.RELIABLE for q in profiles),
+                all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in profiles))
+
+    def _subscribe_clock_only(self, publishers) -> None:
+        reliable, _ = self._qos_like([info.qos_profile for info in publishers])
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=(ReliabilityPolicy.RELIABLE if reliable
+                                      else ReliabilityPolicy.BEST_EFFORT))
+        self._skipped.add(CLOCK_TOPIC)
+        self._input.subscribe(ClockMsg, CLOCK_TOPIC, qos, self._on_clock_only, raw=True)
+
+    def _on_clock_only(self, data: bytes) -> None:
+        self._sim_ns = cdr_header_stamp_ns(data) or self._sim_ns
+
+    def _now_ns(self) -> int:
+        """Now on the ``log_time_clock`` (ns): the newest /clock taken, or the system clock."""
+        return self._sim_ns if self._log_time_clock == 'sim' else time.time_ns()
 
     def _subscribe(self, topic: str, type_name: str, publishers) -> None:
         try:
@@ -246,8 +286,7 @@ class RecorderNode(Node):
             self._skipped.add(topic)
             return
         profiles = [info.qos_profile for info in publishers]
-        reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in profiles)
-        latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in profiles)
+        reliable, latched = self._qos_like(profiles)
         qos = QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=self._queue_depth,
             reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
@@ -284,7 +323,11 @@ class RecorderNode(Node):
             return 0
         self._input.drain()
         self._batch.sort(key=lambda item: (item[0], item[1]))
-        take = (time.time_ns(), self.get_clock().now().nanoseconds)
+        if self._log_time_clock == 'sim':
+            for _, _, entry, data, _ in self._batch:
+                if entry.name == CLOCK_TOPIC:
+                    self._sim_ns = cdr_header_stamp_ns(data) or self._sim_ns
+        take = (time.time_ns(), self._now_ns())
         previous, self._last_take = self._last_take, take
         for received, _, entry, data, source_time in self._batch:
             log_time = arrival_time(received, previous, take)
@@ -367,7 +410,7 @@ class RecorderNode(Node):
         level = diagnostics.OK if not self._write_errors else diagnostics.ERROR
         message = 'recording' if not self._write_errors else 'write errors'
         self._diag_pub.publish(diagnostics.array(
-            self.get_clock().now().to_msg(),
+            ns_to_stamp(self._now_ns()),
             diagnostics.status(f'{self.get_name()}: bag', level, message, values)))
 
     def close(self) -> None:
@@ -393,9 +436,9 @@ class RecorderNode(Node):
 
 def arrival_time(received_wall_ns: int, previous: tuple[int, int] | None,
                  take: tuple[int, int]) -> int:
-    """The node clock's time (sim time under ``use_sim_time``) when a message arrived: its DDS
-    reception time (wall, CLOCK_REALTIME) placed between the previous take and this one, each a
-    (wall ns, node clock ns) pair, linearly. A message that arrived before the previous take
+    """The ``log_time_clock``'s time when a message arrived: its DDS reception time (wall,
+    CLOCK_REALTIME) placed between the previous take and this one, each a (wall ns, log clock
+    ns) pair, linearly. A message that arrived before the previous take
     gets that take's time; without a previous take or a reception time, this take's. So log
     times follow arrival, not the take grid, and never decrease while the clock does not."""
     if previous is None or received_wall_ns <= 0 or take[0] <= previous[0]:
