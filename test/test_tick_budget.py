@@ -56,6 +56,7 @@ def test_budget_figures_in_diagnostics_of_sim_and_wbc(launcher, probe):
         assert wbc[name]['median_ms'] > 0.0, name
     # The ideal world: no estimator, and this wbc holds no tick for plans (it stands).
     assert wbc['wbc_estimator']['mean_ms'] == 0.0
+    assert wbc['wbc_estimator_next']['mean_ms'] == 0.0
     # A tick is the sim's own phases and its wait for the command, one after the other; the
     # work it does after joint_states are out (the truth, /clock, the lead physics steps) is
     # inside that wait.
@@ -66,3 +67,37 @@ def test_budget_figures_in_diagnostics_of_sim_and_wbc(launcher, probe):
     inside_wait = sum(sim[name]['mean_ms'] for name in off_chain if name in sim)
     assert sim['sim_tick']['mean_ms'] >= 0.99 * (own + sim['sim_wait']['mean_ms'])
     assert sim['sim_wait']['mean_ms'] >= 0.99 * inside_wait
+
+
+def _latest_values(diags, name: str) -> dict | None:
+    for array in reversed(diags):
+        for status in array.status:
+            if status.name == name and 'estimator_prepared_steps' in diagnostics.values_of(
+                    status):
+                return diagnostics.values_of(status)
+    return None
+
+
+def test_estimator_covariance_step_is_prepared_off_the_chain(launcher, probe):
+    """With the estimator on, its next covariance step is prepared after each command
+    (StateEstimator.prepare_next) and the next update uses it: the estimator's on-chain phase
+    and the off-chain one both cost something, and nearly every tick used a prepared step."""
+    launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml',
+                   params={'diagnostics_period': 0.5})
+    launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
+                   params={'plan_timeout': 0.5, 'diagnostics_period': 0.5,
+                           'state_estimation': True, 'contact_estimation': True})
+    odoms = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
+    diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
+    ok = probe.spin_until(lambda: odoms and stamp_to_sec(odoms[-1].header.stamp) >= 2.0,
+                          timeout=90)
+    assert ok, launcher.logs()
+    diags.clear()
+    assert probe.spin_until(lambda: _latest(diags, 'wbc') and _latest_values(diags, 'wbc'),
+                            timeout=10), launcher.logs()
+    phases, values = _latest(diags, 'wbc'), _latest_values(diags, 'wbc')
+    assert phases['wbc_estimator']['median_ms'] > 0.0
+    assert phases['wbc_estimator_next']['median_ms'] > 0.0
+    ticks, prepared = int(values['ticks']), int(values['estimator_prepared_steps'])
+    # Standing on four feet: only the first update and the stand's first ticks go without.
+    assert ticks >= 400 and 0.9 * ticks <= prepared < ticks, (ticks, prepared)

@@ -173,6 +173,12 @@ class StateEstimator:
         self.last_rejection = ''                    # what the last rejected tick lacked
         self._last_stamp: float | None = None
         self._last_omega: np.ndarray | None = None   # rad/s, base axes, of the last result
+        # The covariance step prepared for the next update (prepare_next): (stance flags as
+        # bytes, the stamp s it is for, gain K, covariance after it), and the one this update
+        # uses.
+        self._next_step: tuple | None = None
+        self._step: tuple | None = None
+        self.prepared_used = 0                      # updates that used a prepared step
 
     # ------------------------------------------------------------------ public API
     @property
@@ -194,6 +200,27 @@ class StateEstimator:
             self._initial_xy = self._x[0:2].copy()
         self.initialized = False
 
+    def prepare_next(self, next_stamp: float) -> bool:
+        """Do the covariance work of the update stamped ``next_stamp`` (s) now: the Kalman
+        prediction and gain of the covariance depend only on the feet in stance and the time
+        step, not on the measurements. Prepared for the stance of now; that update uses it if
+        its stamp is ``next_stamp``, the stance still holds and no foot touches down (the same
+        operations on the same numbers, so bit for bit the result it would have computed),
+        else it computes as usual. For a caller with idle time between two updates (the
+        controller, after its command: the covariance work then leaves the tick's critical
+        path). Returns whether a step was prepared."""
+        self._next_step = None
+        dt = next_stamp - self._last_stamp if self._last_stamp is not None else 0.0
+        if not (self.initialized and 0.0 < dt <= 25.0 * self.dt):
+            return False
+        stance = self._stance_for_filter()
+        covariance = self._P.copy()
+        self._predict_covariance(covariance, dt, stance)
+        gain = self._correct_covariance(covariance,
+                                        float(self._velocity_weights(stance).sum()))
+        self._next_step = (stance.tobytes(), next_stamp, gain, covariance)
+        return True
+
     def update(self, imu: ImuReading, joints: JointState) -> tuple[BaseState, ContactState]:
         """Fuse one IMU sample and the joint states of the same tick; never raises on bad data.
 
@@ -203,6 +230,7 @@ class StateEstimator:
         if self._last_omega is not None and stamp == self._last_stamp:
             # The state is as the last update left it: the same result, in new arrays.
             return self._result(stamp, self._last_omega)
+        prepared, self._next_step = self._next_step, None     # made from the state of now only
         dt = self.dt
         if self._last_stamp is not None and math.isfinite(stamp):
             elapsed = stamp - self._last_stamp
@@ -230,6 +258,13 @@ class StateEstimator:
             omega_body = self._update_attitude(gyro, accel, dt, correct=imu_ok)
             if joints_ok:
                 self._kinematics_and_contacts(q_meas, qd_meas, tau_meas, omega_body)
+                # A prepared covariance step holds for its stamp (so the same time step) and
+                # the same stance, without a touchdown (its foot reset changes the covariance
+                # first).
+                if (prepared is not None and self.initialized and stamp == prepared[1]
+                        and not self._touchdown.any()
+                        and self._stance_for_filter().tobytes() == prepared[0]):
+                    self._step = prepared
             else:
                 self._touchdown = np.zeros(N_LEGS, dtype=bool)
                 self._liftoff = np.zeros(N_LEGS, dtype=bool)
@@ -246,6 +281,9 @@ class StateEstimator:
                 + self._force.sum() + self._foot_rel.sum()))
         except (np.linalg.LinAlgError, ValueError, FloatingPointError, RuntimeError):
             finite = False
+        if self._step is not None:
+            self._step = None
+            self.prepared_used += 1
         if not finite:                              # keep the previous estimate, report it
             self._restore(saved)
             self.rejected_samples += 1
@@ -427,6 +465,11 @@ class StateEstimator:
         x[3:6] += a_world * dt
         stance = self._stance_for_filter()
         x[6:] += (self._roll_velocity * (dt * stance[:, None])).ravel()   # rolling feet
+        if self._step is None:
+            self._predict_covariance(P, dt, stance)
+
+    def _predict_covariance(self, P: np.ndarray, dt: float, stance: np.ndarray) -> None:
+        """The prediction's covariance, in ``P``: F P F^T + Q for feet ``stance``."""
         # P := F P F^T with F = I + dt * (dp/dv): a row then a column operation.
         P[0:3, :] += dt * P[3:6, :]
         P[:, 0:3] += dt * P[:, 3:6]
@@ -451,15 +494,29 @@ class StateEstimator:
         # Foot velocity = v_base + omega x r + J qd = 0 on the ground: r @ skew(w)^T = w x r.
         skew_t = np.array(((0.0, wz, -wy), (-wz, 0.0, wx), (wy, -wx, 0.0)))
         v_legs = self._roll_velocity - (self._jac_qd + self._foot_rel @ skew_t)   # (4, 3) m/s
-        # 1 / noise, picked per leg (the same divisions, done once in __init__)
-        weight = np.where(stance, self._w_stance_vel, self._w_swing_vel)
+        weight = self._velocity_weights(stance)
         weight_sum = float(weight.sum())
-        z, r_diag = self._z, self._r_diag
+        z = self._z
         z[:12] = self._foot_rel.ravel()
         z[12:] = weight @ v_legs / weight_sum                       # information-weighted mean
+        x = self._x
+        innovation = z - self._H @ x
+        if self._step is None:
+            gain = self._correct_covariance(self._P, weight_sum)
+        else:
+            gain, self._P = self._step[2], self._step[3]
+        x += gain @ innovation
+
+    def _velocity_weights(self, stance: np.ndarray) -> np.ndarray:
+        """(4,) weights (1 / noise^2, s^2/m^2) of the legs' base-velocity measurements: 1 /
+        noise picked per leg (the divisions done once in __init__)."""
+        return np.where(stance, self._w_stance_vel, self._w_swing_vel)
+
+    def _correct_covariance(self, P: np.ndarray, weight_sum: float) -> np.ndarray:
+        """The correction's covariance, in ``P``; returns the Kalman gain K (18, 15)."""
+        r_diag = self._r_diag
         r_diag[12:] = 1.0 / weight_sum
-        H, P, x = self._H, self._P, self._x
-        innovation = z - H @ x
+        H = self._H
         PHt = P @ self._H_t
         S = H @ PHt
         S.ravel()[::N_MEAS + 1] += r_diag
@@ -470,7 +527,6 @@ class StateEstimator:
         if info != 0:
             raise np.linalg.LinAlgError(f'singular innovation covariance (dgesv info {info})')
         K = gain_t.T
-        x += K @ innovation
         # Joseph form: stays symmetric positive definite even with the 1e6 ratio of noises.
         A = self._eye - K @ H
         P_new = A @ P @ A.T
@@ -478,6 +534,7 @@ class StateEstimator:
         # 0.5 (P_new + P_new^T) written into the state's own array (no new one per tick).
         np.add(P_new, P_new.T, out=P)
         P *= 0.5
+        return K
 
     # ------------------------------------------------------------------ output
     def _result(self, stamp: float, omega_body: np.ndarray) -> tuple[BaseState, ContactState]:

@@ -346,3 +346,80 @@ def test_restart_starts_the_position_over_from_the_feet(world, robot):
     np.testing.assert_allclose(est.quaternion, before.quaternion, atol=1e-3)
     assert not est.linear_velocity.any() and contact.contact.all()
     assert not contact.touchdown.any() and not contact.liftoff.any()
+
+
+class RecordingSensors(Sensors):
+    """Sensors that keep every sample they gave (to feed other estimators the same ticks)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.samples = []
+
+    def imu(self, base):
+        sample = super().imu(base)
+        self.samples.append([sample, None])
+        return sample
+
+    def joints(self, joints):
+        sample = super().joints(joints)
+        self.samples[-1][1] = sample
+        return sample
+
+
+def test_prepared_covariance_step_changes_nothing(world, robot):
+    """prepare_next between updates (as the controller calls it after its command) gives bit
+    for bit the results of the same updates without it, through a lift-off and touchdown (a
+    stance change and a foot reset: the prepared step is not used there), a non-finite sample,
+    a repeated stamp, a missed tick and a restart; and it is used on most ticks."""
+    com0 = initial_com(world, robot)
+    feet0 = world.contact_state().foot_position.copy()
+    goal = com0.copy()
+    goal[:2] += 0.6 * (feet0[[1, 2, 3], :2].mean(axis=0) - com0[:2])
+
+    def reference(t, base, contact):
+        s = min(t / 1.0, 1.0)
+        com_ref = (com0 + (goal - com0) * s**3 * (10 - 15 * s + 6 * s * s), np.zeros(3),
+                   np.zeros(3))
+        stance, swing = np.ones(4, bool), ()
+        if t >= 1.1 and not (t > 1.4 and contact.contact[0]):
+            height = 0.06 if t < 1.4 else 0.06 - 0.25 * (t - 1.4)
+            stance[0] = False
+            swing = (SwingReference(0, feet0[0] + [0.0, 0.0, height], np.zeros(3),
+                                    np.zeros(3)),)
+        return com_ref, 0.0, stance, swing
+
+    sensors = RecordingSensors(seed=11)
+    run(world, robot, StateEstimator(robot, EstimatorParams(), DT), reference, 2.0, sensors)
+    samples = sensors.samples
+    samples[300][1].velocity[2] = np.nan                      # a rejected joint sample
+    samples.insert(200, samples[199])                          # the lock-step's republish
+    del samples[400]                                           # a missed tick: dt = 8 ms
+
+    plain = StateEstimator(robot, EstimatorParams(), DT)
+    prepared = StateEstimator(robot, EstimatorParams(), DT)
+    prepared_ticks = 0
+    edges = 0
+    for k, (imu, joints) in enumerate(samples):
+        if k == 450:
+            plain.restart()
+            prepared.restart()
+        expected = plain.update(imu, joints)
+        got = prepared.update(imu, joints)
+        for a, b in zip(expected, got, strict=True):
+            for name in ('position', 'quaternion', 'linear_velocity', 'angular_velocity',
+                         'foot_position', 'force', 'contact', 'touchdown', 'liftoff'):
+                if hasattr(a, name):
+                    assert np.array_equal(getattr(a, name), getattr(b, name)), (k, name)
+        assert np.array_equal(plain.covariance, prepared.covariance), k
+        edges += int(got[1].touchdown.any() or got[1].liftoff.any())
+        # The next sample's stamp, as the controller knows it; before the missed tick, the
+        # stamp that does not come.
+        next_stamp = samples[min(k + 1, len(samples) - 1)][0].stamp
+        if k == 398:
+            next_stamp = imu.stamp + DT
+        prepared_ticks += int(prepared.prepare_next(next_stamp))
+    assert edges >= 2                                          # the lift-off and touchdown
+    assert prepared.rejected_samples == plain.rejected_samples == 1
+    assert plain.prepared_used == 0
+    # Used on most ticks; not at the two edges, the rejected sample and the missed tick.
+    assert 0.9 * prepared_ticks < prepared.prepared_used <= prepared_ticks - 4

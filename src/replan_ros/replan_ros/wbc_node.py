@@ -119,6 +119,7 @@ BUDGET_PHASES = (
     'wbc_controller',        # whole-body controller maths (pinocchio, proxsuite)
     'wbc_command',           # joint_torque_cmd built and published
     'wbc_publish_state',     # then odom, contacts (and contact_events) published
+    'wbc_estimator_next',    # then the estimator's next covariance step (prepare_next)
 )
 
 
@@ -772,6 +773,14 @@ class WbcNode(Node):
         if counted:
             self.budget.add('wbc_command', time.perf_counter_ns() - self._logic_start_ns)
         self._publish_estimate()
+        if self.estimator is not None:
+            # The next tick's covariance work, while the sim steps (prepare_next). Its stamp in
+            # seconds as imu_from_cdr makes it, so that the estimator sees the same float.
+            t0 = time.perf_counter_ns()
+            sec, nanosec = divmod(stamp + self.period_ns, _NS)
+            self.estimator.prepare_next(sec + nanosec * 1e-9)
+            if counted:
+                self.budget.add('wbc_estimator_next', time.perf_counter_ns() - t0)
         if counted:
             self.budget.end_tick()
             self._budget_tick = None
@@ -831,6 +840,10 @@ class WbcNode(Node):
                 'plan_pending': self._pending is not None,
                 'fallbacks': self._fallbacks,
                 'waiting_for_plans': self._waiting is not None,
+                # Estimator updates that used the covariance step prepared after the last
+                # command (StateEstimator.prepare_next); most of the ticks while walking.
+                'estimator_prepared_steps': (self.estimator.prepared_used
+                                             if self.estimator is not None else 0),
             }
             if self._fallen is not None:
                 level, message = diagnostics.ERROR, (

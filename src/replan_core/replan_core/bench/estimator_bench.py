@@ -5,8 +5,10 @@ Run: ``python -m replan_core.bench.estimator_bench [--ticks N]`` (after ``source
 HyQ crawls in the PyBullet world (``wbc_bench.crawl_plan`` through ``PlanFollower``, the
 controller fed the ground truth), so the estimator sees swing legs, touchdowns and a moving CoM.
 Its IMU is synthesised from the simulator's truth (gyro and accelerometer with white noise and a
-constant bias, fixed seed), the joints get encoder and torque noise. Only ``update`` is timed
-(wall and thread CPU time); the accuracy figures are printed as a sanity check.
+constant bias, fixed seed), the joints get encoder and torque noise. ``update`` is timed (wall
+and thread CPU time) and, apart, ``prepare_next`` after it (as the controller calls it, after
+its command: off the tick's critical path); ``--no-prepare`` times ``update`` alone, doing all
+of its covariance work itself. The accuracy figures are printed as a sanity check.
 """
 
 from __future__ import annotations
@@ -24,8 +26,10 @@ DT = 0.004                                   # s, control period
 _G_WORLD = np.array([0.0, 0.0, -9.81])       # m/s^2
 
 
-def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False) -> dict[str, float]:
-    """Closed-loop crawl for ``ticks`` control ticks; returns timing (s) and accuracy figures."""
+def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False,
+        prepare: bool = True) -> dict[str, float]:
+    """Closed-loop crawl for ``ticks`` control ticks; returns timing (s) and accuracy figures.
+    ``prepare``: call ``prepare_next`` after each update (timed apart)."""
     from replan_core.bench.wbc_bench import crawl_plan
     from replan_core.estimator import EstimatorParams, StateEstimator
     from replan_core.robot_model import RobotModel
@@ -46,7 +50,7 @@ def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False) -> dic
         cycles = int(np.ceil(ticks * DT / 5.6)) + 1        # 5.6 s per crawl cycle
         footholds, com_plan = crawl_plan(0.5, contacts.foot_position, com0, cycles=cycles)
         follower = PlanFollower(footholds, com_plan)
-        wall, cpu, velocity_errors, edge_offsets = [], [], [], []
+        wall, cpu, prepare_wall, velocity_errors, edge_offsets = [], [], [], [], []
         previous_velocity = None
         true_edges: list[tuple[int, int]] = []
         estimated_edges: list[tuple[int, int]] = []
@@ -75,6 +79,10 @@ def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False) -> dic
             com_ref, yaw, stance, swing = follower.references(t)
             result = wbc.compute(base, joints, contacts.contact, com_ref, yaw, stance, swing)
             world.step(result.torque)
+            if prepare:
+                start = time.perf_counter()
+                estimator.prepare_next(world.time)        # the next update's stamp
+                prepare_wall.append(time.perf_counter() - start)
         final_error = est_base.position - base.position
     finally:
         world.close()
@@ -92,6 +100,9 @@ def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False) -> dic
         'final_position_error': float(np.linalg.norm(final_error)),
         'touchdowns': len(true_edges),
         'touchdown_offset_max_ticks': float(max(edge_offsets, default=0.0)),
+        'prepare_median_us': (float(np.median(1e6 * np.array(prepare_wall[1:])))
+                              if prepare else 0.0),
+        'prepared_share': estimator.prepared_used / len(wall),
     }
     if not quiet:
         print(f'estimator bench: {figures["ticks"]} updates (250 Hz) of a closed-loop crawl')
@@ -99,6 +110,12 @@ def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False) -> dic
               f'p99 {figures["wall_p99_us"]:.0f} us')
         print(f'  same, thread CPU time: median {figures["cpu_median_us"]:.0f} us, '
               f'p99 {figures["cpu_p99_us"]:.0f} us')
+        if prepare:
+            print(f'  prepare_next after it (not in the figures above): median '
+                  f'{figures["prepare_median_us"]:.0f} us; the step prepared was used in '
+                  f'{100 * figures["prepared_share"]:.1f} % of the updates')
+        else:
+            print('  --no-prepare: every update did its own covariance work')
         print(f'  velocity RMSE {figures["velocity_rmse"]:.4f} m/s, final position error '
               f'{1e3 * figures["final_position_error"]:.1f} mm, {figures["touchdowns"]} '
               f'touchdowns, estimated within {figures["touchdown_offset_max_ticks"]:.0f} ticks')
@@ -112,8 +129,10 @@ def main() -> None:
     parser.add_argument('--urdf', default=os.environ.get('REPLAN_URDF',
                                                          str(root / 'urdf' / 'hyq.urdf')))
     parser.add_argument('--ticks', type=int, default=2000, help='control ticks (updates)')
+    parser.add_argument('--no-prepare', action='store_true',
+                        help='no prepare_next between updates (the estimator before it)')
     args = parser.parse_args()
-    run(args.urdf, args.ticks)
+    run(args.urdf, args.ticks, prepare=not args.no_prepare)
 
 
 if __name__ == '__main__':

@@ -51,6 +51,7 @@ OVERLAPPED = (
     ('sim_publish_clock', 'sim: publish /clock (1 tick in 5)'),
     ('sim_lead_physics', 'sim: wrenches + lead physics steps (actuator delay)'),
     ('wbc_publish_state', 'wbc: publish odom, contacts, events (after the command)'),
+    ('wbc_estimator_next', "wbc: estimator's next covariance step (after the command)"),
 )
 ROUND_TRIP = (
     ('wbc_transport_in', 'joint_states DDS transport sim -> wbc'),
