@@ -8,7 +8,7 @@ import json
 import pytest
 
 from replan_ros.mpc_node import SOLVE_TIMES_LOG
-from replan_ros.tools.bench_speed import SETUPS, mpc_solve_times, summarise
+from replan_ros.tools.bench_speed import SETUPS, mpc_solve_times, render_page, summarise
 
 
 def _round(rtf: dict, physics: dict, mpc_median: float = 1.2, mpc_p99: float = 2.0) -> dict:
@@ -100,3 +100,40 @@ def test_cpu_rows_per_setup_with_the_nodes_it_ran():
     # A run without the figures (an older result file): no row, no error.
     assert not any(t.startswith('CPU') for t, _, _ in summarise(
         [_round(rtf, {'ideal': 9.0, 'realistic': 8.0})], {'median_ms': 1.0, 'p99_ms': 2.0})[0])
+
+
+def test_page_of_a_run_holds_every_round_and_the_verdicts():
+    rtf = {'ideal': 2.5, 'realistic': 2.0, 'realistic+recorder': 1.8,
+           'realistic+recorder+live': 1.6}
+    rounds = []
+    for k, scale in enumerate((1.0, 0.9)):
+        r = _round({s: v * scale for s, v in rtf.items()},
+                   {'ideal': 15.0 + k, 'realistic': 12.0 + k})
+        for setup in SETUPS:
+            r['graph'][setup]['tick_ms_mean'] = 4.0 / r['graph'][setup]['real_time_factor']
+            r['graph'][setup]['cpu_ms_per_sim_s'] = {'sim': 200.0, 'wbc': 250.0 * scale}
+        rounds.append(r)
+    rounds[1]['graph']['realistic+recorder+live']['exit_code'] = 1
+    mpc_bench = {'median_ms': 0.9, 'p99_ms': 1.5, 'cpu_median_ms': 0.88}
+    idle = {'idle_s': 0.3, 'median_ms': 2.0, 'p99_ms': 3.0, 'cpu_median_ms': 1.9}
+    rows, _ = summarise(rounds, mpc_bench, idle)
+    meta = {'command': 'scripts/bench_speed.sh --runs 2 --page docs/speed.md',
+            'date': '2026-11-25 08:00 UTC', 'machine': '2 cores, test CPU',
+            'revision': 'abc1234', 'duration': 22.0}
+    page = render_page(rows, rounds, mpc_bench, idle, meta)
+    lines = page.splitlines()
+    assert lines[0] == '# Speed of the lock-step graph'
+    assert 'scripts/bench_speed.sh --runs 2 --page docs/speed.md' in page
+    assert 'physics alone ran at 12.0 to 16.0 x real time' in page
+    # Every target row of the printed table, with its verdict.
+    for target, figure, verdict in rows:
+        assert f'| {target} | {figure} | {verdict} |' in lines
+    # One line per round: both physics figures, each set-up's RTF and tick, the recorder cost.
+    assert '| 1 | 15.0 / 12.0 | 2.50 (1.60) | 2.00 (2.00) | 1.80 (2.22) | 1.60 (2.50) | 10% |' \
+        in lines
+    assert any(line.startswith('| 2 | 16.0 / 13.0 |') and '1.44 (2.78) exit 1' in line
+               for line in lines)
+    assert '| realistic | 200 | 238 | 438 |' in lines          # median of 250 and 225
+    assert '| benchmark, back to back | 0.90 | 1.50 | 0.88 |' in lines
+    assert '| benchmark, 0.3 s idle before each re-plan | 2.00 | 3.00 | 1.90 |' in lines
+    assert '| graph: ideal | 1.20 | 2.00 | 1.00 |' in lines
