@@ -375,6 +375,8 @@ def main(argv: list[str] | None = None) -> int:
 
     log(f'bench_speed: {args.runs} rounds, {len(SETUPS)} graph set-ups of {args.duration:g} '
         f'sim s each, in {out}')
+    # The code measured: the revision when the run starts (docs edited meanwhile do not count).
+    revision = git_revision(ROOT)
     rounds = []
     for k in range(1, args.runs + 1):
         with _native_stdout_to_stderr():
@@ -403,7 +405,7 @@ def main(argv: list[str] | None = None) -> int:
         meta = {'command': 'scripts/bench_speed.sh ' + shlex.join(argv if argv is not None
                                                                   else sys.argv[1:]),
                 'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
-                'machine': machine_description(), 'revision': git_revision(ROOT),
+                'machine': machine_description(), 'revision': revision,
                 'duration': args.duration}
         args.page.parent.mkdir(parents=True, exist_ok=True)
         args.page.write_text(render_page(rows, rounds, mpc_bench, mpc_idle, meta))
