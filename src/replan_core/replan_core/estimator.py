@@ -78,6 +78,8 @@ class StateEstimator:
 
     ``rejected_samples`` counts the ticks with a non-finite IMU or joint sample (the estimate
     then only predicts); ``initialized`` is False until a valid joint sample arrived.
+    ``prepare_next`` (optional, between two updates) does the next update's covariance work
+    ahead; ``prepared_used`` counts the updates that used it.
     """
 
     def __init__(self, model: RobotModel, params: EstimatorParams, dt: float = 0.004,
