@@ -246,8 +246,11 @@ class GaitNode(Node):
         v = self._validate((msg.linear.x, msg.linear.y, msg.angular.z), 'cmd_vel')
         if v is not None:
             self.cmd_vel = v
-            now = self.get_clock().now().nanoseconds * 1e-9
-            self.cmd_vel_time = max(self.latest_stamp, now)
+            # Sim time of its arrival: the newest state stamp, once the queued ones are taken
+            # (they are only queued here, processed at the next poll). Not the node's clock:
+            # use_sim_time would wake the node at every /clock (config/gait.yaml).
+            self.state_input.drain()
+            self.cmd_vel_time = self.latest_stamp
 
     def _on_cmd_vel_stamped(self, msg: TwistStamped) -> None:
         t = msg.twist
