@@ -28,17 +28,24 @@ def _latest(diags, name: str) -> dict | None:
     return None
 
 
-def test_budget_figures_in_diagnostics_of_sim_and_wbc(launcher, probe):
+def _sim_and_wbc_running(launcher, probe, **wbc_params) -> list:
+    """Sim and wbc (standing: no planners) started, 2 s of sim time run; the /diagnostics
+    arrays received from then on."""
     launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml',
                    params={'diagnostics_period': 0.5})
     launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
-                   params={'plan_timeout': 0.5, 'diagnostics_period': 0.5})
+                   params={'plan_timeout': 0.5, 'diagnostics_period': 0.5, **wbc_params})
     odoms = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
     diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
     ok = probe.spin_until(lambda: odoms and stamp_to_sec(odoms[-1].header.stamp) >= 2.0,
                           timeout=90)
     assert ok, launcher.logs()
     diags.clear()
+    return diags
+
+
+def test_budget_figures_in_diagnostics_of_sim_and_wbc(launcher, probe):
+    diags = _sim_and_wbc_running(launcher, probe)
     assert probe.spin_until(lambda: _latest(diags, 'sim') and _latest(diags, 'wbc'),
                             timeout=10), launcher.logs()
     sim, wbc = _latest(diags, 'sim'), _latest(diags, 'wbc')
@@ -82,17 +89,8 @@ def test_estimator_covariance_step_is_prepared_off_the_chain(launcher, probe):
     """With the estimator on, its next covariance step is prepared after each command
     (StateEstimator.prepare_next) and the next update uses it: the estimator's on-chain phase
     and the off-chain one both cost something, and nearly every tick used a prepared step."""
-    launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml',
-                   params={'diagnostics_period': 0.5})
-    launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
-                   params={'plan_timeout': 0.5, 'diagnostics_period': 0.5,
-                           'state_estimation': True, 'contact_estimation': True})
-    odoms = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
-    diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
-    ok = probe.spin_until(lambda: odoms and stamp_to_sec(odoms[-1].header.stamp) >= 2.0,
-                          timeout=90)
-    assert ok, launcher.logs()
-    diags.clear()
+    diags = _sim_and_wbc_running(launcher, probe, state_estimation=True,
+                                 contact_estimation=True)
     assert probe.spin_until(lambda: _latest(diags, 'wbc') and _latest_values(diags, 'wbc'),
                             timeout=10), launcher.logs()
     phases, values = _latest(diags, 'wbc'), _latest_values(diags, 'wbc')
