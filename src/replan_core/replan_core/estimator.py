@@ -176,10 +176,8 @@ class StateEstimator:
         self._last_stamp: float | None = None
         self._last_omega: np.ndarray | None = None   # rad/s, base axes, of the last result
         # The covariance step prepared for the next update (prepare_next): (stance flags as
-        # bytes, the stamp s it is for, gain K, covariance after it), and the one this update
-        # uses.
+        # bytes, the stamp s it is for, gain K, covariance after it).
         self._next_step: tuple | None = None
-        self._step: tuple | None = None
         self.prepared_used = 0                      # updates that used a prepared step
 
     # ------------------------------------------------------------------ public API
@@ -256,6 +254,7 @@ class StateEstimator:
             self._last_gyro, self._last_accel = gyro, accel
 
         saved = self._snapshot()
+        step = None                                 # the prepared step this update uses
         try:
             omega_body = self._update_attitude(gyro, accel, dt, correct=imu_ok)
             if joints_ok:
@@ -266,7 +265,7 @@ class StateEstimator:
                 if (prepared is not None and self.initialized and stamp == prepared[1]
                         and not self._touchdown.any()
                         and self._stance_for_filter().tobytes() == prepared[0]):
-                    self._step = prepared
+                    step = prepared
             else:
                 self._touchdown = np.zeros(N_LEGS, dtype=bool)
                 self._liftoff = np.zeros(N_LEGS, dtype=bool)
@@ -274,17 +273,16 @@ class StateEstimator:
                 if joints_ok:
                     self._initialize_filter()
             else:
-                self._predict(accel, dt)
+                self._predict(accel, dt, step)
                 if joints_ok:
-                    self._correct(qd_meas, omega_body)
+                    self._correct(qd_meas, omega_body, step)
             # One sum: any NaN or inf in the state or the outputs makes it non-finite.
             finite = math.isfinite(float(
                 self._x.sum() + self._P.sum() + self._quat.sum() + self.gyro_bias.sum()
                 + self._force.sum() + self._foot_rel.sum()))
         except (np.linalg.LinAlgError, ValueError, FloatingPointError, RuntimeError):
             finite = False
-        if self._step is not None:
-            self._step = None
+        if step is not None:
             self.prepared_used += 1
         if not finite:                              # keep the previous estimate, report it
             self._restore(saved)
@@ -459,15 +457,16 @@ class StateEstimator:
         P[:, sl] = P[:, 0:3]
         P[sl, sl] = P[0:3, 0:3] + np.eye(3) * self.params.foot_position_noise ** 2
 
-    def _predict(self, accel: np.ndarray, dt: float) -> None:
-        """Constant-acceleration step of the base with the IMU; feet random walks."""
+    def _predict(self, accel: np.ndarray, dt: float, step: tuple | None = None) -> None:
+        """Constant-acceleration step of the base with the IMU; feet random walks. With a
+        prepared ``step`` the covariance is left to ``_correct``, which takes the step's."""
         a_world = self._rot @ accel + _G_WORLD
         x, P = self._x, self._P
         x[0:3] += x[3:6] * dt + a_world * (0.5 * dt * dt)
         x[3:6] += a_world * dt
         stance = self._stance_for_filter()
         x[6:] += (self._roll_velocity * (dt * stance[:, None])).ravel()   # rolling feet
-        if self._step is None:
+        if step is None:
             self._predict_covariance(P, dt, stance)
 
     def _predict_covariance(self, P: np.ndarray, dt: float, stance: np.ndarray) -> None:
@@ -486,7 +485,8 @@ class StateEstimator:
         # debounced flag falls: anchoring the base to a lifting foot drags it along.
         return self._contact & self._raw
 
-    def _correct(self, qd_meas: np.ndarray, omega_body: np.ndarray) -> None:
+    def _correct(self, qd_meas: np.ndarray, omega_body: np.ndarray,
+                 step: tuple | None = None) -> None:
         """Kinematic update: relative foot positions (all feet), base velocity (stance legs)."""
         if self._touchdown.any():
             for leg in np.flatnonzero(self._touchdown):
@@ -503,10 +503,10 @@ class StateEstimator:
         z[12:] = weight @ v_legs / weight_sum                       # information-weighted mean
         x = self._x
         innovation = z - self._H @ x
-        if self._step is None:
+        if step is None:
             gain = self._correct_covariance(self._P, weight_sum)
         else:
-            gain, self._P = self._step[2], self._step[3]
+            gain, self._P = step[2], step[3]
         x += gain @ innovation
 
     def _velocity_weights(self, stance: np.ndarray) -> np.ndarray:

@@ -48,6 +48,13 @@ def sec_to_ns(t: float) -> int:
     return round(t * 1e9)
 
 
+def ns_to_sec(ns: int) -> float:
+    """The float seconds of a stamp of ``ns`` ns, as every decoder gives the core (the same
+    float as ``stamp_to_sec(ns_to_stamp(ns))``), without building a message."""
+    sec, nanosec = divmod(ns, 1_000_000_000)
+    return sec + nanosec * 1e-9
+
+
 def ns_to_stamp(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 

@@ -73,6 +73,7 @@ from replan_ros.cdr import com_plan_from_cdr
 from replan_ros.direct_take import DirectTake
 from replan_ros.interfaces import (
     footholds_from_msg,
+    ns_to_sec,
     ns_to_stamp,
     sec_to_ns,
     stamp_to_ns,
@@ -774,11 +775,10 @@ class WbcNode(Node):
             self.budget.add('wbc_command', time.perf_counter_ns() - self._logic_start_ns)
         self._publish_estimate()
         if self.estimator is not None:
-            # The next tick's covariance work, while the sim steps (prepare_next). Its stamp in
-            # seconds as imu_from_cdr makes it, so that the estimator sees the same float.
+            # The next tick's covariance work, while the sim steps (prepare_next), for the
+            # stamp's float seconds as the decoders will give them to the estimator.
             t0 = time.perf_counter_ns()
-            sec, nanosec = divmod(stamp + self.period_ns, _NS)
-            self.estimator.prepare_next(sec + nanosec * 1e-9)
+            self.estimator.prepare_next(ns_to_sec(stamp + self.period_ns))
             if counted:
                 self.budget.add('wbc_estimator_next', time.perf_counter_ns() - t0)
         if counted:

@@ -116,11 +116,11 @@ def test_page_of_a_run_holds_every_round_and_the_verdicts():
     rounds[1]['graph']['realistic+recorder+live']['exit_code'] = 1
     mpc_bench = {'median_ms': 0.9, 'p99_ms': 1.5, 'cpu_median_ms': 0.88}
     idle = {'idle_s': 0.3, 'median_ms': 2.0, 'p99_ms': 3.0, 'cpu_median_ms': 1.9}
-    rows, _ = summarise(rounds, mpc_bench, idle)
+    rows, summary = summarise(rounds, mpc_bench, idle)
     meta = {'command': 'scripts/bench_speed.sh --runs 2 --page docs/speed.md',
             'date': '2026-11-25 08:00 UTC', 'machine': '2 cores, test CPU',
             'revision': 'abc1234', 'duration': 22.0}
-    page = render_page(rows, rounds, mpc_bench, idle, meta)
+    page = render_page(rows, summary, rounds, mpc_bench, idle, meta)
     lines = page.splitlines()
     assert lines[0] == '# Speed of the lock-step graph'
     assert 'scripts/bench_speed.sh --runs 2 --page docs/speed.md' in page

@@ -12,10 +12,12 @@ from replan_core.types import (
     ComPlan,
     ContactState,
     FootholdPlan,
+    ImuReading,
     JointState,
     Step,
 )
 from replan_ros import interfaces as itf
+from replan_ros.tick_cdr import encode_imu, imu_from_cdr
 
 
 def _through_wire(msg):
@@ -25,6 +27,18 @@ def _through_wire(msg):
 def test_stamp_round_trip_is_exact_in_ns():
     for t in (0.0, 0.004, 12.348, 1234.5678):
         assert itf.stamp_to_ns(itf.sec_to_stamp(t)) == round(t * 1e9)
+
+
+def test_ns_to_sec_is_the_float_the_decoders_give():
+    """The wbc prepares the estimator's next step for ns_to_sec(next stamp) and the estimator
+    uses it only for an equal float: the decoders must give exactly that float."""
+    for tick in (0, 1, 3, 250, 5517, 123_457, 10_000_001):
+        ns = tick * 4_000_000
+        t = itf.ns_to_sec(ns)
+        assert t == itf.stamp_to_sec(itf.ns_to_stamp(ns))
+        reading = ImuReading(tick * 0.004, np.zeros(3), np.array([0.0, 0.0, 9.81]))
+        decoded_ns, decoded = imu_from_cdr(encode_imu(reading))
+        assert decoded_ns == ns and decoded.stamp == t
 
 
 def test_joint_state_reorders_by_name_and_rejects_unknown():

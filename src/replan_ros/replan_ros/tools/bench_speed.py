@@ -162,6 +162,13 @@ def _verdict(ok: bool | None) -> str:
     return 'n/a' if ok is None else ('met' if ok else 'NOT met')
 
 
+def _cost(round_: dict, with_it: str, without: str) -> float | None:
+    """1 - RTF(with_it) / RTF(without) in one round (the cost of what ``with_it`` adds)."""
+    a = round_['graph'][with_it]['real_time_factor']
+    b = round_['graph'][without]['real_time_factor']
+    return 1.0 - a / b if a and b else None
+
+
 def summarise(rounds: list[dict], mpc_bench: dict,
               mpc_idle: dict | None = None) -> tuple[list[tuple[str, str, str]], dict]:
     """Table rows (target, figure, verdict) and the summary, from the rounds' results and
@@ -185,10 +192,7 @@ def summarise(rounds: list[dict], mpc_bench: dict,
     for label, with_it, without in (('recorder', 'realistic+recorder', 'realistic'),
                                     ('live view + viewer', 'realistic+recorder+live',
                                      'realistic+recorder')):
-        costs = [1.0 - r['graph'][with_it]['real_time_factor']
-                 / r['graph'][without]['real_time_factor']
-                 if r['graph'][with_it]['real_time_factor']
-                 and r['graph'][without]['real_time_factor'] else None for r in rounds]
+        costs = [_cost(r, with_it, without) for r in rounds]
         median = _median(costs)
         summary[f'{label} cost'] = median
         target = label == 'recorder'
@@ -253,10 +257,11 @@ def _cell(value, digits: int = 2) -> str:
     return '-' if value is None else f'{value:.{digits}f}'
 
 
-def render_page(rows, rounds: list[dict], mpc_bench: dict, mpc_idle: dict | None,
-                meta: dict) -> str:
-    """The speed page (Markdown) of one run: ``rows`` from ``summarise``, the rounds' raw
-    figures, the MPC benchmarks and ``meta`` (command, date, machine, revision, duration)."""
+def render_page(rows, summary: dict, rounds: list[dict], mpc_bench: dict,
+                mpc_idle: dict | None, meta: dict) -> str:
+    """The speed page (Markdown) of one run: ``rows`` and ``summary`` from ``summarise``, the
+    rounds' raw figures, the MPC benchmarks and ``meta`` (command, date, machine, revision,
+    duration)."""
     setups = list(SETUPS)
     physics = [r['physics'][k] for r in rounds for k in ('ideal', 'realistic')]
     lines = [
@@ -301,13 +306,13 @@ def render_page(rows, rounds: list[dict], mpc_bench: dict, mpc_idle: dict | None
             cells.append(_cell(g['real_time_factor'])
                          + ('' if tick is None else f' ({tick:.2f})')
                          + ('' if g['exit_code'] == 0 else f' exit {g["exit_code"]}'))
-        with_rec = r['graph']['realistic+recorder']['real_time_factor']
-        without = r['graph']['realistic']['real_time_factor']
-        cost = f'{1.0 - with_rec / without:.0%}' if with_rec and without else '-'
+        cost = _cost(r, 'realistic+recorder', 'realistic')
+        cost = '-' if cost is None else f'{cost:.0%}'
         lines.append(f'| {k} | {r["physics"]["ideal"]:.1f} / {r["physics"]["realistic"]:.1f} '
                      f'| ' + ' | '.join(cells) + f' | {cost} |')
-    nodes = sorted({n for r in rounds for g in r['graph'].values()
-                    for n in (g.get('cpu_ms_per_sim_s') or {})}, key=_NODE_ORDER.index)
+    cpu = {setup: summary.get(f'cpu_ms_per_sim_s_{setup}') for setup in setups}
+    nodes = sorted({n for c in cpu.values() if c for n in c if n != 'all'},
+                   key=_NODE_ORDER.index)
     if nodes:
         lines += [
             '',
@@ -321,11 +326,9 @@ def render_page(rows, rounds: list[dict], mpc_bench: dict, mpc_idle: dict | None
             '| --- | ' + ' | '.join('---' for _ in nodes) + ' | --- |',
         ]
         for setup in setups:
-            cpu = [r['graph'][setup].get('cpu_ms_per_sim_s') or {} for r in rounds]
-            per_node = [_median([c.get(n) for c in cpu]) for n in nodes]
-            total = _median([sum(c.values()) if c else None for c in cpu])
-            lines.append(f'| {setup} | ' + ' | '.join(_cell(v, 0) for v in per_node)
-                         + f' | {_cell(total, 0)} |')
+            c = cpu[setup] or {}
+            lines.append(f'| {setup} | ' + ' | '.join(_cell(c.get(n), 0) for n in nodes)
+                         + f' | {_cell(c.get("all"), 0)} |')
     lines += [
         '',
         '## MPC solve times',
@@ -345,10 +348,10 @@ def render_page(rows, rounds: list[dict], mpc_bench: dict, mpc_idle: dict | None
                      f'{_cell(mpc_idle["median_ms"])} | {_cell(mpc_idle["p99_ms"])} | '
                      f'{_cell(mpc_idle["cpu_median_ms"])} |')
     for setup in setups:
-        mpc = [r['graph'][setup]['mpc'] for r in rounds]
+        mpc = summary[f'mpc_in_graph_{setup}']
         lines.append(f'| graph: {setup} | '
-                     + ' | '.join(_cell(_median([m.get(k) for m in mpc])) for k in (
-                         'wall_median_ms', 'wall_p99_ms', 'cpu_median_ms')) + ' |')
+                     + ' | '.join(_cell(mpc[k]) for k in ('median_ms', 'p99_ms', 'cpu_median_ms'))
+                     + ' |')
     return '\n'.join(lines) + '\n'
 
 
@@ -408,7 +411,7 @@ def main(argv: list[str] | None = None) -> int:
                 'machine': machine_description(), 'revision': revision,
                 'duration': args.duration}
         args.page.parent.mkdir(parents=True, exist_ok=True)
-        args.page.write_text(render_page(rows, rounds, mpc_bench, mpc_idle, meta))
+        args.page.write_text(render_page(rows, summary, rounds, mpc_bench, mpc_idle, meta))
         log(f'bench_speed: page written to {args.page}')
     failed = [r for r in rounds for g in r['graph'].values() if g['exit_code'] != 0]
     return 1 if failed else 0
