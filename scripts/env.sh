@@ -22,6 +22,11 @@ export PYTHONUNBUFFERED=1
 # proxsuite's OpenMP threads spin on a 2-core machine shared with the simulator; one thread
 # halves the MPC's p99 and makes cold solves 10x faster here (docs/mpc.md).
 export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
+# One thread for every numeric library the nodes load (numpy's and scipy's OpenBLAS, any MKL):
+# a fixed thread count is one condition of bit-exact runs (docs/ARCHITECTURE.md, "Bit-exact
+# runs"), and the nodes' matrices are far below the sizes where more threads pay on 2 cores.
+export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
+export MKL_NUM_THREADS="${MKL_NUM_THREADS:-1}"
 # The interface packages of the ROS wheels live in the venv prefix: make them findable by
 # ament_index (get_package_share_directory('sensor_msgs'), used for the bag schemas).
 case ":${AMENT_PREFIX_PATH:-}:" in

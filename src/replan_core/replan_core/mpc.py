@@ -25,16 +25,15 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import proxsuite
 import scipy.sparse as sp
 from scipy.linalg.lapack import dposv as _dposv
 
 from replan_core.lip import lift, lip_matrices
+from replan_core.proxqp import aligned, aligned_empty, proxqp
 from replan_core.support import MAX_ROWS, SupportSchedule, support_schedule
 from replan_core.types import ComPlan, FootholdPlan
 
 _INF = 1e20                     # proxsuite's "no bound"
-_PQ = proxsuite.proxqp
 
 STATUS_SOLVED = 'solved'
 STATUS_DEGENERATE = 'degenerate_polygon'
@@ -155,8 +154,10 @@ class LipMpc:
             self._build_dense()
         else:
             self._build_working_set()
-        self._l = np.full(self.n_in, -_INF)
-        self._u = np.full(self.n_in, _INF)
+        self._l = aligned_empty(self.n_in)
+        self._l.fill(-_INF)
+        self._u = aligned_empty(self.n_in)
+        self._u.fill(_INF)
 
     # ------------------------------------------------------------------ building
 
@@ -171,7 +172,7 @@ class LipMpc:
         qp.settings.check_duality_gap = True
         qp.settings.eps_duality_gap_abs = s.eps_abs
         qp.settings.eps_duality_gap_rel = 0.0
-        qp.settings.initial_guess = _PQ.InitialGuess.WARM_START
+        qp.settings.initial_guess = proxqp.InitialGuess.WARM_START
 
     def _build_sparse(self) -> None:
         s, n = self.settings, self.n
@@ -227,7 +228,7 @@ class LipMpc:
         self._C, self._cmap = _pattern(rows, cols, (self.n_in, nv))
         self._g = np.zeros(nv)
 
-        self.qp = _PQ.sparse.QP(self._H != 0, self._Aeq != 0, _bool_pattern(self._C))
+        self.qp = proxqp.sparse.QP(self._H != 0, self._Aeq != 0, _bool_pattern(self._C))
         self._settings(self.qp)
         self._initialized = False
 
@@ -237,13 +238,18 @@ class LipMpc:
         Hax = s.jerk_weight * np.eye(n)
         if s.velocity_weight > 0.0:
             Hax = Hax + s.velocity_weight * L.Vu.T @ L.Vu
-        self._H = np.zeros((2 * n, 2 * n))
+        # Aligned and written in place by _fill: proxsuite reads them where they are
+        # (proxqp.py).
+        self._H = aligned_empty((2 * n, 2 * n))
+        self._H.fill(0.0)
         self._H[:n, :n] = Hax
         self._H[n:, n:] = Hax
-        self._C = np.zeros((self.n_in, 2 * n))
-        self._g = np.zeros(2 * n)
+        self._C = aligned_empty((self.n_in, 2 * n))
+        self._C.fill(0.0)
+        self._g = aligned_empty(2 * n)
+        self._g.fill(0.0)
         self.n_eq = 0
-        self.qp = _PQ.dense.QP(2 * n, 0, self.n_in)
+        self.qp = proxqp.dense.QP(2 * n, 0, self.n_in)
         self._settings(self.qp)
         self._initialized = False
 
@@ -282,7 +288,7 @@ class LipMpc:
             cap *= 2
         qp = self._ws_qps.get(cap)
         if qp is None:
-            qp = _PQ.dense.QP(cap, 0, 0, True)
+            qp = proxqp.dense.QP(cap, 0, 0, True)
             self._settings(qp)
             qp.settings.check_duality_gap = False
             self._ws_qps[cap] = qp
@@ -488,6 +494,7 @@ class LipMpc:
         gd[:m] = gs
         lb = np.zeros(cap)
         ub = np.full(cap, _INF)
+        Hd, gd, lb, ub = aligned(Hd), aligned(gd), aligned(lb), aligned(ub)
         if cap in self._ws_fresh:
             qp.init(Hd, gd, None, None, None, None, None, lb, ub)
             self._ws_fresh.discard(cap)
@@ -495,11 +502,11 @@ class LipMpc:
             qp.update(H=Hd, g=gd, l_box=lb, u_box=ub)
         x0 = np.zeros(cap)
         x0[:m] = mu0
-        qp.settings.initial_guess = _PQ.InitialGuess.WARM_START
-        qp.solve(x0, None, None)
+        qp.settings.initial_guess = proxqp.InitialGuess.WARM_START
+        qp.solve(aligned(x0), None, None)
         st = qp.results.info.status
         it += int(qp.results.info.iter)
-        if st != _PQ.QPSolverOutput.PROXQP_SOLVED:
+        if st != proxqp.QPSolverOutput.PROXQP_SOLVED:
             return None, it, str(st).split('.')[-1]
         lam = np.maximum(qp.results.x[:m], 0.0) * dsc
         return lam, it, ''
@@ -593,27 +600,31 @@ class LipMpc:
     def _solve_hard(self, warm) -> tuple[bool, np.ndarray, int, str]:
         qp = self.qp
         s = self.settings
+        # Dense arrays at a fixed alignment (proxqp.py); the sparse matrices are copied by
+        # proxsuite's binding, their vectors are not.
+        g = aligned(self._g)
         if s.formulation == 'sparse':
-            args = (self._H, self._g, self._Aeq, self._beq, self._C, self._l, self._u)
+            beq = aligned(self._beq)
+            args = (self._H, g, self._Aeq, beq, self._C, self._l, self._u)
         else:
-            args = (self._H, self._g, None, None, self._C, self._l, self._u)
+            args = (self._H, g, None, None, self._C, self._l, self._u)
         if not self._initialized:
             qp.init(*args)
             self._initialized = True
         elif s.formulation == 'sparse':
-            qp.update(g=self._g, b=self._beq, C=self._C, l=self._l, u=self._u)
+            qp.update(g=g, b=beq, C=self._C, l=self._l, u=self._u)
         else:
-            qp.update(g=self._g, C=self._C, l=self._l, u=self._u)
+            qp.update(g=g, C=self._C, l=self._l, u=self._u)
         if warm is None:
             self.cold = True
-            qp.settings.initial_guess = _PQ.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+            qp.settings.initial_guess = proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
             qp.solve()
         else:
             self.cold = False
-            qp.settings.initial_guess = _PQ.InitialGuess.WARM_START
-            qp.solve(*warm)
+            qp.settings.initial_guess = proxqp.InitialGuess.WARM_START
+            qp.solve(*(aligned(a) for a in warm))
         res = qp.results
-        ok = res.info.status == _PQ.QPSolverOutput.PROXQP_SOLVED
+        ok = res.info.status == proxqp.QPSolverOutput.PROXQP_SOLVED
         return ok, self._jerk_of(res.x), int(res.info.iter), str(res.info.status).split('.')[-1]
 
     def _jerk_of(self, x: np.ndarray) -> np.ndarray:
@@ -640,13 +651,13 @@ class LipMpc:
             b = self._beq
         else:
             Aeq, b = None, None
-        qp = _PQ.sparse.QP(nv + n_in, self.n_eq, 2 * n_in)
+        qp = proxqp.sparse.QP(nv + n_in, self.n_eq, 2 * n_in)
         self._settings(qp)
         qp.settings.max_iter = max(s.max_iter, 1000)
-        qp.settings.initial_guess = _PQ.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
-        qp.init(H, g, Aeq, b, C, l_, u_)
+        qp.settings.initial_guess = proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+        qp.init(H, aligned(g), Aeq, aligned(b), C, aligned(l_), aligned(u_))
         qp.solve()
-        ok = qp.results.info.status == _PQ.QPSolverOutput.PROXQP_SOLVED
+        ok = qp.results.info.status == proxqp.QPSolverOutput.PROXQP_SOLVED
         x = qp.results.x[:nv]
         return ok, self._jerk_of(x), int(qp.results.info.iter)
 

@@ -26,9 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
-import proxsuite
 
 from replan_core.contact import StepEvent, StepTracker
+from replan_core.proxqp import aligned, aligned_empty, proxqp
 from replan_core.robot_model import GRAVITY, RobotModel
 from replan_core.rotations import yaw_of
 from replan_core.swing import swing_reference as swing_trajectory
@@ -363,9 +363,13 @@ class WholeBodyController:
             rows = slice(4 * i, 4 * i + 4)
             c[rows, 3 * i:3 * i + 3] = [[1.0, 0.0, -mu], [-1.0, 0.0, -mu],
                                         [0.0, 1.0, -mu], [0.0, -1.0, -mu]]
-        self._c = c
-        self._l = np.full(4 * N_LEGS, -_INF)
-        self._u = np.zeros(4 * N_LEGS)                  # |fx|, |fy| <= mu fz
+        # Every array proxsuite reads is aligned (proxqp.py: a solve then does not depend on
+        # where the heap put its inputs); H and g are computed into buffers built once.
+        self._c = aligned(c)
+        self._l = aligned(np.full(4 * N_LEGS, -_INF))
+        self._u = aligned(np.zeros(4 * N_LEGS))         # |fx|, |fy| <= mu fz
+        self._h = aligned_empty((3 * N_LEGS, 3 * N_LEGS))
+        self._g = aligned_empty(3 * N_LEGS)
         self._wrench_map = np.zeros((6, 3 * N_LEGS))    # [sum f; sum (p_i - c) x f_i]
         for i in range(N_LEGS):
             self._wrench_map[0:3, 3 * i:3 * i + 3] = np.eye(3)
@@ -383,7 +387,7 @@ class WholeBodyController:
         self._skew_src = np.array(src)
         self._skew_sign = np.array(sign)
         self._bounds_cache: dict[tuple[bool, ...], tuple[np.ndarray, np.ndarray]] = {}
-        self._qp = proxsuite.proxqp.dense.QP(3 * N_LEGS, 0, 4 * N_LEGS, True)
+        self._qp = proxqp.dense.QP(3 * N_LEGS, 0, 4 * N_LEGS, True)
         self._qp.settings.eps_abs = p.qp_eps_abs
         self._qp.settings.eps_rel = 0.0
         self._qp.settings.max_iter = p.qp_max_iter
@@ -409,7 +413,7 @@ class WholeBodyController:
                 tangential = p.friction * p.fz_max
                 lower[3 * i:3 * i + 3] = (-tangential, -tangential, p.fz_min)
                 upper[3 * i:3 * i + 3] = (tangential, tangential, p.fz_max)
-        return lower, upper
+        return aligned(lower), aligned(upper)
 
     def _solve_forces(self, feet: np.ndarray, com: np.ndarray, wrench: np.ndarray,
                       stance: np.ndarray) -> tuple[np.ndarray, str, int]:
@@ -418,9 +422,9 @@ class WholeBodyController:
         # a[3:6, 3i:3i+3] = skew(feet[i] - com) for the four feet in one scatter.
         a.ravel()[self._skew_dst] = (feet - com).ravel()[self._skew_src] * self._skew_sign
         aw = a.T * self._weights
-        h = aw @ a
+        h = np.matmul(aw, a, out=self._h)
         h.ravel()[::3 * N_LEGS + 1] += self.params.regularization    # the diagonal, a view
-        g = -aw @ wrench
+        g = np.negative(np.matmul(aw, wrench, out=self._g), out=self._g)
         # Warm start while the stance set holds; a new set changes the box bounds, and
         # proxsuite's warm start from a point outside the new box can end in a spurious
         # 'primal_infeasible': set up afresh then (one more init per touchdown/lift-off).
@@ -656,13 +660,13 @@ class WholeBodyController:
 
 
 # proxsuite's enum values, looked up once (an attribute chain per tick costs ~2 us).
-_WARM_START = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-_COLD_START = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+_WARM_START = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+_COLD_START = proxqp.InitialGuess.NO_INITIAL_GUESS
 _STATUS_NAMES = {
-    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED: 'solved',
-    proxsuite.proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED: 'max_iter',
-    proxsuite.proxqp.QPSolverOutput.PROXQP_PRIMAL_INFEASIBLE: 'primal_infeasible',
-    proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE: 'closest_feasible',
-    proxsuite.proxqp.QPSolverOutput.PROXQP_DUAL_INFEASIBLE: 'dual_infeasible',
-    proxsuite.proxqp.QPSolverOutput.PROXQP_NOT_RUN: 'not_run',
+    proxqp.QPSolverOutput.PROXQP_SOLVED: 'solved',
+    proxqp.QPSolverOutput.PROXQP_MAX_ITER_REACHED: 'max_iter',
+    proxqp.QPSolverOutput.PROXQP_PRIMAL_INFEASIBLE: 'primal_infeasible',
+    proxqp.QPSolverOutput.PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE: 'closest_feasible',
+    proxqp.QPSolverOutput.PROXQP_DUAL_INFEASIBLE: 'dual_infeasible',
+    proxqp.QPSolverOutput.PROXQP_NOT_RUN: 'not_run',
 }
