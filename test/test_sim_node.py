@@ -142,6 +142,27 @@ def test_lock_step_one_tick_per_command(launcher, probe):
     assert driver.latest_ns() == stamps[-1] + TICK_NS
 
 
+def test_stop_time_holds_at_its_tick(launcher, probe):
+    """With stop_time the sim steps to the first tick at or after it and no further: commands
+    for that tick are not stepped, its state is republished, the robot is not damped."""
+    start_sim(launcher, stop_time=0.01, command_timeout=0.5)   # on no tick: holds at 0.012
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    torques = np.linspace(-5.0, 5.0, 12)
+    stamps = [driver.step(torques) for _ in range(3)]
+    assert stamps[-1] == 3 * TICK_NS
+    for _ in range(10):                           # past command_timeout (0.5 wall s)
+        driver.send(stamps[-1], torques)
+        probe.spin_for(0.1)
+    assert driver.latest_ns() == stamps[-1], launcher.logs()
+    assert len([m for m in driver.joints if stamp_to_ns(m.header.stamp) == stamps[-1]]) >= 3
+    assert probe.spin_until(lambda: driver.sim_status() is not None and values_of(
+        driver.sim_status())['holding_at_stop_time'] == 'True', 5.0), launcher.logs()
+    status = driver.sim_status()
+    assert status.level == DiagnosticStatus.OK and values_of(status)['mode'] == 'lock_step'
+    assert 'reached stop_time: holding at t = 0.012 s' in launcher.logs()
+
+
 def test_bad_commands_rejected_previous_kept(launcher, probe):
     sim = start_sim(launcher)
     driver = Driver(probe)

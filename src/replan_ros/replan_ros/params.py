@@ -428,6 +428,9 @@ SIM = (
     _p('debounce_ticks', 2, 'ticks the force must stay above/below the threshold', 'ticks',
        min=1, max=100),
     _p('lock_step', True, 'advance one tick per joint_torque_cmd of the current stamp'),
+    _p('stop_time', 0.0, 'step no further than the first tick at or after this sim time and '
+       'hold there (the state republished as while waiting), so a run of a given duration '
+       'ends at the same tick every time; 0 = run until stopped', 's', min=0.0, max=1e9),
     _p('republish_period', 0.1, 'lock-step: republish the state after this long without its '
        'command', 'wall s', min=0.001, max=10.0),
     _p('command_timeout', 3.0, "without a command this long: damping mode (above the "

@@ -167,6 +167,9 @@ class SimNode(Node):
         self._tick_start_ns: int | None = None     # perf_counter_ns of the last lock-step
         self._published_ns: int | None = None      # command, and of its joint_states publish
         self.lock_step: bool = p['lock_step']
+        # Hold at the first tick at or after stop_time (0: never): a run ends at one tick.
+        self._stop_ns = sec_to_ns(p['stop_time']) if p['stop_time'] > 0.0 else None
+        self._held_logged = False
         # Whether the controller reads the truth (the ideal world): then the truth goes out
         # before imu/joint_states, so that it does not wait for it. Derived from the graph
         # when lock-step starts (_controller_reads_truth), not configured.
@@ -445,10 +448,13 @@ class SimNode(Node):
         if not self.lock_step:
             self.command = torques
             self.last_command_wall = time.monotonic()
-            if self.mode != FREE_RUN:
+            if self.mode != FREE_RUN and not self._holding():
                 self._set_mode(FREE_RUN)
             return
         if stamp_ns == self.now_ns:
+            if self._holding():
+                self.last_command_wall = time.monotonic()   # alive: no damping mode
+                return
             self._begin_budget_tick(start_ns, start_wall_ns, info)
             self.command = torques
             self.last_command_wall = time.monotonic()
@@ -469,6 +475,16 @@ class SimNode(Node):
         self._log_throttled(
             'debug', 'stale', f'ignored joint_torque_cmd stamped {stamp_ns * 1e-9:.3f} s '
             f'(state is {self.world.time:.3f} s)')
+
+    def _holding(self) -> bool:
+        """True at or after ``stop_time``: no more steps (logged once)."""
+        if self._stop_ns is None or self.now_ns < self._stop_ns:
+            return False
+        if not self._held_logged:
+            self._held_logged = True
+            self.free_timer.cancel()
+            self.get_logger().info(f'reached stop_time: holding at t = {self.world.time:.3f} s')
+        return True
 
     def _begin_budget_tick(self, start_ns: int, start_wall_ns: int, info: dict) -> None:
         """An accepted lock-step command: close the previous tick with its wait, open this
@@ -530,7 +546,8 @@ class SimNode(Node):
     def _on_watchdog(self) -> None:
         now = time.monotonic()
         silent = now - self.last_command_wall
-        if self.mode in (LOCK_STEP, FREE_RUN) and silent > self.command_timeout:
+        if (self.mode in (LOCK_STEP, FREE_RUN) and silent > self.command_timeout
+                and not self._holding()):
             self._set_mode(DAMPING)
         waiting = self.mode in (WAITING, LOCK_STEP)
         if waiting and now - self.last_publish_wall >= self.republish_period:
@@ -539,7 +556,7 @@ class SimNode(Node):
             self._publish_state(with_clock=True)
 
     def _on_free_run_timer(self) -> None:
-        if self.mode not in (FREE_RUN, DAMPING):
+        if self.mode not in (FREE_RUN, DAMPING) or self._holding():
             return
         wall0, tick0 = self._free_ref
         period = self.world.control_period
@@ -575,7 +592,10 @@ class SimNode(Node):
             level, message = diagnostics.OK, 'waiting for the first joint_torque_cmd'
         else:
             level, message = diagnostics.OK, self.mode.replace('_', '-')
+        if self._held_logged:
+            message += f', holding at stop_time ({self.world.time:.3f} s)'
         values = {'mode': self.mode, 'sim_time': self.world.time, 'tick': self.world.tick,
+                  'holding_at_stop_time': self._held_logged,
                   'truth_first': self.truth_first,
                   'real_time_factor': self._rtf(), 'commands_rejected': self.rejected,
                   'commands_ignored': self.ignored,

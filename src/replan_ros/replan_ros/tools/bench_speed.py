@@ -100,7 +100,7 @@ def graph_run(setup: str, out: Path, duration: float, log) -> dict:
     port = free_port() if live else None
     graph = Graph(out, config_dir=ROOT / 'config', profile=profile, param_files=[params_file],
                   record_dir=out / 'bag' if record else None, respawn=False,
-                  log=lambda text: log(text, quiet=True), live_port=port)
+                  log=lambda text: log(text, quiet=True), live_port=port, stop_time=duration)
     inputs = scenario_inputs(scenario)
     viewer = WatchEverything(port) if live else None
 

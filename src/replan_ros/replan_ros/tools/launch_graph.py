@@ -175,11 +175,16 @@ class Graph:
                  record_dir: Path | None = None, gui: bool = False, respawn: bool = True,
                  extra_params: dict[str, dict[str, str]] | None = None,
                  env: dict[str, str] | None = None, log=print,
-                 live_port: int | None = None) -> None:
+                 live_port: int | None = None, stop_time: float | None = None) -> None:
         """ConfigError (nothing started, nothing written) when a parameter file of the run
         does not pass ``params.check_run``. With ``live_port`` the live view
-        (``replan_ros.live_view``, a Foxglove WebSocket on that port) runs with the graph."""
+        (``replan_ros.live_view``, a Foxglove WebSocket on that port) runs with the graph.
+        ``stop_time`` (sim s, a run's duration): the sim steps no further than the first tick
+        at or after it, so the run ends at the same tick every time."""
         extra_params = extra_params or {}
+        if stop_time is not None:
+            sim = {**extra_params.get('sim', {}), 'stop_time': repr(float(stop_time))}
+            extra_params = {**extra_params, 'sim': sim}
         if profile is not None:
             param_files = [profile_file(config_dir, profile), *param_files]
         self.resolved = check_run_files(config_dir, param_files, extra_params)
@@ -752,7 +757,8 @@ def main(argv=None) -> int:
                         help=f'world profile: {" | ".join(PROFILES)} (config/profiles/NAME.yaml) '
                              f'or a YAML file; default {DEFAULT_PROFILE}')
     parser.add_argument('--duration', metavar='SIM_SECONDS', type=float,
-                        help='stop after this much sim time')
+                        help='stop after this much sim time (the sim steps no further than '
+                             'the first tick at or after it: sim.stop_time)')
     parser.add_argument('--no-respawn', action='store_true',
                         help='if a node dies, stop the others and exit non-zero')
     parser.add_argument('--run-dir', type=Path, help='folder for logs (default runs/<time>)')
@@ -776,7 +782,8 @@ def main(argv=None) -> int:
     try:
         graph = Graph(run_dir, config_dir=args.config_dir, param_files=args.params,
                       profile=args.profile, record_dir=args.record, gui=args.gui,
-                      respawn=not args.no_respawn, live_port=args.live)
+                      respawn=not args.no_respawn, live_port=args.live,
+                      stop_time=args.duration)
     except ConfigError as err:
         print(f'config error: {err}', file=sys.stderr)
         return EXIT_CONFIG
