@@ -10,8 +10,12 @@
    with their recorded stamps as ``cmd_vel_stamped`` and ``external_wrench`` (transient local
    schedule topics), so the new run sees the same inputs at the same sim times.
 3. The new ``odom`` positions are compared with the recorded ones at equal stamps; the largest
-   deviation (m) is printed. Exit code 0 if it is within ``--tolerance`` (1 mm) and the new run
-   covered the recording, 1 otherwise, 2 for a bag that cannot be re-run.
+   deviation (m) is printed. Exit code 0 if it is within ``--tolerance`` (default 0 m) and the
+   new run covered the recording, 1 otherwise, 2 for a bag that cannot be re-run.
+4. Every message of the run's state and decisions (``EXACT_TOPICS``: sensors, truth, estimate,
+   commands, plans, inputs) is compared byte for byte at each stamp, and the last stamp of
+   each bag: runs are bit-exact (docs/ARCHITECTURE.md, "Bit-exact runs"), so anything but
+   "bit-identical" names the first topic and stamp where they part.
 """
 
 from __future__ import annotations
@@ -35,9 +39,16 @@ from rclpy.serialization import deserialize_message
 from replan_ros.bag_io import check_bag
 from replan_ros.interfaces import stamp_to_ns, stamp_to_sec
 from replan_ros.params import ConfigError
+from replan_ros.stamped_buffer import cdr_header_stamp_ns
 from replan_ros.tools.launch_graph import NODES
 
 INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped}
+# What a run computes, tick by tick and re-plan by re-plan; each message starts with a
+# std_msgs/Header. Left out: wall-clock figures (/diagnostics, /rosout, solve times) and what
+# is derived for viewers at the recorder's pace.
+EXACT_TOPICS = ('/joint_states', '/imu', '/joint_torque_cmd', '/odom', '/contacts',
+                '/contact_events', '/ground_truth/odom', '/ground_truth/contacts', '/footholds',
+                '/com_plan', '/zmp_plan', '/com_path', '/velocity_setpoint', '/applied_wrench')
 # The simulator's truth; bags recorded before the state estimator have it on /odom.
 ODOM_TOPIC = '/ground_truth/odom'
 LEGACY_ODOM_TOPIC = '/odom'
@@ -197,16 +208,75 @@ def compare_trajectories(recorded: dict[int, np.ndarray],
                       float(np.sqrt(np.mean(dev ** 2))))
 
 
-def _find_bag(folder: Path) -> Path:
+def stamped_messages(bag: str | Path) -> dict[str, dict[int, bytes]]:
+    """topic -> stamp ns -> serialized message (the first of each stamp: a republished tick
+    is the same message again) of the ``EXACT_TOPICS`` in ``bag``."""
+    out: dict[str, dict[int, bytes]] = {}
+    with open(bag, 'rb') as stream:
+        for _schema, channel, message in make_reader(stream).iter_messages(
+                topics=list(EXACT_TOPICS)):
+            stamp = cdr_header_stamp_ns(message.data)
+            if stamp is not None:
+                out.setdefault(channel.topic, {}).setdefault(stamp, bytes(message.data))
+    return out
+
+
+@dataclass
+class MessageComparison:
+    """Two runs' ``EXACT_TOPICS`` compared byte for byte at their common stamps."""
+
+    topics: int                     # topics in either bag
+    messages: int                   # messages compared (common stamps, all topics)
+    differing: dict[str, tuple[int, float]]     # topic -> (stamps that differ, first one s)
+    end: tuple[float, float]        # last stamp of each run (s), over all its topics
+
+    @property
+    def identical(self) -> bool:
+        return not self.differing and self.end[0] == self.end[1]
+
+    def text(self) -> str:
+        ends = (f'both end at t = {self.end[0]:.3f} s' if self.end[0] == self.end[1] else
+                f'they end at t = {self.end[0]:.3f} s and {self.end[1]:.3f} s')
+        if not self.differing:
+            return (f'bit-identical ({self.messages} messages of {self.topics} topics at '
+                    f'common stamps), {ends}')
+        first = min(self.differing.items(), key=lambda item: (item[1][1], item[0]))
+        return (f'DIFFERENT: {len(self.differing)} of {self.topics} topics differ, first '
+                f'{first[0]} at t = {first[1][1]:.3f} s ({first[1][0]} stamps); {ends}')
+
+
+def compare_messages(bag_a: str | Path, bag_b: str | Path) -> MessageComparison:
+    """Byte-for-byte comparison of two bags' ``EXACT_TOPICS`` (stamp by stamp)."""
+    a, b = stamped_messages(bag_a), stamped_messages(bag_b)
+    messages = 0
+    differing: dict[str, tuple[int, float]] = {}
+    for topic in sorted(set(a) | set(b)):
+        ta, tb = a.get(topic, {}), b.get(topic, {})
+        common = set(ta) & set(tb)
+        messages += len(common)
+        bad = sorted(stamp for stamp in common if ta[stamp] != tb[stamp])
+        if bad:
+            differing[topic] = (len(bad), bad[0] * 1e-9)
+
+    def end(run: dict[str, dict[int, bytes]]) -> float:
+        return max((max(stamps) for stamps in run.values() if stamps), default=0) * 1e-9
+
+    return MessageComparison(len(set(a) | set(b)), messages, differing, (end(a), end(b)))
+
+
+def find_bag(folder: Path) -> Path:
+    """The newest bag in ``folder`` (a run's bag folder)."""
     bags = sorted(folder.glob('*.mcap'), key=lambda p: p.stat().st_mtime)
     if not bags:
-        raise RerunError(f'the re-run wrote no bag in {folder}')
+        raise RerunError(f'no bag (*.mcap) in {folder}')
     return bags[-1]
 
 
-def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = False,
-          config_dir: Path | None = None, log=print, progress=None) -> tuple[Comparison, int]:
-    """Re-run ``bag`` into ``out_dir``; returns the comparison and the launcher's exit code.
+def rerun(bag: Path, out_dir: Path, *, tolerance: float = 0.0, gui: bool = False,
+          config_dir: Path | None = None, log=print,
+          progress=None) -> tuple[Comparison, int, MessageComparison]:
+    """Re-run ``bag`` into ``out_dir``; returns the trajectory comparison, the launcher's
+    exit code and the message comparison.
     ``progress``: a ``launch_graph.ProgressLine`` to print the progress on while it runs."""
     from replan_ros import qos
     from replan_ros.tools.launch_graph import Graph, ScheduledInputs, run_graph
@@ -230,7 +300,8 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
     bag_dir = out_dir / 'bag'
     # The recorded parameter files include the run's profile: none is added again.
     graph = Graph(out_dir, config_dir=new_config, param_files=param_files, profile=None,
-                  record_dir=bag_dir, gui=gui, respawn=False, extra_params=extra_params, log=log)
+                  record_dir=bag_dir, gui=gui, respawn=False, extra_params=extra_params, log=log,
+                  stop_time=run.duration)
 
     def send_inputs(node) -> list:
         deliveries = ScheduledInputs(setpoints, wrenches).publish(node)
@@ -242,8 +313,9 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 1e-3, gui: bool = Fals
     event_times = [stamp_to_sec(m.header.stamp) for m in [*setpoints, *wrenches]]
     code = run_graph(graph, run.duration, wall_timeout=max(300.0, 20.0 * run.duration),
                      on_start=send_inputs, progress=progress, event_times=event_times)
-    new_run = load_run(_find_bag(bag_dir))
-    return compare_trajectories(run.odom, new_run.odom), code
+    new_bag = find_bag(bag_dir)
+    return (compare_trajectories(run.odom, load_run(new_bag).odom), code,
+            compare_messages(bag, new_bag))
 
 
 def report(comparison: Comparison, tolerance: float) -> tuple[str, bool]:
@@ -261,7 +333,9 @@ def main(argv=None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('bag', type=Path)
     parser.add_argument('--out', type=Path, help='output folder (default runs/rerun-<time>)')
-    parser.add_argument('--tolerance', type=float, default=1e-3, help='m (default 0.001)')
+    parser.add_argument('--tolerance', type=float, default=0.0,
+                        help='m (default 0: runs are bit-exact on the same code and machine; '
+                             'loosen it for a bag of another revision or machine)')
     parser.add_argument('--gui', action='store_true')
     parser.add_argument('--against', type=Path, metavar='OTHER_BAG',
                         help='compare BAG with another recorded run instead of re-running '
@@ -274,18 +348,21 @@ def main(argv=None) -> int:
         try:
             comparison = compare_trajectories(load_run(args.bag).odom,
                                               load_run(args.against).odom)
+            messages = compare_messages(args.bag, args.against)
         except (RerunError, OSError) as err:
             print(f'rerun: {err}', file=sys.stderr)
             return 2
         text, ok = report(comparison, args.tolerance)
         print(text)
+        print(f'[rerun] messages: {messages.text()}')
         return 0 if ok else 1
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'rerun-{time.strftime("%Y%m%d-%H%M%S")}'
     try:
         from replan_ros.tools.launch_graph import ProgressLine
-        comparison, code = rerun(args.bag, out, tolerance=args.tolerance, gui=args.gui,
-                                 progress=None if args.quiet else ProgressLine())
+        comparison, code, messages = rerun(args.bag, out, tolerance=args.tolerance,
+                                           gui=args.gui,
+                                           progress=None if args.quiet else ProgressLine())
     except ConfigError as err:      # the recorded configuration no longer passes the check
         print(f'config error: {err}', file=sys.stderr)
         return 2
@@ -294,6 +371,7 @@ def main(argv=None) -> int:
         return 2
     text, ok = report(comparison, args.tolerance)
     print(text)
+    print(f'[rerun] messages: {messages.text()}')
     if code != 0:
         print(f'[rerun] the launcher exited with code {code}', file=sys.stderr)
     return 0 if ok and code == 0 else 1

@@ -1,6 +1,6 @@
 """Run a scripted scenario headless and write the bag, metrics.json and plots.
 
-    scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--quiet]
+    scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--quiet] [--repeat N]
 
 A scenario file (see config/scenarios/ and the README):
 
@@ -22,7 +22,9 @@ one ends the run with one ``config error:`` line and exit code 2. Events are sen
 simulation starts, stamped with their sim time, on the transient-local
 schedule topics (`cmd_vel_stamped`, `external_wrench`), so the same file always gives the same run.
 While it runs, a progress line (launch.sh's, plus ``events due/sent``) is printed unless
-``--quiet``.
+``--quiet``. The sim stops at the scenario's duration (its ``stop_time``), so a run ends at the
+same tick every time; ``--repeat N`` runs it N times and says whether the runs are
+bit-identical (docs/ARCHITECTURE.md, "Bit-exact runs").
 """
 
 from __future__ import annotations
@@ -54,6 +56,13 @@ from replan_ros.tools.launch_graph import (
     live_argv,
     profile_file,
     run_graph,
+)
+from replan_ros.tools.rerun import (
+    RerunError,
+    compare_messages,
+    compare_trajectories,
+    find_bag,
+    load_run,
 )
 
 NODE_NAMES = ('sim', 'gait', 'mpc', 'wbc', 'recorder')
@@ -245,7 +254,7 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                   param_files=[params_file, *extra_param_files], record_dir=bag_dir,
                   gui=gui, respawn=False,
                   extra_params={'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}},
-                  log=log, live_port=live_port)
+                  log=log, live_port=live_port, stop_time=scenario.duration)
     inputs = scenario_inputs(scenario)
 
     def publish_events(node) -> list:
@@ -290,9 +299,18 @@ def main(argv=None) -> int:
     parser.add_argument('--quiet', action='store_true',
                         help='no progress line (sim time, real-time factor, distance, '
                              're-plans, events) while the graph runs')
+    parser.add_argument('--repeat', type=int, metavar='N', default=1,
+                        help='run it N times (OUT/run-1 ... run-N) and compare every run with '
+                             'the first: base trajectory and every message of the run\'s state '
+                             'and decisions, byte for byte (rerun.EXACT_TOPICS); exit 0 only if '
+                             'all are bit-identical')
     add_live_option(parser)
     args = parser.parse_args(live_argv(argv))
     check_live_port(parser, args.live)
+    if args.repeat < 1:
+        parser.error('--repeat takes a number of runs >= 1')
+    if args.repeat > 1 and args.no_bag:
+        parser.error('--repeat compares the runs\' bags: it cannot go with --no-bag')
     config_dir = Path(os.environ.get('REPLAN_CONFIG', 'config'))
     for path in args.params:
         if not path.is_file():
@@ -313,13 +331,44 @@ def main(argv=None) -> int:
     out = args.out or root / 'runs' / f'{scenario.name}-{time.strftime("%Y%m%d-%H%M%S")}'
     print(f'[scenario] {scenario.name}: {scenario.duration} s of sim time, profile '
           f'{scenario.profile}, output in {out}')
-    metrics = run_scenario(scenario, out, gui=args.gui, config_dir=config_dir,
-                           extra_param_files=args.params,
-                           progress=None if args.quiet else ProgressLine(),
-                           plots=not args.no_plots, keep_bag=not args.no_bag,
-                           live_port=args.live)
-    print(summary(metrics, out))
-    return 0 if metrics.get('completed') else 1
+    outs = [out] if args.repeat == 1 else [out / f'run-{k}' for k in range(1, args.repeat + 1)]
+    completed = True
+    for run_out in outs:
+        metrics = run_scenario(scenario, run_out, gui=args.gui, config_dir=config_dir,
+                               extra_param_files=args.params,
+                               progress=None if args.quiet else ProgressLine(),
+                               plots=not args.no_plots, keep_bag=not args.no_bag,
+                               live_port=args.live)
+        print(summary(metrics, run_out))
+        completed &= bool(metrics.get('completed'))
+    if args.repeat > 1:
+        identical = compare_repeats(scenario.name, outs)
+        return 0 if completed and identical else 1
+    return 0 if completed else 1
+
+
+def compare_repeats(name: str, outs: list[Path], log=print) -> bool:
+    """Compare every run of ``outs`` with the first (base trajectory, every message of
+    ``rerun.EXACT_TOPICS``, the last stamp); True if all are bit-identical."""
+    try:
+        bags = [find_bag(run_out / 'bag') for run_out in outs]
+        first = load_run(bags[0]).odom
+        largest, identical = 0.0, True
+        for k, bag in enumerate(bags[1:], start=2):
+            trajectory = compare_trajectories(first, load_run(bag).odom)
+            messages = compare_messages(bags[0], bag)
+            largest = max(largest, trajectory.max_deviation)
+            identical &= messages.identical and trajectory.max_deviation == 0.0 \
+                and trajectory.missing == 0
+            log(f'[repeat] run {k} against run 1: base position {trajectory.max_deviation:.3g} '
+                f'm at most ({trajectory.matched} stamps, {trajectory.missing} missing); '
+                f'messages {messages.text()}')
+    except (RerunError, OSError) as err:
+        log(f'[repeat] cannot compare the runs: {err}')
+        return False
+    log(f'[repeat] {name}: {len(outs)} runs, largest base position difference {largest:.3g} m; '
+        + ('every run bit-identical to run 1' if identical else 'the runs DIFFER'))
+    return identical
 
 
 def summary(metrics: dict, out: Path) -> str:
