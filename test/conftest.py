@@ -14,7 +14,14 @@ from __future__ import annotations
 import os
 
 import pytest
-from harness import CONFIG_DIR, DomainReservation, Launcher, Probe
+from harness import (
+    CONFIG_DIR,
+    DomainReservation,
+    Launcher,
+    Probe,
+    domain_processes,
+    reap_leftovers,
+)
 
 __all__ = ['CONFIG_DIR']
 
@@ -49,6 +56,35 @@ def _failed(request) -> bool:
 @pytest.fixture(scope='session')
 def ros_domain() -> int:
     return _session_domain.domain_id
+
+
+def _no_leftovers(domain: int, before: set[int], what: str) -> None:
+    left = reap_leftovers(domain, before)
+    if left:
+        pytest.fail(f'{what} left {len(left)} process(es) running on the session domain '
+                    f'{domain} (killed now): ' + '; '.join(
+                        f'{pid}: {cmd[:160]}' for pid, cmd in sorted(left.items())),
+                    pytrace=False)
+
+
+@pytest.fixture(scope='module', autouse=True)
+def no_leftover_processes_of_module(request):
+    """Every process that a test module (or its module fixtures) started on the session
+    domain is gone at its end: a node left running would publish into the next tests (a
+    stray sim's /diagnostics once failed test_wbc_node in CI)."""
+    domain = _session_domain.domain_id
+    before = set(domain_processes(domain))
+    yield
+    _no_leftovers(domain, before, f'module {request.module.__name__}')
+
+
+@pytest.fixture(autouse=True)
+def no_leftover_processes(request, no_leftover_processes_of_module):
+    """The same for each test (module fixtures' processes, started before it, may stay)."""
+    domain = _session_domain.domain_id
+    before = set(domain_processes(domain))
+    yield
+    _no_leftovers(domain, before, f'test {request.node.name}')
 
 
 @pytest.fixture

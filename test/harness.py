@@ -6,6 +6,7 @@ installed console scripts started as processes, and the probe is a real rclpy no
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import signal
@@ -78,6 +79,41 @@ def _param_value(value: object) -> str:
     if isinstance(value, str):
         return value if value else "''"
     return repr(value)
+
+
+def domain_processes(domain_id: int) -> dict[int, str]:
+    """pid -> command line of every process of this machine, but this one, whose environment
+    has ``ROS_DOMAIN_ID=domain_id``: the nodes, launchers and scripts of the test session's
+    domain (a graph started by a script inherits the variable)."""
+    marker = f'ROS_DOMAIN_ID={domain_id}'.encode()
+    found: dict[int, str] = {}
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if marker not in (entry / 'environ').read_bytes().split(b'\0'):
+                continue
+            found[int(entry.name)] = (entry / 'cmdline').read_bytes().replace(
+                b'\0', b' ').decode(errors='replace').strip()
+        except OSError:             # gone meanwhile, or not ours to read
+            continue
+    return {pid: cmd for pid, cmd in found.items() if cmd}    # zombies have no command line
+
+
+def reap_leftovers(domain_id: int, before: set[int], grace: float = 10.0) -> dict[int, str]:
+    """Processes of the domain that were not there at ``before`` and are still alive after
+    ``grace`` s: killed (SIGKILL); returns what they were."""
+    end = time.monotonic() + grace
+    while True:
+        left = {pid: cmd for pid, cmd in domain_processes(domain_id).items()
+                if pid not in before}
+        if not left or time.monotonic() >= end:
+            break
+        time.sleep(0.2)
+    for pid in left:
+        with contextlib.suppress(OSError):        # gone meanwhile
+            os.kill(pid, signal.SIGKILL)
+    return left
 
 
 class NodeProcess:

@@ -1,8 +1,10 @@
 """The harness itself: isolated domains, real processes, clean teardown."""
 
 import signal
+import subprocess
+import sys
 
-from harness import DomainReservation, Launcher, Probe
+from harness import DomainReservation, Launcher, Probe, domain_processes, graph_env, reap_leftovers
 
 
 def test_reserved_domains_are_unique_while_held():
@@ -41,3 +43,21 @@ def test_node_processes_stop_on_sigint(launcher, probe):
     talker.signal(signal.SIGINT)
     talker.process.wait(10)
     assert talker.process.returncode == 0, talker.log()
+
+
+def test_a_process_left_on_a_domain_is_found_and_killed(reserve_domain):
+    """What the conftest's leftover check relies on: a process started with the domain in its
+    environment (as a script's graph inherits it) is found by it, and killed."""
+    domain = reserve_domain()
+    before = set(domain_processes(domain))
+    stray = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'],
+                             env=graph_env(domain), start_new_session=True)
+    try:
+        assert stray.pid in domain_processes(domain)
+        left = reap_leftovers(domain, before, grace=0.5)
+        assert list(left) == [stray.pid] and 'time.sleep(60)' in left[stray.pid]
+        assert stray.wait(5) == -signal.SIGKILL
+        assert stray.pid not in domain_processes(domain)
+    finally:
+        if stray.poll() is None:
+            stray.kill()
