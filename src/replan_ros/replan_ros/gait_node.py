@@ -27,12 +27,10 @@ import time
 from collections import deque
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, Twist, TwistStamped, Vector3
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import ColorRGBA
@@ -63,8 +61,9 @@ from replan_ros.interfaces import (
     sec_to_stamp,
     stamp_to_ns,
 )
+from replan_ros.node_main import run_node
 from replan_ros.on_demand import OnDemandSubscriptions
-from replan_ros.params import declare_node_parameters
+from replan_ros.params import declare_node_parameters, gait_params
 from replan_ros.qos import (
     COMMAND,
     CONTACTS,
@@ -156,27 +155,8 @@ class GaitNode(Node):
             self.warn_period = float(value)
 
     def _gait_params(self, p) -> GaitParams:
-        defaults = GaitParams()
         try:
-            sequence = tuple(LEGS.index(str(n).lower()) for n in p['sequence'])
-            offsets = [float(v) for v in p['stance_offsets']]
-            if len(offsets) != 8:
-                raise ValueError('stance_offsets needs 8 values (x, y per leg)')
-            params = GaitParams(
-                swing_duration=float(p['swing_duration']),
-                four_feet_duration=float(p['four_feet_duration']),
-                step_height=float(p['step_height']), sequence=sequence,
-                hip_offsets=defaults.hip_offsets,
-                stance_offsets=tuple((offsets[2 * i], offsets[2 * i + 1]) for i in range(4)),
-                max_step_length_x=float(p['max_step_length_x']),
-                max_step_length_y=float(p['max_step_length_y']),
-                max_linear_x=float(p['max_linear_x']), max_linear_y=float(p['max_linear_y']),
-                max_angular_z=float(p['max_angular_z']), n_footholds=int(p['n_footholds']),
-                replan_window=int(p['replan_window']), haptic=bool(p['haptic']),
-                foothold_correction=bool(p['foothold_correction']),
-                correction_threshold=float(p['correction_threshold']),
-                idle_stance=bool(p['idle_stance']), idle_after=float(p['idle_after']),
-                idle_replan_period=float(p['idle_replan_period']))
+            params = gait_params(p)
             params.validate()
             return params
         except ValueError as err:
@@ -517,14 +497,4 @@ class GaitNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = GaitNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(GaitNode, args)

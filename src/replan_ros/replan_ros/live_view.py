@@ -20,21 +20,18 @@ needs it), as foxglove_bridge does, since every reader costs the publishing node
 sample; the reader then stays until the live view exits. Subscriptions are read on demand
 (``on_demand``) every ``take_period`` wall s, best effort for volatile topics, so the sim and
 the controller never wait for it; of a high-rate topic only the newest sample of each take is
-sent (20 Hz); a slow viewer loses its oldest frames, never slows the graph (README, "Watch the
-robot").
+sent (20 Hz); a slow viewer loses its oldest frames, never slows the graph (docs/usage.md,
+"Watch the robot").
 """
 
 from __future__ import annotations
 
 import json
 import math
-import sys
 from dataclasses import dataclass
 
-import rclpy
 from geometry_msgs.msg import Twist
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -44,6 +41,7 @@ from replan_ros import qos
 from replan_ros.bag_io import has_header, message_definition, normalize_type_name
 from replan_ros.foxglove_server import FoxgloveServer
 from replan_ros.introspection import message_class
+from replan_ros.node_main import run_node
 from replan_ros.on_demand import OnDemandSubscriptions
 from replan_ros.params import declare_node_parameters
 from replan_ros.stamped_buffer import cdr_header_stamp_ns
@@ -249,21 +247,8 @@ class LiveViewNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = LiveViewNode()
-        rclpy.spin(node)
-    except OSError as err:        # the port is taken: say so in one line
-        print(f'[live_view] {err}', file=sys.stderr, flush=True)
-        rclpy.try_shutdown()
-        sys.exit(1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    # The port taken: one line, exit code 1.
+    run_node(LiveViewNode, args, one_line_errors=(OSError,), label='live_view')
 
 
 if __name__ == '__main__':

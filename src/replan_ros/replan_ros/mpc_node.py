@@ -30,11 +30,9 @@ import time
 from collections import deque
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry, Path
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2
@@ -53,8 +51,9 @@ from replan_ros.interfaces import (
     sec_to_stamp,
     stamp_to_ns,
 )
+from replan_ros.node_main import run_node
 from replan_ros.on_demand import OnDemandSubscriptions
-from replan_ros.params import declare_node_parameters
+from replan_ros.params import declare_node_parameters, mpc_settings
 from replan_ros.qos import (
     COMMAND,
     INTERNAL_PUB_EVENTS,
@@ -125,13 +124,7 @@ class MpcNode(Node):
     def _settings(self, p) -> MpcSettings:
         # The values were checked against params.MPC; only horizon >= dt ties two together.
         try:
-            s = MpcSettings(dt=float(p['dt']), horizon=float(p['horizon']),
-                            com_height=float(p['com_height']), gravity=float(p['gravity']),
-                            jerk_weight=float(p['jerk_weight']),
-                            velocity_weight=float(p['velocity_weight']),
-                            zmp_margin=float(p['zmp_margin']),
-                            terminal_capture_point=bool(p['terminal_capture_point']),
-                            eps_abs=float(p['eps_abs']), max_iter=int(p['max_iter']))
+            s = mpc_settings(p)
             if not (s.dt > 0 and s.horizon >= s.dt and s.com_height > 0 and s.gravity > 0
                     and s.jerk_weight > 0 and s.velocity_weight >= 0 and s.zmp_margin >= 0
                     and s.eps_abs > 0 and s.max_iter > 0):
@@ -313,14 +306,4 @@ class MpcNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = MpcNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(MpcNode, args)

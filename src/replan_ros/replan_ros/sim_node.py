@@ -43,24 +43,28 @@ from collections import deque
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
 from replan_core.robot_variant import perturbed_urdf
-from replan_core.sensors import ImuNoiseParams, ImuSensor, JointSensor, JointSensorParams
-from replan_core.sim_world import STANDING_POSE, ActuatorParams, SimWorld
+from replan_core.sensors import ImuSensor, JointSensor
+from replan_core.sim_world import STANDING_POSE, SimWorld
 from replan_core.types import JOINT_NAMES, WORLD_FRAME
 from replan_ros import diagnostics, qos
 from replan_ros.direct_take import DirectTake
 from replan_ros.interfaces import ns_to_stamp, sec_to_ns, stamp_to_ns
+from replan_ros.node_main import run_node
 from replan_ros.on_demand import helper_name
-from replan_ros.params import declare_node_parameters
+from replan_ros.params import (
+    actuator_params,
+    declare_node_parameters,
+    imu_noise_params,
+    joint_sensor_params,
+)
 from replan_ros.stamped_buffer import cdr_header_stamp_ns
 from replan_ros.tick_budget import TickBudget
 from replan_ros.tick_cdr import (
@@ -126,11 +130,7 @@ class SimNode(Node):
                 'using HyQ standing pose')
             standing = STANDING_POSE.copy()
         model_urdf = urdf
-        actuator = ActuatorParams(
-            time_constant=p['actuator_time_constant'], delay=p['actuator_delay'],
-            viscous_damping=p['joint_viscous_damping'],
-            coulomb_friction=p['joint_coulomb_friction'],
-            torque_limit_scale=p['torque_limit_scale'])
+        actuator = actuator_params(p)
         try:
             urdf = self._robot_urdf(urdf, p)
             self.world = SimWorld(
@@ -146,18 +146,9 @@ class SimNode(Node):
             self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')
             raise SystemExit(1) from None
         dt = p['control_period']
-        imu_noise = ImuNoiseParams(
-            gyro_noise_density=p['imu_gyro_noise_density'],
-            gyro_bias_random_walk=p['imu_gyro_bias_random_walk'],
-            gyro_initial_bias=p['imu_gyro_initial_bias'],
-            accel_noise_density=p['imu_accel_noise_density'],
-            accel_bias_random_walk=p['imu_accel_bias_random_walk'],
-            accel_initial_bias=p['imu_accel_initial_bias'])
+        imu_noise = imu_noise_params(p)
         self.imu_sensor = ImuSensor(imu_noise, dt, p['noise_seed'])
-        self.joint_sensor = JointSensor(JointSensorParams(
-            encoder_counts_per_rev=p['encoder_counts_per_rev'],
-            position_noise=p['joint_position_noise'], velocity_noise=p['joint_velocity_noise'],
-            torque_noise=p['joint_torque_noise']), dt, p['noise_seed'])
+        self.joint_sensor = JointSensor(joint_sensor_params(p), dt, p['noise_seed'])
         # Variances of one sample, for the Imu message's covariances.
         self._gyro_variance = imu_noise.gyro_noise_density ** 2 / dt
         self._accel_variance = imu_noise.accel_noise_density ** 2 / dt
@@ -613,14 +604,4 @@ class SimNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(SimNode, args)

@@ -45,17 +45,15 @@ from collections import deque
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import Imu, PointCloud2
 from sensor_msgs.msg import JointState as JointStateMsg
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from replan_core.estimator import EstimatorParams, StateEstimator
+from replan_core.estimator import StateEstimator
 from replan_core.robot_model import RobotModel
 from replan_core.rotations import yaw_of
 from replan_core.types import ComPlan, ContactState, FootholdPlan, JointState
@@ -63,7 +61,6 @@ from replan_core.wbc import (
     JointStandUp,
     PlanFollower,
     StandHold,
-    WbcParams,
     WholeBodyController,
     plan_ends_stand,
     trunk_tilt,
@@ -78,8 +75,9 @@ from replan_ros.interfaces import (
     sec_to_ns,
     stamp_to_ns,
 )
+from replan_ros.node_main import run_node
 from replan_ros.on_demand import OnDemandSubscriptions
-from replan_ros.params import declare_node_parameters
+from replan_ros.params import declare_node_parameters, estimator_params, wbc_params
 from replan_ros.qos import (
     COMMAND,
     CONTACTS,
@@ -131,20 +129,7 @@ class WbcNode(Node):
         super().__init__('wbc')
         # The parameters and their ranges: params.WBC, estimator.<field> included.
         p = declare_node_parameters(self, 'wbc', on_change=self._on_parameter_change)
-        params = WbcParams(
-            com_kp=np.array(p['com_kp'], float), com_kd=np.array(p['com_kd'], float),
-            trunk_kp=np.array(p['trunk_kp'], float), trunk_kd=np.array(p['trunk_kd'], float),
-            swing_kp=np.array(p['swing_kp'], float), swing_kd=np.array(p['swing_kd'], float),
-            friction=float(p['friction']), fz_min=float(p['fz_min']),
-            fz_max=float(p['fz_max']), weight_force=float(p['weight_force']),
-            weight_moment=float(p['weight_moment']),
-            regularization=float(p['regularization']),
-            haptic_velocity=float(p['haptic_velocity']),
-            touchdown_depth=float(p['touchdown_depth']),
-            fallback_kp=float(p['fallback_kp']), fallback_kd=float(p['fallback_kd']),
-            stand_up_time=float(p['stand_up_time']), stand_up_hold=float(p['stand_up_hold']),
-            stand_up_kp=float(p['stand_up_kp']), stand_up_kd=float(p['stand_up_kd']),
-            fall_tilt=float(p['fall_tilt']), fall_damping=float(p['fall_damping']))
+        params = wbc_params(p)
         self.plan_timeout = float(p['plan_timeout'])
         self.missed_replans_to_stand = int(p['missed_replans_to_stand'])
         self.first_plan_timeout = float(p['first_plan_timeout'])
@@ -181,11 +166,10 @@ class WbcNode(Node):
         self._standing_leg_height = float(np.median(self.wbc.leg_heights(standing)))
         self.estimator: StateEstimator | None = None
         if self.state_estimation or self.contact_estimation:
-            fields = {item.name: p[f'estimator.{item.name}']
-                      for item in dataclasses.fields(EstimatorParams)}
             # The controller's model: the estimator keeps a pinocchio data of its own.
-            self.estimator = StateEstimator(self.robot, EstimatorParams(**fields),
-                                            dt=period_ns / _NS)
+            self.estimator = StateEstimator(
+                self.robot, estimator_params(p),
+                dt=period_ns / _NS)
 
         # Inputs of a tick taken from their queues: stamp (ns) -> (message, core state).
         self._imu: dict[int, object] = {}
@@ -557,7 +541,7 @@ class WbcNode(Node):
 
     def _fall(self, stamp: int) -> None:
         """The trunk tilted beyond ``fall_tilt``: damp the joints from now on, until the
-        node is restarted (README, "Faults and recovery")."""
+        node is restarted (docs/usage.md, "Faults and recovery")."""
         p = self.wbc.params
         self._fallen = (stamp / _NS, self._tilt)
         self._follower = None
@@ -880,17 +864,7 @@ class WbcNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = WbcNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(WbcNode, args)
 
 
 if __name__ == '__main__':

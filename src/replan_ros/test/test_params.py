@@ -266,3 +266,65 @@ def test_scenario_params_and_terrain_are_checked():
                          ids=lambda p: p.stem)
 def test_shipped_scenarios_pass(path):
     check_scenario(parse_scenario(path.read_text(), str(path)), CONFIG)
+
+
+def _same_types(a, b) -> list[str]:
+    """The fields of two dataclass instances whose types (arrays: dtype and shape) differ."""
+    import numpy as np
+    bad = []
+    for item in dataclasses.fields(a):
+        x, y = getattr(a, item.name), getattr(b, item.name)
+        if isinstance(y, np.ndarray):
+            same = isinstance(x, np.ndarray) and (x.dtype, x.shape) == (y.dtype, y.shape)
+        else:
+            same = type(x) is type(y)
+        if not same:
+            bad.append(item.name)
+    return bad
+
+
+@pytest.mark.parametrize('node, build, core', [
+    ('gait', params.gait_params, 'replan_core.gait.GaitParams'),
+    ('mpc', params.mpc_settings, 'replan_core.mpc.MpcSettings'),
+    ('wbc', params.wbc_params, 'replan_core.wbc.WbcParams'),
+    ('wbc', params.estimator_params, 'replan_core.estimator.EstimatorParams'),
+    ('sim', params.actuator_params, 'replan_core.sim_world.ActuatorParams'),
+    ('sim', params.imu_noise_params, 'replan_core.sensors.ImuNoiseParams'),
+    ('sim', params.joint_sensor_params, 'replan_core.sensors.JointSensorParams'),
+])
+def test_each_core_dataclass_is_filled_from_its_table(node, build, core):
+    """The one conversion (dataclass_from_params) fills every field from the table's defaults
+    (or leaves it at the core's, when named fixed) with the core's types; the values are the
+    table's (where the table's default is not the core's, e.g. mpc.velocity_weight)."""
+    import importlib
+    module, name = core.rsplit('.', 1)
+    cls = getattr(importlib.import_module(module), name)
+    built, table_defaults = build(params.defaults(node)), params.defaults(node)
+    assert _same_types(built, cls()) == []
+    if node == 'mpc':
+        assert built.velocity_weight == table_defaults['velocity_weight'] == 300.0
+
+
+def test_dataclass_from_params_converts_and_refuses_a_field_without_parameter():
+    import numpy as np
+
+    @dataclasses.dataclass
+    class Core:
+        gain: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))
+        rate: float = 1.0
+        count: int = 2
+        names: tuple = ('a',)
+        solver: str = 'exact'
+
+    built = params.dataclass_from_params(
+        Core, {'x.gain': [1, 2], 'x.rate': 3, 'count_of': 4, 'x.names': ['b', 'c']},
+        prefix='x.', names={'count': 'count_of'}, fixed=('solver',))
+    assert built.gain.dtype == float and built.gain.tolist() == [1.0, 2.0]
+    assert type(built.rate) is float and built.rate == 3.0
+    assert built.count == 4 and built.names == ('b', 'c') and built.solver == 'exact'
+    with pytest.raises(KeyError, match=r"Core.solver has no parameter 'x.solver'"):
+        params.dataclass_from_params(
+            Core, {'x.gain': [1, 2], 'x.rate': 3, 'count_of': 4, 'x.names': []}, prefix='x.',
+            names={'count': 'count_of'})
+    with pytest.raises(ValueError, match='stance_offsets needs 8 values'):
+        params.gait_params({**params.defaults('gait'), 'stance_offsets': [0.0] * 6})
