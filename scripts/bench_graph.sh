@@ -11,9 +11,7 @@
 # max and every run) per profile, the realistic/ideal ratio of each round, peak memory, MPC
 # solve times, distance.
 #   Usage: scripts/bench_graph.sh [--runs N] [OUT_DIR]
-set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; }
+source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 runs=3
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -23,9 +21,7 @@ while [ $# -gt 0 ]; do
         *) break ;;
     esac
 done
-[ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
-# shellcheck disable=SC1091
-source "$ROOT/scripts/env.sh"
+replan_env
 out="${1:-$(mktemp -d)/bench_graph}"
 mkdir -p "$out"
 for k in $(seq 1 "$runs"); do

@@ -6,14 +6,12 @@
 # friction, compliant feet, the perturbed URDF (payload, leg masses), and per tick imu_truth,
 # the IMU and joint sensor models (the PD then reads the sensed joints) and the state queries.
 # Usage: scripts/bench_sim.sh [SIM_SECONDS]   (default 4)
-set -euo pipefail
-usage() { sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'; }
+source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 for arg in "$@"; do
     case "$arg" in
         -h|--help) usage; exit 0 ;;
         -*) echo "bench_sim.sh: unknown option $arg" >&2; usage >&2; exit 2 ;;
     esac
 done
-# shellcheck disable=SC1091
-source "$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)/env.sh"
+replan_env
 python -m replan_core.bench.sim_bench "${1:-4}" 2>&1 | grep -v -e '^argv' -e 'build time'

@@ -3,9 +3,7 @@
 # forward, sideways, turn, stop) and print a summary with where the bag and plots are.
 # Usage: scripts/demo.sh [OUT_DIR] [--live [PORT]]   (default runs/demo-<time>)
 #   --live [PORT]: watch it in Foxglove/Lichtblick at ws://localhost:PORT (default 8765)
-set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,5p' "$0" | sed 's/^# \{0,1\}//'; }
+source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 # Options first, before any set-up: an option is never taken for the output folder.
 live=()
 positional=()

@@ -3,9 +3,7 @@
 # forward (replan window 1, haptic on) vs replan window 2 vs haptic off, and a lateral push
 # with vs without foothold correction.
 # Usage: scripts/paper_results.sh [OUT_DIR]   (default runs/paper-<time>)
-set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,5p' "$0" | sed 's/^# \{0,1\}//'; }
+source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 # Options first, before any set-up: an option is never taken for the output folder.
 for arg in "$@"; do
     case "$arg" in
@@ -13,9 +11,7 @@ for arg in "$@"; do
         -*) echo "paper_results.sh: unknown option $arg" >&2; usage >&2; exit 2 ;;
     esac
 done
-[ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
-# shellcheck disable=SC1091
-source "$ROOT/scripts/env.sh"
+replan_env
 out="${1:-$ROOT/runs/paper-$(date +%Y%m%d-%H%M%S)}"
 runs=()
 for name in forward paper_replan_window_2 paper_haptic_off push paper_push_no_correction; do

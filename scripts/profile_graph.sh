@@ -3,15 +3,11 @@
 # on, e.g. --record DIR), lets it settle, then over a window of wall time prints each node's
 # share of one core (from /proc) and the control ticks per second (from /clock).
 # Usage: scripts/profile_graph.sh [--window SECONDS] [LAUNCH_ARGS ...]   (scripts/launch.sh -h)
-set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,5p' "$0" | sed 's/^# \{0,1\}//'; }
+source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 for arg in "$@"; do
     case "$arg" in -h|--help) usage; exit 0 ;; esac
 done
-[ -f "$ROOT/install/setup.bash" ] || "$ROOT/scripts/setup.sh"
-# shellcheck disable=SC1091
-source "$ROOT/scripts/env.sh"
+replan_env
 window=10
 if [ "${1:-}" = "--window" ]; then window="$2"; shift 2; fi
 run_dir="$(mktemp -d)"

@@ -6,9 +6,7 @@
 #   ./scripts/test.sh            everything but tests marked slow
 #   ./scripts/test.sh --slow     everything
 #   ./scripts/test.sh -- ARGS    extra pytest arguments for test/ (e.g. -k sim)
-set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; }
+source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 cd "$ROOT"
 marker=(-m "not slow")
 extra=()

@@ -7,14 +7,7 @@
 #   scripts/topic.sh nodes                          node names (ros2 node list)
 # Sets up its own environment (no need to source scripts/env.sh); the graph must be on the
 # same ROS_DOMAIN_ID. scripts/topic.sh COMMAND --help for each command's options.
-set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; }
-if [ ! -f "$ROOT/install/setup.bash" ]; then
-    # Help needs no set-up (and must not start one); anything else sets up first.
-    case " $* " in *" -h "*|*" --help "*) usage; exit 0 ;; esac
-    "$ROOT/scripts/setup.sh"
-fi
-# shellcheck disable=SC1091
-source "$ROOT/scripts/env.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
+help_before_setup "$@"
+replan_env
 exec python -m replan_ros.tools.topic "$@"

@@ -8,7 +8,9 @@ import subprocess
 import pytest
 from harness import REPO_ROOT
 
-SCRIPTS = sorted(p.name for p in (REPO_ROOT / 'scripts').glob('*.sh') if p.name != 'env.sh')
+# env.sh and preamble.sh are sourced by the others, not run.
+SCRIPTS = sorted(p.name for p in (REPO_ROOT / 'scripts').glob('*.sh')
+                 if p.name not in ('env.sh', 'preamble.sh'))
 # Arguments that the scripts with positionals accept, so that the unknown option also comes
 # after them. bench_graph.sh (not ours to change) stops parsing at its OUT_DIR, so it is only
 # checked with the option first.
