@@ -6,7 +6,7 @@ tick. A subscription spun by the node's executor wakes the Python process for ev
 walks the executor's wait set each time; on a 2-core machine those wake-ups of the bystanders
 took the CPU from the lock-step chain sim -> wbc -> sim: two of them took a sim/controller
 round trip from 0.48 to 1.30 ms, two that only queue the samples to 0.62 ms
-(scripts/bench_rclpy.sh; README, "Performance"). Here the subscriptions belong to a helper
+(scripts/bench_rclpy.sh; docs/performance.md). Here the subscriptions belong to a helper
 node that no executor spins: Fast DDS keeps the newest ``depth`` samples of each in its reader
 queue (KEEP_LAST), and ``drain`` takes them, oldest first, when the node needs them. This is
 rclcpp's ``Subscription::take()`` pattern; rclpy offers it only through the subscription's

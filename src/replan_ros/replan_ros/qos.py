@@ -52,7 +52,7 @@ CLOCK = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
 # No QoS-event handlers on the topics between our own nodes, whose profiles all come from this
 # module and so cannot mismatch. rclpy turns each handler into a waitable that its executor walks
 # in Python at every wake-up: 134 us per message with them against 71 us without
-# (scripts/bench_rclpy.sh, README "Performance"). Inputs from users (cmd_vel, cmd_vel_stamped,
+# (scripts/bench_rclpy.sh, docs/performance.md). Inputs from users (cmd_vel, cmd_vel_stamped,
 # external_wrench) keep rclpy's default handlers, which warn about an incompatible QoS.
 INTERNAL_SUB_EVENTS = SubscriptionEventCallbacks(use_default_callbacks=False)
 INTERNAL_PUB_EVENTS = PublisherEventCallbacks(use_default_callbacks=False)

@@ -6,7 +6,7 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
 - The subscriptions are read on demand (``on_demand.py``): their samples wait in the DDS queues
   (``queue_depth`` each) and are taken every ``take_period`` wall s, all topics at once, and
   written in the order they were received. One wake-up per period instead of one per message
-  keeps the recorder from slowing the lock-step graph (README, "Performance").
+  keeps the recorder from slowing the lock-step graph (docs/performance.md).
 - The subscription QoS follows the publishers, as rosbag2 does: reliable only if every publisher
   is reliable, transient local only if every publisher is (so latched plans are received).
 - Times: ``log_time`` = the ``log_time_clock`` (``sim``: the sim time, as
@@ -21,7 +21,7 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
   the type has a header, else the receive time) or ``receive``.
 - Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s (checked at every take, so also
   when nothing is recorded). Everything runs in the executor's thread.
-- What a viewer needs to draw the robot (``state_view``, README "Watch the robot"):
+- What a viewer needs to draw the robot (``state_view``, docs/usage.md, "Watch the robot"):
   ``/robot_description`` at the start, then ``/tf`` (``tf2_msgs``, written from its schema),
   contact force markers and plottable figures, derived from the recorded topics as they are
   taken; written, never subscribed over DDS.

@@ -1,7 +1,7 @@
 """What a viewer needs to draw the robot, derived from the graph's own topics (no Node here).
 
 Used by the recorder (written into every bag) and by the live view (served over WebSocket), so
-both show the same: one implementation, off the 250 Hz critical path (README, "Watch the
+both show the same: one implementation, off the 250 Hz critical path (docs/usage.md, "Watch the
 robot").
 
 - ``/robot_description`` (``std_msgs/String``): the model URDF, as robot_state_publisher.

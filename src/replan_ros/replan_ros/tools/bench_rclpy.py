@@ -1,4 +1,4 @@
-"""What rclpy costs the lock-step chain, measured (scripts/bench_rclpy.sh; README, "Performance").
+"""What rclpy costs the lock-step chain, measured (scripts/bench_rclpy.sh; docs/performance.md).
 
 1. ``executor``: one node publishes to itself and spins once per message, with rclpy's default
    QoS-event handlers on its 8 publishers and subscriptions and without them

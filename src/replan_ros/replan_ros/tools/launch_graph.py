@@ -221,7 +221,7 @@ class Graph:
             self.nodes.append(ManagedNode(name, cmd, self.log_dir / f'{name}.log', respawn))
         if live_port is not None:
             # First, so that viewers see the graph from its start; it publishes nothing the
-            # graph waits for (README, "Watch the robot").
+            # graph waits for (docs/usage.md, "Watch the robot").
             cmd = [sys.executable, '-m', 'replan_ros.live_view', '--ros-args',
                    '-r', '__node:=live_view',
                    '--params-file', str(config_dir / 'live_view.yaml')]

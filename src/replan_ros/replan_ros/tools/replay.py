@@ -76,7 +76,7 @@ class ReplayNode(Node):
                 msg_type = message_class(info.type_name)
             except ValueError as err:
                 # tf2_msgs is not in the installed wheels: /tf lives in bags and in the live
-                # view only (README, "Watch the robot"); a viewer reads it from the bag.
+                # view only (docs/usage.md, "Watch the robot"); a viewer reads it from the bag.
                 log = (self.get_logger().info if info.type_name.startswith('tf2_msgs/')
                        else self.get_logger().error)
                 log(f'not replaying {topic}: {err}')

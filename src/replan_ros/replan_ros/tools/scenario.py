@@ -2,7 +2,7 @@
 
     scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--quiet] [--repeat N]
 
-A scenario file (see config/scenarios/ and the README):
+A scenario file (see config/scenarios/ and docs/usage.md, "Scenarios"):
 
     name: forward                       # optional, for the summary
     duration: 20.0                      # s of sim time
