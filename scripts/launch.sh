@@ -7,4 +7,4 @@
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
-exec python -m replan_ros.tools.launch_graph "$@"
+exec python -m replan_ros.launch.launch_graph "$@"

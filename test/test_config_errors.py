@@ -39,7 +39,7 @@ def test_launcher_refuses_a_bad_parameter_file(case, ros_domain, tmp_path):
     bad = tmp_path / 'bad.yaml'
     bad.write_text(text)
     run_dir = tmp_path / 'run'
-    result, wall = _run_tool('replan_ros.tools.launch_graph',
+    result, wall = _run_tool('replan_ros.launch.launch_graph',
                              ['--params', str(bad), '--duration', '1', '--run-dir', str(run_dir)],
                              ros_domain, timeout=60)
     assert result.returncode == 2, result.stdout + result.stderr
@@ -55,7 +55,7 @@ def test_scenario_refuses_terrain_set_in_two_places(ros_domain, tmp_path):
     scenario.write_text('duration: 2\nparams:\n  sim: {terrain: step_down}\n'
                         'events:\n  - {t: 0.5, cmd_vel: [0.1, 0.0, 0.0]}\n')
     out = tmp_path / 'out'
-    result, wall = _run_tool('replan_ros.tools.scenario', [str(scenario), '--out', str(out)],
+    result, wall = _run_tool('replan_ros.experiments.scenario', [str(scenario), '--out', str(out)],
                              ros_domain, timeout=60)
     assert result.returncode == 2, result.stdout + result.stderr
     lines = (result.stdout + result.stderr).strip().splitlines()
@@ -137,7 +137,7 @@ def test_a_node_that_keeps_dying_stops_the_graph(ros_domain, tmp_path):
     nodes idle meanwhile (the controller waits for its first plans, the sim for a command)."""
     bad = tmp_path / 'bad_urdf.yaml'
     bad.write_text("mpc:\n  ros__parameters:\n    urdf_path: '/nonexistent/robot.urdf'\n")
-    result, wall = _run_tool('replan_ros.tools.launch_graph',
+    result, wall = _run_tool('replan_ros.launch.launch_graph',
                              ['--params', str(bad), '--profile', 'ideal', '--duration', '100',
                               '--run-dir', str(tmp_path / 'run')], ros_domain, timeout=120)
     output = result.stdout + result.stderr

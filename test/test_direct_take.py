@@ -1,4 +1,4 @@
-"""The lock-step fast path (replan_ros/direct_take.py) over real DDS: samples of one
+"""The lock-step fast path (replan_ros/transport/direct_take.py) over real DDS: samples of one
 subscription taken outside the executor, in order, with their message info; it hands back when
 nothing comes in time, when told to stop, at the end of its slice, and never re-enters."""
 
@@ -10,7 +10,7 @@ import time
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
-from replan_ros.direct_take import DirectTake
+from replan_ros.transport.direct_take import DirectTake
 
 RELIABLE_50 = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 

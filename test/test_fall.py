@@ -12,9 +12,9 @@ import subprocess
 import numpy as np
 from harness import REPO_ROOT, graph_env
 
-from replan_ros import diagnostics
-from replan_ros.interfaces import stamp_to_sec
-from replan_ros.tools.run_analysis import read_messages
+from replan_ros.experiments.analysis import read_messages
+from replan_ros.messages.interfaces import stamp_to_sec
+from replan_ros.telemetry import diagnostics
 
 SCENARIO = REPO_ROOT / 'config' / 'scenarios' / 'knock_over.yaml'
 

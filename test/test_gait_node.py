@@ -18,14 +18,14 @@ from visualization_msgs.msg import MarkerArray
 
 from replan_core.gait import GaitParams, clamp_velocity
 from replan_core.types import LEGS, BaseState, ContactState
-from replan_ros.interfaces import (
+from replan_ros.messages.interfaces import (
     contacts_to_msg,
     footholds_from_msg,
     odom_from_base_state,
     sec_to_stamp,
     stamp_to_ns,
 )
-from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR
+from replan_ros.transport.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR
 
 BASE = np.array([0.0, 0.0, 0.599])
 FEET = np.array([[0.3708, 0.3241, 0.0215], [0.3708, -0.3241, 0.0215],

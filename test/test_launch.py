@@ -12,7 +12,7 @@ import time
 from geometry_msgs.msg import TwistStamped
 from harness import REPO_ROOT, graph_env
 
-from replan_ros.qos import SCHEDULE
+from replan_ros.transport.qos import SCHEDULE
 
 
 class LaunchProcess:

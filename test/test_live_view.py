@@ -29,7 +29,7 @@ from test_launch import LaunchProcess
 from visualization_msgs.msg import Marker, MarkerArray
 
 from replan_core.types import JOINT_NAMES
-from replan_ros.tools.live_client import LiveClient, free_port
+from replan_ros.view.live_client import LiveClient, free_port
 
 URDF = (REPO_ROOT / 'urdf' / 'hyq.urdf').read_text()
 WANTED = ('/robot_description', '/tf', '/odom', '/joint_states', '/view/contact_forces')
@@ -38,7 +38,7 @@ CLASSES = {'/robot_description': String, '/odom': Odometry, '/joint_states': Joi
 
 
 class Viewer(LiveClient):
-    """The live client (replan_ros.tools.live_client), decoding what it receives."""
+    """The live client (replan_ros.view.live_client), decoding what it receives."""
 
     def decode(self, topic: str, payload: bytes):
         if topic in CLASSES:

@@ -21,15 +21,15 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 from replan_core.bench.mpc_bench import HIP, crawl_plan
 from replan_core.robot_model import RobotModel
 from replan_core.types import BaseState, JointState
-from replan_ros.diagnostics import values_of
-from replan_ros.interfaces import (
+from replan_ros.messages.interfaces import (
     com_plan_from_msg,
     footholds_to_msg,
     joint_state_to_msg,
     odom_from_base_state,
     stamp_to_ns,
 )
-from replan_ros.qos import COMMAND, LATCHED, SENSOR
+from replan_ros.telemetry.diagnostics import values_of
+from replan_ros.transport.qos import COMMAND, LATCHED, SENSOR
 
 BASE = np.array([0.0, 0.0, 0.6])
 # Standing pose, JOINT_NAMES order (haa, hfe, kfe per leg; front knees back, hind forward).

@@ -1,5 +1,5 @@
-"""On-demand subscriptions (replan_ros/on_demand.py) over real DDS: samples wait in the reader
-queue, the owner's executor never takes them, ``drain`` hands them over oldest first."""
+"""On-demand subscriptions (replan_ros/transport/on_demand.py) over real DDS: samples wait in
+the reader queue, the owner's executor never takes them, ``drain`` hands them over oldest first."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import threading
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
-from replan_ros.on_demand import OnDemandSubscriptions, helper_name
-from replan_ros.qos import SENSOR
+from replan_ros.transport.on_demand import OnDemandSubscriptions, helper_name
+from replan_ros.transport.qos import SENSOR
 
 RELIABLE_20 = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -24,9 +24,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
-from replan_ros.bag_io import BagWriter, iter_decoded, qos_profiles_yaml, recover
-from replan_ros.on_demand import helper_name
-from replan_ros.qos import CONTACTS, LATCHED, SENSOR
+from replan_ros.recording.bag_io import BagWriter, iter_decoded, qos_profiles_yaml, recover
+from replan_ros.transport.on_demand import helper_name
+from replan_ros.transport.qos import CONTACTS, LATCHED, SENSOR
 
 RELIABLE = CONTACTS      # reliable, volatile, depth 50
 TICK = 0.004   # s, the graph's control period (250 Hz)

@@ -14,9 +14,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
 from replan_core.types import JOINT_NAMES
-from replan_ros import qos
-from replan_ros.diagnostics import values_of
-from replan_ros.interfaces import (
+from replan_ros.messages.interfaces import (
     contacts_from_msg,
     imu_from_msg,
     joint_state_from_msg,
@@ -24,6 +22,8 @@ from replan_ros.interfaces import (
     stamp_to_ns,
     torque_cmd_to_msg,
 )
+from replan_ros.telemetry.diagnostics import values_of
+from replan_ros.transport import qos
 
 TICK_NS = 4_000_000
 SIM_YAML = CONFIG_DIR / 'sim.yaml'

@@ -11,8 +11,8 @@ import pytest
 from geometry_msgs.msg import Twist
 from harness import CONFIG_DIR, REPO_ROOT, graph_env
 
-from replan_ros import qos
 from replan_ros.tools.teleop import DEFAULT_STEP, STEP_FRACTIONS, Limits
+from replan_ros.transport import qos
 
 TELEOP_SH = str(REPO_ROOT / 'scripts' / 'teleop.sh')
 

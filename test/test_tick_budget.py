@@ -10,11 +10,12 @@ from conftest import CONFIG_DIR
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 
-from replan_ros import diagnostics, sim_node, wbc_node
-from replan_ros.interfaces import stamp_to_sec
-from replan_ros.qos import COMMAND, SENSOR
-from replan_ros.tick_budget import parse_diagnostic_values
-from replan_ros.tools.tick_budget import OVERLAPPED
+from replan_ros.benchmarks.tick_table import OVERLAPPED
+from replan_ros.messages.interfaces import stamp_to_sec
+from replan_ros.nodes import sim_node, wbc_node
+from replan_ros.telemetry import diagnostics
+from replan_ros.telemetry.tick_budget import parse_diagnostic_values
+from replan_ros.transport.qos import COMMAND, SENSOR
 
 
 def _latest(diags, name: str) -> dict | None:

@@ -9,8 +9,8 @@ from harness import CONFIG_DIR, REPO_ROOT, graph_env
 from rclpy.qos import ReliabilityPolicy
 from std_msgs.msg import String
 
-from replan_ros import qos
 from replan_ros.tools.topic import period_stats, subscription_qos, to_plain, to_yaml
+from replan_ros.transport import qos
 
 TOPIC_SH = str(REPO_ROOT / 'scripts' / 'topic.sh')
 

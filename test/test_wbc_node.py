@@ -20,8 +20,7 @@ from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.types import BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
-from replan_ros import diagnostics
-from replan_ros.interfaces import (
+from replan_ros.messages.interfaces import (
     com_plan_to_msg,
     contacts_to_msg,
     footholds_to_msg,
@@ -30,7 +29,8 @@ from replan_ros.interfaces import (
     stamp_to_ns,
     stamp_to_sec,
 )
-from replan_ros.qos import COMMAND, CONTACTS, LATCHED, SENSOR
+from replan_ros.telemetry import diagnostics
+from replan_ros.transport.qos import COMMAND, CONTACTS, LATCHED, SENSOR
 
 STAND_Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
 FEET = np.array([[0.3708, 0.3241, 0.0218], [0.3708, -0.3241, 0.0218],

@@ -13,9 +13,9 @@ from sensor_msgs.msg import PointCloud2, PointField
 from test_bag_io import _write_bag
 
 from replan_core.types import ContactState, FootholdPlan, Step
-from replan_ros import interfaces as itf
-from replan_ros.bag_io import check_bag
-from replan_ros.tools import robustness_page, soak
+from replan_ros.experiments import robustness_page, soak
+from replan_ros.messages import interfaces as itf
+from replan_ros.recording.bag_io import check_bag
 
 
 def _contacts_msg() -> PointCloud2:

@@ -14,9 +14,15 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
-from replan_ros import bag_io
-from replan_ros.bag_io import SEPARATOR, BagWriter, iter_decoded, message_definition, recover
-from replan_ros.stamped_buffer import cdr_header_stamp_ns
+from replan_ros.recording import bag_io
+from replan_ros.recording.bag_io import (
+    SEPARATOR,
+    BagWriter,
+    iter_decoded,
+    message_definition,
+    recover,
+)
+from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
 
 def _msg_file(package, name):

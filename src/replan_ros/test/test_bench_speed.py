@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from replan_ros.mpc_node import SOLVE_TIMES_LOG
-from replan_ros.tools.bench_speed import SETUPS, mpc_solve_times, render_page, summarise
+from replan_ros.benchmarks.bench_speed import SETUPS, mpc_solve_times, render_page, summarise
+from replan_ros.nodes.mpc_node import SOLVE_TIMES_LOG
 
 
 def _round(rtf: dict, physics: dict, mpc_median: float = 1.2, mpc_p99: float = 2.0) -> dict:

@@ -11,8 +11,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.types import ComPlan
-from replan_ros import cdr
-from replan_ros.interfaces import (
+from replan_ros.messages import cdr
+from replan_ros.messages.interfaces import (
     com_plan_from_msg,
     com_plan_to_msg,
     path_msg,
@@ -98,7 +98,7 @@ def test_path_bytes_are_rclpys(frame_id, width):
 
 
 def test_bench_msgs_times_every_operation(capsys):
-    from replan_ros.tools import bench_msgs
+    from replan_ros.benchmarks import bench_msgs
 
     results = bench_msgs.measure(repeats=3)
     assert len(results) == 6 + 20 + 2      # plans; ticks: 10 operations, two ways each; view

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from replan_ros.tools.experiment_page import compare, spread, write_page
-from replan_ros.tools.experiments import (
+from replan_ros.experiments.page import compare, spread, write_page
+from replan_ros.experiments.runner import (
     ExperimentError,
     RunResult,
     bisect_impulse,
@@ -152,8 +152,8 @@ class RecordingRunner:
 def test_every_run_of_the_plan_passes_the_scenario_checks(quick):
     """The runs are checked like any scenario before they start: a setting the nodes refuse
     (a misnamed terrain key, say) must fail here, not an hour into a full run."""
-    from replan_ros.tools.experiments import run_all
-    from replan_ros.tools.scenario import check_scenario, parse_scenario
+    from replan_ros.experiments.runner import run_all
+    from replan_ros.experiments.scenario import check_scenario, parse_scenario
     plan, selected = load_plan(CONFIG / 'experiments.yaml', quick, [])
     runner = RecordingRunner()
     run_all(plan, [n for n in selected if n != 'qp_timing'], runner)

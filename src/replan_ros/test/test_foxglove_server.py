@@ -11,7 +11,7 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from replan_ros.foxglove_server import FoxgloveServer
+from replan_ros.view.foxglove_server import FoxgloveServer
 
 
 @pytest.fixture

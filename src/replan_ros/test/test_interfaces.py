@@ -16,8 +16,8 @@ from replan_core.types import (
     JointState,
     Step,
 )
-from replan_ros import interfaces as itf
-from replan_ros.tick_cdr import encode_imu, imu_from_cdr
+from replan_ros.messages import interfaces as itf
+from replan_ros.messages.tick_cdr import encode_imu, imu_from_cdr
 
 
 def _through_wire(msg):

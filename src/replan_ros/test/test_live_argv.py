@@ -1,6 +1,6 @@
 """``--live [PORT]`` before a positional: the positional is not taken for the port."""
 
-from replan_ros.tools.launch_graph import live_argv
+from replan_ros.launch.launch_graph import live_argv
 
 
 def test_a_bare_live_before_a_file_gets_the_default_port():

@@ -11,9 +11,9 @@ import pytest
 from replan_core.estimator import EstimatorParams
 from replan_core.sim_world import STANDING_POSE, TERRAINS, ActuatorParams
 from replan_ros import params
+from replan_ros.experiments.scenario import check_scenario, parse_scenario
+from replan_ros.launch.launch_graph import check_run_files
 from replan_ros.params import ConfigError, Source, check_run, resolve, sources_from_argv
-from replan_ros.tools.launch_graph import check_run_files
-from replan_ros.tools.scenario import check_scenario, parse_scenario
 
 REPO = Path(__file__).resolve().parents[3]
 CONFIG = REPO / 'config'
@@ -88,8 +88,8 @@ def test_wbc_declares_every_estimator_field():
 def test_every_node_declares_its_parameters_from_its_table_only(node):
     """One source of truth: each node declares through declare_node_parameters and nowhere
     else (the recorder had its own defaults beside its table until stop 25)."""
-    source = (REPO / f'src/replan_ros/replan_ros/{node}{"" if node == "live_view" else "_node"}'
-              '.py').read_text()
+    path = 'view/live_view' if node == 'live_view' else f'nodes/{node}_node'
+    source = (REPO / f'src/replan_ros/replan_ros/{path}.py').read_text()
     assert 'declare_node_parameters(self' in source
     assert re.search(r'\.declare_parameters?\(', source) is None
 

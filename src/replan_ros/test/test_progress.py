@@ -4,7 +4,7 @@ import io
 
 import pytest
 
-from replan_ros.tools.launch_graph import (
+from replan_ros.launch.launch_graph import (
     EVENT_WORDS,
     PROGRESS_PLAIN_PERIOD,
     PROGRESS_TTY_PERIOD,

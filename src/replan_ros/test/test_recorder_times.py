@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from itertools import pairwise
 
-from replan_ros.recorder_node import arrival_time
+from replan_ros.nodes.recorder_node import arrival_time
 
 SIM = 1_000_000_000          # ns
 

@@ -5,8 +5,14 @@ from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
 from replan_core.types import BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
-from replan_ros.bag_io import BagWriter
-from replan_ros.interfaces import (
+from replan_ros.experiments.analysis import (
+    GAIT_WINDOW,
+    analyse_run,
+    gait_window,
+    replan_wall_latency,
+)
+from replan_ros.experiments.scenario import parse_scenario
+from replan_ros.messages.interfaces import (
     com_plan_to_msg,
     contacts_to_msg,
     footholds_to_msg,
@@ -15,13 +21,7 @@ from replan_ros.interfaces import (
     sec_to_stamp,
     stamp_to_ns,
 )
-from replan_ros.tools.run_analysis import (
-    GAIT_WINDOW,
-    analyse_run,
-    gait_window,
-    replan_wall_latency,
-)
-from replan_ros.tools.scenario import parse_scenario
+from replan_ros.recording.bag_io import BagWriter
 
 TICK = 0.004          # s
 SWING = 0.5           # s

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from replan_ros.tools.scenario import ScenarioError, params_document, parse_scenario
+from replan_ros.experiments.scenario import ScenarioError, params_document, parse_scenario
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[3] / 'config' / 'scenarios').glob('*.yaml'))
 

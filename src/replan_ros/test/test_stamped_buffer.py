@@ -6,8 +6,12 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 
 from replan_core.types import BaseState
-from replan_ros.interfaces import base_state_from_odom, odom_from_base_state
-from replan_ros.stamped_buffer import RawStampedBuffer, cdr_byte_order, cdr_header_stamp_ns
+from replan_ros.messages.interfaces import base_state_from_odom, odom_from_base_state
+from replan_ros.transport.stamped_buffer import (
+    RawStampedBuffer,
+    cdr_byte_order,
+    cdr_header_stamp_ns,
+)
 
 
 def _odom_cdr(t: float, x: float) -> bytes:

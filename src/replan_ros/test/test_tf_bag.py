@@ -19,10 +19,11 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from replan_core.frames import LinkFrames, base_transform
 from replan_core.types import BaseState, ContactState, JointState
-from replan_ros.bag_io import BagWriter, qos_profiles_yaml
-from replan_ros.interfaces import contacts_to_msg, joint_state_to_msg, odom_from_base_state
-from replan_ros.qos import LATCHED
-from replan_ros.state_view import (
+from replan_ros.messages.interfaces import contacts_to_msg, joint_state_to_msg, odom_from_base_state
+from replan_ros.messages.tick_cdr import encode_odom, odom_fields_from_cdr
+from replan_ros.recording.bag_io import BagWriter, qos_profiles_yaml
+from replan_ros.transport.qos import LATCHED
+from replan_ros.view.state_view import (
     COP_MARGIN_TOPIC,
     DERIVED_TOPICS,
     FORCES_TOPIC,
@@ -38,7 +39,6 @@ from replan_ros.state_view import (
     encode_tf,
     encode_vector3_stamped,
 )
-from replan_ros.tick_cdr import encode_odom, odom_fields_from_cdr
 
 STAND_Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
 DT = 0.004

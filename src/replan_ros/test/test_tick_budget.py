@@ -7,14 +7,14 @@ import math
 
 import pytest
 
-from replan_ros.tick_budget import TickBudget, parse_diagnostic_values, parse_log_line
-from replan_ros.tools.tick_budget import (
+from replan_ros.benchmarks.tick_table import (
     OVERLAPPED,
     OVERLAPPED_PREFIX,
     ROUND_TRIP,
     SIM_OWN,
     table,
 )
+from replan_ros.telemetry.tick_budget import TickBudget, parse_diagnostic_values, parse_log_line
 
 
 def test_phases_add_up_within_a_tick_and_missing_ones_count_zero():

@@ -16,8 +16,8 @@ from sensor_msgs.msg import JointState as JointStateMsg
 
 from replan_core import rotations
 from replan_core.types import JOINT_NAMES, BaseState, ContactState, ImuReading, JointState
-from replan_ros import tick_cdr
-from replan_ros.interfaces import (
+from replan_ros.messages import tick_cdr
+from replan_ros.messages.interfaces import (
     base_state_from_odom,
     contact_events_to_msg,
     contact_rows,

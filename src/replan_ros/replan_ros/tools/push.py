@@ -24,8 +24,8 @@ from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock
 
 from replan_core.types import WORLD_FRAME
-from replan_ros import qos
-from replan_ros.interfaces import ns_to_stamp, sec_to_ns, stamp_to_ns
+from replan_ros.messages.interfaces import ns_to_stamp, sec_to_ns, stamp_to_ns
+from replan_ros.transport import qos
 
 
 class PushPublisher(Node):

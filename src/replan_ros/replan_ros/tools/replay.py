@@ -25,8 +25,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 
-from replan_ros.bag_io import check_bag, iter_raw, qos_from_yaml, summarize
-from replan_ros.introspection import message_class
+from replan_ros.messages.introspection import message_class
+from replan_ros.recording.bag_io import check_bag, iter_raw, qos_from_yaml, summarize
 
 CLOCK_TOPIC = '/clock'
 
@@ -188,7 +188,7 @@ def main(args=None):
         check_bag(opts.bag)            # every chunk: a corrupt one must not end in a traceback
     except (McapError, OSError) as err:
         print(f'replay: cannot read {opts.bag}: {err}\n(if its recorder was killed: '
-              f'python -m replan_ros.tools.bag_recover {opts.bag})', file=sys.stderr)
+              f'python -m replan_ros.recording.bag_recover {opts.bag})', file=sys.stderr)
         return 2
     if opts.info:
         print(info)

@@ -36,11 +36,11 @@ from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 
-from replan_ros.bag_io import check_bag
-from replan_ros.interfaces import stamp_to_ns, stamp_to_sec
+from replan_ros.launch.launch_graph import NODES
+from replan_ros.messages.interfaces import stamp_to_ns, stamp_to_sec
 from replan_ros.params import ConfigError
-from replan_ros.stamped_buffer import cdr_header_stamp_ns
-from replan_ros.tools.launch_graph import NODES
+from replan_ros.recording.bag_io import check_bag
+from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
 INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped}
 # What a run computes, tick by tick and re-plan by re-plan; each message starts with a
@@ -94,7 +94,7 @@ def load_run(bag: str | Path) -> RecordedRun:
         check_bag(bag)          # a truncated or corrupt bag: one line, not a traceback
     except McapError as err:
         raise RerunError(f'cannot read {bag}: {err} (if its recorder was killed: '
-                         f'python -m replan_ros.tools.bag_recover {bag})') from None
+                         f'python -m replan_ros.recording.bag_recover {bag})') from None
     run = RecordedRun()
     odom: dict[str, list[Odometry]] = {ODOM_TOPIC: [], LEGACY_ODOM_TOPIC: []}
     with open(bag, 'rb') as stream:
@@ -278,8 +278,8 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 0.0, gui: bool = False
     """Re-run ``bag`` into ``out_dir``; returns the trajectory comparison, the launcher's
     exit code and the message comparison.
     ``progress``: a ``launch_graph.ProgressLine`` to print the progress on while it runs."""
-    from replan_ros import qos
-    from replan_ros.tools.launch_graph import Graph, ScheduledInputs, run_graph
+    from replan_ros.launch.launch_graph import Graph, ScheduledInputs, run_graph
+    from replan_ros.transport import qos
 
     run = load_run(bag)
     if not run.odom:
@@ -359,7 +359,7 @@ def main(argv=None) -> int:
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'rerun-{time.strftime("%Y%m%d-%H%M%S")}'
     try:
-        from replan_ros.tools.launch_graph import ProgressLine
+        from replan_ros.launch.launch_graph import ProgressLine
         comparison, code, messages = rerun(args.bag, out, tolerance=args.tolerance,
                                            gui=args.gui,
                                            progress=None if args.quiet else ProgressLine())

@@ -38,7 +38,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
-from replan_ros import qos
+from replan_ros.transport import qos
 
 # Increments per key press, as fractions of each axis' limit; + / - move along this list.
 STEP_FRACTIONS = (0.05, 0.1, 0.25, 0.5, 1.0)

@@ -40,7 +40,7 @@ from rclpy.topic_endpoint_info import TopicEndpointInfo
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
 
-from replan_ros.introspection import message_class
+from replan_ros.messages.introspection import message_class
 
 # Discovered endpoints carry no history depth (DDS does not announce it), so a transient-local
 # subscription takes a generous queue: a late joiner then gets every sample a publisher keeps

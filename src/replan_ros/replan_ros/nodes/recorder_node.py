@@ -1,0 +1,484 @@
+"""Recorder: every topic of the graph (or a list / a regex) into an mcap bag that rosbag2,
+Foxglove and any mcap reader open (conventions in ``bag_io``).
+
+- Topics are discovered as they appear (graph polled every ``discovery_period`` s) and
+  subscribed with ``raw=True``: payloads are stored as received, serialized CDR.
+- The subscriptions are read on demand (``on_demand.py``): their samples wait in the DDS queues
+  (``queue_depth`` each) and are taken every ``take_period`` wall s, all topics at once, and
+  written in the order they were received. One wake-up per period instead of one per message
+  keeps the recorder from slowing the lock-step graph (docs/performance.md).
+- The subscription QoS follows the publishers, as rosbag2 does: reliable only if every publisher
+  is reliable, transient local only if every publisher is (so latched plans are received).
+- Times: ``log_time`` = the ``log_time_clock`` (``sim``: the sim time, as
+  ``ros2 bag record --use-sim-time``; ``wall``: the system clock) when the message arrived: its
+  DDS reception time placed between the clock readings of two takes (``arrival_time``), so log
+  times do not step by ``take_period``. The sim time is the newest ``/clock`` message taken,
+  read on demand with the rest, not through rclpy's time source (``use_sim_time`` stays false):
+  its callback woke the recorder's executor at every ``/clock`` (every 20 ms of sim time), which
+  cost 2-6 % of the graph's real-time factor (docs/ARCHITECTURE.md, "Speed targets");
+  ``publish_time`` per ``publish_time`` parameter: ``source``
+  (the DDS source timestamp, wall clock: what rosbag2 writes), ``header`` (``header.stamp`` where
+  the type has a header, else the receive time) or ``receive``.
+- Chunks close at ``chunk_size`` bytes or ``chunk_interval`` s (checked at every take, so also
+  when nothing is recorded). Everything runs in the executor's thread.
+- What a viewer needs to draw the robot (``state_view``, docs/usage.md, "Watch the robot"):
+  ``/robot_description`` at the start, then ``/tf`` (``tf2_msgs``, written from its schema),
+  contact force markers and plottable figures, derived from the recorded topics as they are
+  taken; written, never subscribed over DDS.
+- The run's configuration goes in mcap metadata records: ``replan_run`` (git revision, recorder
+  parameters, command line, ...), ``replan_config`` (path -> content of each ``config_files``
+  entry), ``replan_scenario`` (``scenario_file``), ``replan_user`` (``metadata_json``).
+- SIGINT/SIGTERM: the last chunk, indexes and summary are written. SIGKILL: the finished chunks
+  are on disk; ``python -m replan_ros.recording.bag_recover BAG`` rebuilds a complete bag from them.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock as ClockMsg
+
+from replan_ros.messages.interfaces import ns_to_stamp
+from replan_ros.messages.introspection import message_class
+from replan_ros.params import declare_node_parameters
+from replan_ros.recording.bag_io import (
+    BagWriter,
+    has_header,
+    message_definition,
+    normalize_type_name,
+    qos_profiles_yaml,
+)
+from replan_ros.telemetry import diagnostics
+from replan_ros.transport.on_demand import OnDemandSubscriptions
+from replan_ros.transport.qos import COMMAND, INTERNAL_PUB_EVENTS, LATCHED
+from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
+from replan_ros.view.state_view import (
+    DERIVED_TOPICS,
+    DESCRIPTION_TOPIC,
+    INPUT_TOPICS,
+    Derived,
+    StateView,
+    definition,
+)
+
+CLOCK_TOPIC = '/clock'
+CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
+
+
+def _git(root: Path, *args: str) -> str:
+    try:
+        out = subprocess.run(['git', '-C', str(root), *args], capture_output=True, text=True,
+                             timeout=5, check=True)
+        return out.stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ''
+
+
+def _is_hidden(topic: str) -> bool:
+    return any(part.startswith('_') for part in topic.split('/'))
+
+
+class _Topic:
+    """One recorded topic: its channel, subscription and counters."""
+
+    def __init__(self, name: str, type_name: str, channel_id: int, stamp_in_header: bool):
+        self.name = name
+        self.type_name = type_name
+        self.channel_id = channel_id
+        self.stamp_in_header = stamp_in_header
+        self.received = 0
+        self.written = 0
+
+
+class RecorderNode(Node):
+    """Records the graph into one mcap file."""
+
+    def __init__(self) -> None:
+        super().__init__('recorder')
+        # Every parameter from params.RECORDER (default, range, syntax): a wrong value stops
+        # the start with one line naming the file and key, as in every node.
+        p = declare_node_parameters(self)
+        for name in ('topics', 'config_files'):
+            p[name] = [v for v in (p[name] or []) if v]
+        self._topics_wanted = set(p['topics'])
+        self._include = re.compile(p['topics_regex']) if p['topics_regex'] else None
+        self._exclude = re.compile(p['exclude_regex']) if p['exclude_regex'] else None
+        self._include_hidden = p['include_hidden']
+        self._queue_depth = int(p['queue_depth'])
+        self._publish_time = p['publish_time']
+        self._log_time_clock = p['log_time_clock']
+        self._sim_ns = 0                # the newest /clock taken (ns of sim time), 0 before it
+
+        self.path = self._bag_path(p['output'] or p['output_dir'])
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._writer = BagWriter(self.path, chunk_size=int(p['chunk_size']),
+                                 chunk_interval=float(p['chunk_interval']),
+                                 compression=p['compression'],
+                                 library='replan_ros recorder_node (mcap-python)')
+        self._write_config(p)
+
+        self._recorded: dict[str, _Topic] = {}
+        self._skipped: set[str] = set()
+        self._warned: set[str] = set()
+        self._write_errors = 0
+        self._closed = False
+        self._view_channels: dict[str, int] = {}
+        self._view = self._make_view()
+
+        self._input = OnDemandSubscriptions(self)
+        self._batch: list[tuple[int, int, _Topic, bytes, int]] = []
+        self._last_take: tuple[int, int] | None = None     # (wall ns, node clock ns)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
+                                               event_callbacks=INTERNAL_PUB_EVENTS)
+        # Discovery and diagnostics run on the steady clock: a ROS timer under sim time would
+        # stop whenever /clock does (before the sim starts, or when it is paused).
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._discovery_timer = self.create_timer(float(p['discovery_period']), self._discover,
+                                                  clock=steady)
+        self._diag_timer = self.create_timer(float(p['diagnostics_period']), self._report,
+                                             clock=steady)
+        self._take_timer = self.create_timer(float(p['take_period']), self.take, clock=steady)
+        self.get_logger().info(f'recording to {self.path}')
+        self._discover()
+
+    # ------------------------------------------------------------------ parameters, config
+
+    @staticmethod
+    def _bag_path(output: str) -> Path:
+        stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
+        target = Path(output) if output else Path(os.environ.get('REPLAN_ROOT', '.'), 'runs')
+        if target.suffix != '.mcap':
+            target = target / f'replan_{stamp}.mcap'
+        return target.resolve()
+
+    def _write_config(self, p: dict) -> None:
+        root = Path(os.environ.get('REPLAN_ROOT', Path(__file__).resolve().parents[4]))
+        # Without git or a .git folder (a Docker image), the revision baked in at build time.
+        revision = (_git(root, 'rev-parse', 'HEAD') or os.environ.get('REPLAN_GIT_REVISION')
+                    or 'unknown')
+        status = _git(root, 'status', '--porcelain', '--untracked-files=no')
+        run = {
+            'git_revision': revision,
+            'git_dirty': 'true' if status else 'false',
+            'git_status': status,
+            'wall_start': datetime.now().astimezone().isoformat(),
+            'hostname': socket.gethostname(),
+            'ros_distro': os.environ.get('ROS_DISTRO', 'jazzy'),
+            'rmw_implementation': os.environ.get('RMW_IMPLEMENTATION', ''),
+            'ros_domain_id': os.environ.get('ROS_DOMAIN_ID', '0'),
+            'command_line': ' '.join(sys.argv),
+            'use_sim_time': str(self.get_parameter('use_sim_time').value).lower(),
+            'log_time_clock': p['log_time_clock'],
+            'recorder_parameters': json.dumps(p, sort_keys=True),
+            'config_files': json.dumps([str(Path(f).resolve()) for f in p['config_files']]),
+            'scenario_file': str(Path(p['scenario_file']).resolve()) if p['scenario_file'] else '',
+        }
+        self._writer.add_metadata('replan_run', run)
+        configs = {}
+        for name in p['config_files']:
+            path = Path(name).resolve()
+            try:
+                configs[str(path)] = path.read_text()
+            except OSError as err:
+                self.get_logger().error(f'config file {path} not stored: {err}')
+        if configs:
+            self._writer.add_metadata('replan_config', configs)
+        if p['scenario_file']:
+            path = Path(p['scenario_file']).resolve()
+            try:
+                self._writer.add_metadata('replan_scenario',
+                                          {'path': str(path), 'content': path.read_text()})
+            except OSError as err:
+                self.get_logger().error(f'scenario file {path} not stored: {err}')
+        if p['metadata_json']:
+            try:
+                extra = json.loads(p['metadata_json'])
+                if not isinstance(extra, dict):
+                    raise ValueError('not a JSON object')
+                self._writer.add_metadata('replan_user', {
+                    str(k): v if isinstance(v, str) else json.dumps(v) for k, v in extra.items()})
+            except ValueError as err:
+                self.get_logger().error(f'metadata_json not stored: {err}')
+
+    # ------------------------------------------------------------------ discovery
+
+    def _selected(self, topic: str) -> bool:
+        if self._exclude is not None and self._exclude.search(topic):
+            return False
+        if not self._topics_wanted and self._include is None:
+            return self._include_hidden or not _is_hidden(topic)
+        return topic in self._topics_wanted or (
+            self._include is not None and self._include.search(topic) is not None)
+
+    def _warn_once(self, key: str, text: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            self.get_logger().warning(text)
+
+    def _discover(self) -> None:
+        if self._closed:
+            return
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._recorded or topic in self._skipped:
+                continue
+            record = self._selected(topic)
+            # Sim time is read from /clock even when /clock is not recorded.
+            clock_only = (not record and topic == CLOCK_TOPIC
+                          and self._log_time_clock == 'sim' and CLOCK_TYPE in types)
+            if not record and not clock_only:
+                self._skipped.add(topic)
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue   # only subscribers so far: the QoS to request is not known yet
+            if clock_only:
+                self._subscribe_clock_only(publishers)
+                continue
+            if len(types) > 1:
+                self._warn_once(f'types:{topic}',
+                                f'{topic} has several types {types}; recording {types[0]}')
+            self._subscribe(topic, types[0], publishers)
+
+    @staticmethod
+    def _qos_like(profiles) -> tuple[bool, bool]:
+        """(reliable, transient local): only if every publisher is, as rosbag2 does."""
+        return (all(q.reliability == ReliabilityPolicy.RELIABLE for q in profiles),
+                all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in profiles))
+
+    def _subscribe_clock_only(self, publishers) -> None:
+        reliable, _ = self._qos_like([info.qos_profile for info in publishers])
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=(ReliabilityPolicy.RELIABLE if reliable
+                                      else ReliabilityPolicy.BEST_EFFORT))
+        self._skipped.add(CLOCK_TOPIC)
+        self._input.subscribe(ClockMsg, CLOCK_TOPIC, qos, self._on_clock_only, raw=True)
+
+    def _on_clock_only(self, data: bytes) -> None:
+        self._sim_ns = cdr_header_stamp_ns(data) or self._sim_ns
+
+    def _now_ns(self) -> int:
+        """Now on the ``log_time_clock`` (ns): the newest /clock taken, or the system clock."""
+        return self._sim_ns if self._log_time_clock == 'sim' else time.time_ns()
+
+    def _subscribe(self, topic: str, type_name: str, publishers) -> None:
+        try:
+            msg_type = message_class(type_name)
+            definition = message_definition(type_name)
+            stamp_in_header = has_header(type_name)
+        except (ValueError, OSError, RecursionError) as err:
+            self._warn_once(f'type:{topic}', f'not recording {topic}: {err}')
+            self._skipped.add(topic)
+            return
+        profiles = [info.qos_profile for info in publishers]
+        reliable, latched = self._qos_like(profiles)
+        qos = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST, depth=self._queue_depth,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                        else DurabilityPolicy.VOLATILE))
+        type_hash = str(publishers[0].topic_type_hash)
+        channel_id = self._writer.add_channel(
+            topic, normalize_type_name(type_name), qos_profiles_yaml(profiles), type_hash,
+            definition=definition)
+        entry = _Topic(topic, type_name, channel_id, stamp_in_header)
+        self._recorded[topic] = entry
+        # The channel exists before the first message can be taken.
+        self._input.subscribe(msg_type, topic, qos, self._make_callback(entry), raw=True,
+                              with_info=True)
+        self.get_logger().info(
+            f'recording {topic} [{type_name}] '
+            f'({"reliable" if reliable else "best effort"}'
+            f'{", transient local" if latched else ""})')
+
+    def _make_callback(self, entry: _Topic):
+        batch = self._batch
+
+        def on_message(data: bytes, info: dict) -> None:
+            entry.received += 1
+            batch.append((info.get('received_timestamp', 0), len(batch), entry, data,
+                          info.get('source_timestamp', 0)))
+
+        return on_message
+
+    def take(self) -> int:
+        """Take every queued message of every topic and write them in the order they were
+        received. Returns how many."""
+        if self._closed:
+            return 0
+        self._input.drain()
+        self._batch.sort(key=lambda item: (item[0], item[1]))
+        if self._log_time_clock == 'sim':
+            for _, _, entry, data, _ in self._batch:
+                if entry.name == CLOCK_TOPIC:
+                    self._sim_ns = cdr_header_stamp_ns(data) or self._sim_ns
+        take = (time.time_ns(), self._now_ns())
+        previous, self._last_take = self._last_take, take
+        for received, _, entry, data, source_time in self._batch:
+            log_time = arrival_time(received, previous, take)
+            publish_time = None
+            if self._publish_time == 'source':
+                publish_time = source_time or None
+            elif self._publish_time == 'header' and entry.stamp_in_header:
+                publish_time = cdr_header_stamp_ns(data)
+            self._write_one(entry, data, log_time,
+                            log_time if publish_time is None else publish_time)
+            if self._view is not None and entry.name in INPUT_TOPICS:
+                self._write_derived(self._view.feed(entry.name, data), log_time)
+        count = len(self._batch)
+        self._batch.clear()
+        self._writer.poll()                  # close a chunk older than chunk_interval
+        return count
+
+    # ------------------------------------------------------------------ writing
+
+    def _write_one(self, entry: _Topic, data: bytes, log_time: int, publish_time: int) -> None:
+        try:
+            self._writer.write(entry.channel_id, data, log_time, publish_time)
+            entry.written += 1
+        except Exception as err:  # one bad write must not stop the recording
+            self._write_errors += 1
+            self._warn_once('write', f'write failed: {err}')
+
+    def _make_view(self) -> StateView | None:
+        """What a viewer needs to draw the robot (state_view.py): the URDF at once, then the
+        transforms, forces and figures derived from the recorded topics. Written, never
+        subscribed: a DDS publisher of the same names (the live view's) is not recorded."""
+        self._skipped.update(DERIVED_TOPICS)
+        if not any(self._selected(t) for t in DERIVED_TOPICS):
+            return None
+        try:
+            view = StateView()
+        except (OSError, ValueError, RuntimeError) as err:
+            self.get_logger().error(f'no /tf nor /robot_description in the bag: {err}')
+            return None
+        self._write_derived([view.description()], 0)
+        return view
+
+    def _write_derived(self, items: list[Derived], log_time: int) -> None:
+        for item in items:
+            if not self._selected(item.topic):
+                continue
+            try:
+                if item.topic not in self._view_channels:
+                    profile = LATCHED if item.topic == DESCRIPTION_TOPIC else COMMAND
+                    self._view_channels[item.topic] = self._writer.add_channel(
+                        item.topic, item.type_name, qos_profiles_yaml([profile]),
+                        definition=definition(item.type_name))
+                self._writer.write(self._view_channels[item.topic], item.data, log_time,
+                                   item.stamp_ns or log_time)
+            except Exception as err:  # a viewer's topic must not stop the recording
+                self._write_errors += 1
+                self._warn_once('derived', f'{item.topic} not written: {err}')
+
+    def _counts(self) -> tuple[int, int]:
+        received = sum(t.received for t in self._recorded.values())
+        written = sum(t.written for t in self._recorded.values())
+        return received, written
+
+    def _report(self) -> None:
+        received, written = self._counts()
+        values = {
+            'file': str(self.path),
+            'topics': len(self._recorded),
+            'received': received,
+            'written': written,
+            'queued': received - written,
+            'write_errors': self._write_errors,
+            'chunks': self._writer.chunk_count,
+            'bytes': self._writer.bytes_written,
+        }
+        for topic in sorted(self._recorded):
+            entry = self._recorded[topic]
+            values[f'{topic} received'] = entry.received
+            values[f'{topic} written'] = entry.written
+        level = diagnostics.OK if not self._write_errors else diagnostics.ERROR
+        message = 'recording' if not self._write_errors else 'write errors'
+        self._diag_pub.publish(diagnostics.array(
+            ns_to_stamp(self._now_ns()),
+            diagnostics.status(f'{self.get_name()}: bag', level, message, values)))
+
+    def close(self) -> None:
+        """Stop subscriptions, write what is queued, finish the file (summary and indexes)."""
+        if self._closed:
+            return
+        self.take()
+        self._closed = True
+        self._input.destroy()
+        self._writer.close()
+        received, written = self._counts()
+        text = (f'closed {self.path}: {written} of {received} received messages written, '
+                f'{len(self._recorded)} topics, {self._writer.chunk_count} chunks')
+        if self.context.ok():
+            self.get_logger().info(text)
+        else:   # after SIGINT/SIGTERM the context is shut down: /rosout is gone
+            print(f'[recorder] {text}', file=sys.stderr, flush=True)
+
+    def destroy_node(self) -> None:
+        self.close()
+        super().destroy_node()
+
+
+def arrival_time(received_wall_ns: int, previous: tuple[int, int] | None,
+                 take: tuple[int, int]) -> int:
+    """The ``log_time_clock``'s time when a message arrived: its DDS reception time (wall,
+    CLOCK_REALTIME) placed between the previous take and this one, each a (wall ns, log clock
+    ns) pair, linearly. A message that arrived before the previous take
+    gets that take's time; without a previous take or a reception time, this take's. So log
+    times follow arrival, not the take grid, and never decrease while the clock does not."""
+    if previous is None or received_wall_ns <= 0 or take[0] <= previous[0]:
+        return take[1]
+    fraction = min(max((received_wall_ns - previous[0]) / (take[0] - previous[0]), 0.0), 1.0)
+    return previous[1] + round(fraction * (take[1] - previous[1]))
+
+
+DRAIN_QUIET = 0.3     # s without a new message: the subscriptions are drained
+DRAIN_LIMIT = 10.0    # s, longest drain before closing anyway
+
+
+def main(args=None):
+    # Own signal handling: on SIGINT/SIGTERM the recorder first takes what is still queued in
+    # its subscriptions (it runs a little behind the graph under load), then closes the bag.
+    # rclpy's handlers would shut the context down at once and lose that tail.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop: list[int] = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, _frame: stop.append(signum))
+    node = None
+    try:
+        node = RecorderNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        end = time.monotonic() + DRAIN_LIMIT
+        quiet_since = time.monotonic()
+        while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
+            if node.take():
+                quiet_since = time.monotonic()
+            time.sleep(0.05)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

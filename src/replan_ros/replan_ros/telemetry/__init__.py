@@ -1,0 +1,1 @@
+"""What the nodes report about themselves: /diagnostics and the per-tick budget."""

@@ -1,0 +1,2 @@
+"""How messages travel: QoS by role, reading on demand, taking straight from a DDS queue,
+stamped buffers."""
