@@ -6,7 +6,7 @@ import pytest
 
 from replan_ros.experiments.scenario import ScenarioError, params_document, parse_scenario
 
-SCENARIOS = sorted((Path(__file__).resolve().parents[3] / 'config' / 'scenarios').glob('*.yaml'))
+SCENARIOS = sorted((Path(__file__).resolve().parents[4] / 'config' / 'scenarios').glob('*.yaml'))
 
 
 @pytest.mark.parametrize('path', SCENARIOS, ids=lambda p: p.stem)

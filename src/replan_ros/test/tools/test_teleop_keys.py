@@ -15,7 +15,7 @@ from replan_ros.tools.teleop import (
     status_line,
 )
 
-GAIT_YAML = Path(__file__).resolve().parents[3] / 'config' / 'gait.yaml'
+GAIT_YAML = Path(__file__).resolve().parents[4] / 'config' / 'gait.yaml'
 LIMITS = Limits(vx=0.2, vy=0.1, wz=0.25)
 
 

@@ -142,7 +142,7 @@ def test_malformed_input_is_skipped(view):
 
 
 def test_shipped_layout_names_only_topics_that_exist():
-    layout = json.loads((Path(__file__).resolve().parents[3] / 'config' / 'foxglove'
+    layout = json.loads((Path(__file__).resolve().parents[4] / 'config' / 'foxglove'
                          / 'replan.json').read_text())
     graph = {'/odom', '/velocity_setpoint', '/gait_markers', '/com_path', '/zmp_plan',
              '/contacts', '/footholds', '/diagnostics', '/cmd_vel'}

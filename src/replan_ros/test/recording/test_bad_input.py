@@ -149,7 +149,7 @@ def test_an_infeasible_mpc_problem_gives_a_reason_and_a_safe_plan():
     assert 'eq. (7)' in res.reason or 'terminal' in res.reason, res.reason
     assert res.plan is not None and np.all(np.isfinite(res.plan.position))
     folder = Path(os.environ.get('REPLAN_ROBUSTNESS_DIR',
-                                 Path(__file__).resolve().parents[3] / 'runs' / 'robustness'))
+                                 Path(__file__).resolve().parents[4] / 'runs' / 'robustness'))
     folder.mkdir(parents=True, exist_ok=True)
     (folder / 'infeasible_mpc.json').write_text(json.dumps({
         'fault': 'an infeasible MPC problem (CoM 1.5 m outside the feet, 1 m/s)',

@@ -19,7 +19,7 @@ from replan_ros.experiments.runner import (
     variant,
 )
 
-CONFIG = Path(__file__).resolve().parents[3] / 'config'
+CONFIG = Path(__file__).resolve().parents[4] / 'config'
 BASE = {'name': 'walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0.0, 0.0]}]}
 
 
