@@ -100,13 +100,24 @@ def domain_processes(domain_id: int) -> dict[int, str]:
     return {pid: cmd for pid, cmd in found.items() if cmd}    # zombies have no command line
 
 
-def reap_leftovers(domain_id: int, before: set[int], grace: float = 10.0) -> dict[int, str]:
-    """Processes of the domain that were not there at ``before`` and are still alive after
-    ``grace`` s: killed (SIGKILL); returns what they were."""
+def parent_pid(pid: int) -> int | None:
+    """The parent of process ``pid`` (None once it is gone)."""
+    try:
+        status = Path(f'/proc/{pid}/status').read_text()
+    except OSError:
+        return None
+    return next((int(line.split()[1]) for line in status.splitlines()
+                 if line.startswith('PPid:')), None)
+
+
+def reap_leftovers(domain_id: int, before: set[int], grace: float = 10.0,
+                   keep: Callable[[int], bool] = lambda pid: False) -> dict[int, str]:
+    """Processes of the domain that were not there at ``before``, are not ``keep(pid)`` and are
+    still alive after ``grace`` s: killed (SIGKILL); returns what they were."""
     end = time.monotonic() + grace
     while True:
         left = {pid: cmd for pid, cmd in domain_processes(domain_id).items()
-                if pid not in before}
+                if pid not in before and not keep(pid)}
         if not left or time.monotonic() >= end:
             break
         time.sleep(0.2)

@@ -1,10 +1,19 @@
 """The harness itself: isolated domains, real processes, clean teardown."""
 
+import os
 import signal
 import subprocess
 import sys
 
-from harness import DomainReservation, Launcher, Probe, domain_processes, graph_env, reap_leftovers
+from harness import (
+    DomainReservation,
+    Launcher,
+    Probe,
+    domain_processes,
+    graph_env,
+    parent_pid,
+    reap_leftovers,
+)
 
 
 def test_reserved_domains_are_unique_while_held():
@@ -54,6 +63,11 @@ def test_a_process_left_on_a_domain_is_found_and_killed(reserve_domain):
                              env=graph_env(domain), start_new_session=True)
     try:
         assert stray.pid in domain_processes(domain)
+        assert parent_pid(stray.pid) == os.getpid()
+        # What the per-test check keeps: this process's own children (a module's graph).
+        assert reap_leftovers(domain, before, grace=0.2,
+                              keep=lambda pid: parent_pid(pid) == os.getpid()) == {}
+        assert stray.poll() is None
         left = reap_leftovers(domain, before, grace=0.5)
         assert list(left) == [stray.pid] and 'time.sleep(60)' in left[stray.pid]
         assert stray.wait(5) == -signal.SIGKILL

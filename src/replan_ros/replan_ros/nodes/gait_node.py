@@ -20,7 +20,6 @@
 
 from __future__ import annotations
 
-import bisect
 import math
 import os
 import time
@@ -48,6 +47,7 @@ from replan_core.gait import (
     stance_phases,
     stand_plan,
 )
+from replan_core.inputs import SetpointArbiter
 from replan_core.robot_model import RobotModel
 from replan_core.rotations import yaw_of
 from replan_core.types import LEGS, WORLD_FRAME, ContactState, FootholdPlan
@@ -98,7 +98,8 @@ class GaitNode(Node):
         self.min_swing_fraction = float(p['min_swing_fraction'])
         self.max_extension = float(p['max_extension'])
         self.start_delay = max(float(p['start_delay']), 0.0)
-        self.cmd_vel_timeout = float(p['cmd_vel_timeout'])
+        # Set-points, stamped and live (cmd_vel: from the sim time it arrived at).
+        self.setpoints = SetpointArbiter(float(p['cmd_vel_timeout']))
         self.reject_above = float(p['cmd_vel_reject_above'])
         self.warn_period = float(p['warn_period'])
         self.model = self._robot_model(p['urdf_path'])
@@ -127,10 +128,6 @@ class GaitNode(Node):
         self.create_timer(float(p['contacts_poll_period']), self._poll,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-        # Set-points: the last good cmd_vel and the sim time it arrived at; stamped ones by stamp.
-        self.cmd_vel: np.ndarray | None = None
-        self.cmd_vel_time = -math.inf
-        self.stamped: list[tuple[int, np.ndarray]] = []
         self.latest_stamp = 0.0        # s, newest state stamp seen (sim time for cmd_vel)
         self.rejected = 0
         self.forced = 0
@@ -148,7 +145,7 @@ class GaitNode(Node):
     def _on_parameter_change(self, name: str, value) -> None:
         """A run-time change of one of the writable parameters (params.GAIT)."""
         if name == 'cmd_vel_timeout':
-            self.cmd_vel_timeout = float(value)
+            self.setpoints.timeout = float(value)
         elif name == 'cmd_vel_reject_above':
             self.reject_above = float(value)
         elif name == 'warn_period':
@@ -225,37 +222,17 @@ class GaitNode(Node):
     def _on_cmd_vel(self, msg: Twist) -> None:
         v = self._validate((msg.linear.x, msg.linear.y, msg.angular.z), 'cmd_vel')
         if v is not None:
-            self.cmd_vel = v
             # Sim time of its arrival: the newest state stamp, once the queued ones are taken
             # (they are only queued here, processed at the next poll). Not the node's clock:
             # use_sim_time would wake the node at every /clock (config/gait.yaml).
             self.state_input.drain()
-            self.cmd_vel_time = self.latest_stamp
+            self.setpoints.set_live(v, self.latest_stamp)
 
     def _on_cmd_vel_stamped(self, msg: TwistStamped) -> None:
         t = msg.twist
         v = self._validate((t.linear.x, t.linear.y, t.angular.z), 'cmd_vel_stamped')
         if v is not None:
-            ns = stamp_to_ns(msg.header.stamp)
-            index = bisect.bisect_right([s for s, _ in self.stamped], ns)
-            self.stamped.insert(index, (ns, v))
-
-    def setpoint_at(self, t_ns: int) -> tuple[np.ndarray, str]:
-        """Set-point for a re-plan at ``t_ns`` and where it came from."""
-        index = bisect.bisect_right([s for s, _ in self.stamped], t_ns)
-        if index > 1:
-            del self.stamped[:index - 1]   # older ones can no longer be chosen
-            index = 1
-        stamped = self.stamped[index - 1] if index else None
-        t = t_ns * 1e-9
-        if self.cmd_vel is not None and (stamped is None
-                                         or self.cmd_vel_time >= stamped[0] * 1e-9):
-            if t - self.cmd_vel_time > self.cmd_vel_timeout:
-                return np.zeros(3), 'cmd_vel timed out'
-            return self.cmd_vel.copy(), 'cmd_vel'
-        if stamped is not None:
-            return stamped[1].copy(), 'cmd_vel_stamped'
-        return np.zeros(3), 'none'
+            self.setpoints.add_stamped(stamp_to_ns(msg.header.stamp), v)
 
     # ----------------------------------------------------------------------------- state
 
@@ -369,7 +346,7 @@ class GaitNode(Node):
                     feet[leg, 2] = targets[leg][2]
         yaw = yaw_of(base.quaternion)
         hips = self.model.hip_positions(base) if self.model is not None else None
-        setpoint, source = self.setpoint_at(ns)
+        setpoint, source = self.setpoints.at(ns)
         stand = self.idle.update(t, setpoint) and not initial
         was_standing = self.plan is not None and is_stand_plan(self.plan)
         try:

@@ -35,7 +35,6 @@ line at shutdown.
 
 from __future__ import annotations
 
-import bisect
 import math
 import os
 import time
@@ -50,6 +49,7 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
+from replan_core.inputs import WrenchSchedule
 from replan_core.robot_variant import perturbed_urdf
 from replan_core.sensors import ImuSensor, JointSensor
 from replan_core.sim_world import STANDING_POSE, SimWorld
@@ -204,8 +204,7 @@ class SimNode(Node):
         self.rejected = 0
         self.ignored = 0
         self._log_times: dict[str, float] = {}
-        self._wrench_queue: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # (ns, seq, f, t)
-        self._wrench_seq = 0
+        self.wrenches = WrenchSchedule()
         self._rtf_samples: deque[tuple[float, float]] = deque()
         self._free_ref = (0.0, 0)                     # (wall, tick) where free-running began
         self._damping_since = 0.0                     # sim s the last damping mode began
@@ -508,9 +507,7 @@ class SimNode(Node):
         stamp_ns = stamp_to_ns(msg.header.stamp)
         if stamp_ns == 0:                  # zero stamp: from now on
             stamp_ns = self.now_ns
-        entry = (stamp_ns, self._wrench_seq, force, torque)
-        self._wrench_seq += 1
-        bisect.insort(self._wrench_queue, entry, key=lambda e: (e[0], e[1]))
+        self.wrenches.add(stamp_ns, force, torque)
         self.get_logger().info(
             f'external_wrench F={force.tolist()} N, M={torque.tolist()} N m from '
             f't = {stamp_ns * 1e-9:.3f} s queued')
@@ -518,12 +515,10 @@ class SimNode(Node):
     def _apply_due_wrenches(self) -> None:
         """Make the latest wrench stamped at or before the current tick the active one."""
         now_ns = self.now_ns
-        due = None
-        while self._wrench_queue and self._wrench_queue[0][0] <= now_ns:
-            due = self._wrench_queue.pop(0)
+        due = self.wrenches.due(now_ns)
         if due is None:
             return
-        _, _, force, torque = due
+        force, torque = due
         self.world.set_external_wrench(force, torque)
         out = WrenchStamped()
         out.header.stamp = ns_to_stamp(now_ns)
