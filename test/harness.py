@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import os
 import random
+import shutil
 import signal
 import socket
 import subprocess
@@ -127,6 +128,9 @@ def reap_leftovers(domain_id: int, before: set[int], grace: float = 10.0,
     return left
 
 
+_DIE_WITH_PARENT = ('setpriv', '--pdeathsig', 'TERM') if shutil.which('setpriv') else ()
+
+
 class NodeProcess:
     """One node process in its own process group, its output in a log file."""
 
@@ -135,9 +139,10 @@ class NodeProcess:
         self.cmd = cmd
         self.log_path = log_path
         self._log_file = open(log_path, 'wb')  # noqa: SIM115  (closed in stop())
-        self.process = subprocess.Popen(cmd, env=env, stdout=self._log_file,
-                                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                        start_new_session=True)
+        # SIGTERM when this test process dies, as the launcher does for its nodes.
+        self.process = subprocess.Popen([*_DIE_WITH_PARENT, *cmd], env=env,
+                                        stdout=self._log_file, stderr=subprocess.STDOUT,
+                                        stdin=subprocess.DEVNULL, start_new_session=True)
 
     @property
     def alive(self) -> bool:

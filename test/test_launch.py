@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -105,6 +106,32 @@ def test_dead_node_is_reported_and_respawned_and_cmd_vel_steers(ros_domain, tmp_
         assert sum(per_node.values()) <= int(cpu.group(2)) + len(per_node), cpu.group(0)
     finally:
         launch.stop()
+
+
+def test_a_killed_launcher_leaves_no_node_running(ros_domain, tmp_path):
+    """SIGKILL of the launcher alone (as a test's timeout or `kill -9` does): its nodes, each
+    in a session of its own, get SIGTERM from the kernel (parent-death signal) and end. Before,
+    they ran on, and a stray sim published into the next run on the same domain."""
+    launch = LaunchProcess(['--run-dir', str(tmp_path / 'run')], ros_domain)
+    try:
+        pids = {}
+        for name in ('sim', 'gait', 'mpc', 'wbc'):
+            match = launch.wait_for(rf'started {name} \(pid (\d+)\)', 60)
+            assert match, launch.output
+            pids[name] = int(match.group(1))
+        assert all(_pid_alive(pid) for pid in pids.values()), launch.output
+        os.kill(launch.process.pid, signal.SIGKILL)        # the launcher, not its nodes
+        launch.process.wait(10)
+        end = time.monotonic() + 20.0
+        while time.monotonic() < end and any(_pid_alive(pid) for pid in pids.values()):
+            time.sleep(0.2)
+        assert not any(_pid_alive(pid) for pid in pids.values()), \
+            {name: pid for name, pid in pids.items() if _pid_alive(pid)}
+    finally:
+        launch.stop()
+        for pid in pids.values():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
 
 
 def test_no_respawn_stops_the_others_and_exits_non_zero(ros_domain, tmp_path):

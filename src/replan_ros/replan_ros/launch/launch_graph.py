@@ -120,6 +120,14 @@ def _stamp() -> str:
     return datetime.datetime.now().strftime('%H:%M:%S')
 
 
+# A node gets SIGTERM when the launcher dies, however it dies: a launcher killed with SIGKILL
+# (or by a test's timeout) left its nodes running in their own sessions, and a stray sim
+# published into the next run on the same domain. setpriv (util-linux, in every Debian) sets
+# the parent-death signal and execs the node, which keeps it across the ROS wheels' re-exec.
+_SETPRIV = shutil.which('setpriv')
+_DIE_WITH_LAUNCHER = (_SETPRIV, '--pdeathsig', 'TERM') if _SETPRIV else ()
+
+
 @dataclass
 class ManagedNode:
     name: str
@@ -139,9 +147,9 @@ class ManagedNode:
         self.log_file.write(f'\n[launch {_stamp()}] start #{self.starts}: '
                             f'{" ".join(self.cmd)}\n'.encode())
         self.log_file.flush()
-        self.process = subprocess.Popen(self.cmd, env=env, stdout=self.log_file,
-                                        stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                        start_new_session=True)
+        self.process = subprocess.Popen([*_DIE_WITH_LAUNCHER, *self.cmd], env=env,
+                                        stdout=self.log_file, stderr=subprocess.STDOUT,
+                                        stdin=subprocess.DEVNULL, start_new_session=True)
 
     @property
     def alive(self) -> bool:
