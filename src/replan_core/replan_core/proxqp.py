@@ -9,7 +9,7 @@ controller's first torques 2e-9 N m apart, the runs parting from the first tick)
   apart after other allocations (``test_proxqp.py``). The baseline build (SSE2: 16-byte
   packets, which every allocation meets) gives the same bits whatever the heap, and the same
   bits on any x86-64 machine. The core's QPs are small (12 forces; the MPC's default path
-  solves its own dual), so the wider SIMD bought nothing measurable.
+  solves its own dual): the baseline build costs 2-3 us per force solve (docs/mpc.md).
 - **The inputs' addresses.** proxsuite reads vector inputs in place, and where an array starts
   decides how Eigen splits its vectorised reductions: fresh numpy arrays start where the heap
   history puts them (which wall-clock timers change). Inputs are passed at a fixed 64-byte
