@@ -104,7 +104,7 @@ def test_installs_git_and_bakes_in_the_revision():
     steps = instructions()
     assert any(k == 'ARG' and a.split('=')[0] == 'GIT_REVISION' for k, a in steps)
     assert ('ENV', 'REPLAN_GIT_REVISION=${GIT_REVISION}') in steps
-    recorder = REPO_ROOT / 'src' / 'replan_ros' / 'replan_ros' / 'recorder_node.py'
+    recorder = REPO_ROOT / 'src' / 'replan_ros' / 'replan_ros' / 'nodes' / 'recorder_node.py'
     assert "'REPLAN_GIT_REVISION'" in recorder.read_text()
 
 
