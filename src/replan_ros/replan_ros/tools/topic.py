@@ -9,7 +9,8 @@
     scripts/topic.sh talk TOPIC [--rate HZ]         (publishes std_msgs/String, for graph checks)
 
 No daemon caches the graph: list, info and nodes first listen to DDS discovery for --wait
-seconds (default 3: a node can take one Fast DDS announcement period to appear); echo and hz
+seconds (default 3: a node can take one Fast DDS announcement period to appear; while no other
+node has been discovered, up to 6 s more: a loaded machine can be that slow); echo and hz
 wait up to --wait seconds for a publisher. They subscribe with a QoS that matches every publisher:
 transient local when all publishers are (so latched plans and schedules are received), best
 effort when any publisher is. Messages are printed as YAML, like ros2 topic echo. Arguments
@@ -172,6 +173,10 @@ def _is_hidden(name: str) -> bool:
     return any(part.startswith('_') for part in name.split('/'))
 
 
+# s: listening on while nothing but this tool's own node is discovered (two Fast DDS
+# announcement periods of 3 s).
+_LONELY_EXTRA = 6.0
+
 class TopicTool:
     """The commands, on one rclpy node that only discovers and subscribes."""
 
@@ -190,17 +195,24 @@ class TopicTool:
 
         Without a daemon caching the graph, listening is the only way to learn it, and a node
         can take up to one announcement period (3 s in Fast DDS; 2.7 s measured here) to be
-        discovered. Gives up ``extra`` s after ``wait``.
+        discovered. Gives up ``extra`` s after ``wait``, or, while no node but this one has
+        been discovered, two more announcement periods after that: on a loaded machine a
+        running sim was not discovered within 5 s in one run of four (test_topic_tool.py with
+        two busy processes beside it), and an empty answer then looks like an empty graph.
         """
         start = time.monotonic()
         last, changed = snapshot(), start
-        while time.monotonic() - start < wait + extra:
+        while True:
+            elapsed = time.monotonic() - start
+            alone = len(self.node.get_node_names_and_namespaces()) <= 1
+            if elapsed >= wait + extra + (_LONELY_EXTRA if alone else 0.0):
+                return
             self.spin(0.1)
             now = snapshot()
             if now != last:
                 last, changed = now, time.monotonic()
             elif (time.monotonic() - start >= wait and time.monotonic() - changed >= quiet
-                  and done()):
+                  and done() and not alone):
                 return
 
     def wait_for_publishers(self, topic: str, wait: float) -> list[TopicEndpointInfo]:
