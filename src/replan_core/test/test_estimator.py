@@ -7,7 +7,6 @@ is fed the ground truth (these tests check the estimator, not the loop), except 
 ``test_closed_loop_on_the_estimate``.
 """
 
-import os
 import time
 from pathlib import Path
 
@@ -26,14 +25,6 @@ DT = 0.004                                  # s, control period
 G_WORLD = np.array([0.0, 0.0, -9.81])       # m/s^2
 GYRO_BIAS = np.array([0.002, -0.002, 0.002])   # rad/s, a decent MEMS gyro after calibration
 ACCEL_BIAS = np.array([0.03, -0.03, 0.03])     # m/s^2
-
-
-@pytest.fixture(scope='module')
-def urdf() -> str:
-    path = os.environ.get('REPLAN_URDF') or str(ROOT / 'urdf' / 'hyq.urdf')
-    if not Path(path).is_file():
-        pytest.skip(f'no URDF at {path}')
-    return path
 
 
 @pytest.fixture(scope='module')

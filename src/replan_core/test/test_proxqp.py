@@ -1,7 +1,6 @@
 """Bit-exact solves (issue 28): proxsuite's baseline build, inputs at a fixed alignment, and
 the controller and planner giving the same bits whatever the heap looks like."""
 
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -42,14 +41,6 @@ class HeapNoise:
         self._kept.append(np.empty(int(self._rng.integers(1, 64))))
         if len(self._kept) > 6:
             self._kept.pop(int(self._rng.integers(0, len(self._kept))))
-
-
-@pytest.fixture(scope='module')
-def urdf() -> str:
-    path = os.environ.get('REPLAN_URDF') or str(ROOT / 'urdf' / 'hyq.urdf')
-    if not Path(path).is_file():
-        pytest.skip(f'no URDF at {path}')
-    return path
 
 
 def test_the_baseline_build_is_loaded():

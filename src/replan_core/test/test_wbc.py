@@ -1,6 +1,5 @@
 """Closed-loop tests of replan_core.wbc in the PyBullet world (replan_core.sim_world)."""
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -29,14 +28,6 @@ from replan_core.wbc import (
 
 ROOT = Path(__file__).resolve().parents[3]
 DT = 0.004  # s, control period
-
-
-@pytest.fixture(scope='module')
-def urdf() -> str:
-    path = os.environ.get('REPLAN_URDF') or str(ROOT / 'urdf' / 'hyq.urdf')
-    if not Path(path).is_file():
-        pytest.skip(f'no URDF at {path}')
-    return path
 
 
 @pytest.fixture(scope='module')
