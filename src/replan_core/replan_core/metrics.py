@@ -63,22 +63,25 @@ def command_segments(events: list[tuple[float, tuple[float, float, float]]],
 
 def achieved_velocity(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
                       start: float, end: float) -> tuple[float, float, float] | None:
-    """Mean body-frame velocity (vx, vy, wz) over [start, end] from the displacement: the
-    world displacement is expressed in the frame of the mean heading over the window."""
+    """Mean body-frame velocity (vx, vy, wz) over [start, end]: each step between two samples
+    is expressed in the body frame of its mid heading and the steps are summed (the body
+    velocity integrated), so a walk that turns reads its speed along the arc. The chord of the
+    displacement, used before, read a 0.05 m/s walk turning at 0.2 rad/s over 18 s as 0.027
+    m/s (issue 31; test_metrics.py)."""
     inside = np.flatnonzero((times >= start) & (times <= end))
     if len(inside) < 2:
         return None
-    i0, i1 = inside[0], inside[-1]
-    span = times[i1] - times[i0]
+    span = times[inside[-1]] - times[inside[0]]
     if span <= 0:
         return None
     yaw_unwrapped = np.unwrap(yaws[inside])
-    heading = float(np.mean(yaw_unwrapped))
-    d = positions[i1, :2] - positions[i0, :2]
-    c, s = np.cos(heading), np.sin(heading)
-    body = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]) / span
-    wz = (yaw_unwrapped[-1] - yaw_unwrapped[0]) / span
-    return float(body[0]), float(body[1]), float(wz)
+    steps = np.diff(positions[inside, :2], axis=0)                   # world, m
+    mid = 0.5 * (yaw_unwrapped[1:] + yaw_unwrapped[:-1])             # rad
+    c, s = np.cos(mid), np.sin(mid)
+    vx = float(np.sum(c * steps[:, 0] + s * steps[:, 1]) / span)    # m/s, body x
+    vy = float(np.sum(-s * steps[:, 0] + c * steps[:, 1]) / span)   # m/s, body y
+    wz = float((yaw_unwrapped[-1] - yaw_unwrapped[0]) / span)        # rad/s
+    return vx, vy, wz
 
 
 def tracking_errors(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,

@@ -48,11 +48,31 @@ def test_segments_and_tracking_on_a_turning_walk():
     assert [(s.start, s.end) for s in segs] == [(0.0, 2.0), (2.0, 12.0)]
     rows = tracking_errors(t, pos, yaw, segs, settle=1.0)
     vx, vy, wz = rows[1]['achieved']
-    # Chord over a 9 s arc of 1.8 rad shortens the mean speed by sin(0.9)/0.9.
-    assert vx == pytest.approx(0.1 * np.sin(0.9) / 0.9, rel=0.02)
-    assert abs(vy) < 0.005
+    # The body velocity integrated along the 9 s arc of 1.8 rad: the speed walked (the chord
+    # of the displacement would read 0.1 sin(0.9) / 0.9 = 0.087).
+    assert vx == pytest.approx(0.1, rel=0.002)
+    assert abs(vy) < 0.0005
     assert wz == pytest.approx(0.2, rel=0.01)
     assert rows[0]['achieved'] == pytest.approx([0.0, 0.0, 0.0], abs=1e-12)
+
+
+def test_achieved_velocity_on_a_known_arc():
+    """0.05 m/s forward and 0.2 rad/s, 18 s (issue 31: the chord read 0.026-0.028 m/s),
+    sampled exactly on the circle at 250 Hz; and sideways on a circle."""
+    t = np.arange(0.0, 18.0 + 1e-9, 0.004)
+    v, w = 0.05, 0.2
+    yaw = w * t
+    forward = np.stack([v / w * np.sin(yaw), v / w * (1.0 - np.cos(yaw))], axis=1)
+    vx, vy, wz = achieved_velocity(t, forward, yaw, 0.0, 18.0)
+    assert vx == pytest.approx(v, rel=1e-5) and abs(vy) < 1e-7 and wz == pytest.approx(w)
+    sideways = np.stack([-v / w * (1.0 - np.cos(yaw)), v / w * np.sin(yaw)], axis=1)
+    vx, vy, _ = achieved_velocity(t, sideways, yaw, 0.0, 18.0)
+    assert abs(vx) < 1e-7 and vy == pytest.approx(v, rel=1e-5)
+    # Straight, heading 30 deg: the world displacement in the body frame.
+    heading = np.full_like(t, np.pi / 6)
+    line = np.outer(t, [np.cos(np.pi / 6), np.sin(np.pi / 6)]) * v
+    vx, vy, wz = achieved_velocity(t, line, heading, 1.0, 17.0)
+    assert vx == pytest.approx(v, rel=1e-9) and abs(vy) < 1e-12 and wz == 0.0
 
 
 def test_achieved_velocity_needs_two_samples():
