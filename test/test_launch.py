@@ -45,6 +45,15 @@ class LaunchProcess:
             time.sleep(0.1)
         return None
 
+    def node_pids(self, names) -> dict[str, int]:
+        """name -> pid of each node, from the launcher's 'started' lines."""
+        pids = {}
+        for name in names:
+            match = self.wait_for(rf'started {name} \(pid (\d+)\)', 60)
+            assert match, self.output
+            pids[name] = int(match.group(1))
+        return pids
+
     def stop(self) -> None:
         if self.process.poll() is None:
             os.killpg(self.process.pid, signal.SIGINT)
@@ -113,12 +122,9 @@ def test_a_killed_launcher_leaves_no_node_running(ros_domain, tmp_path):
     in a session of its own, get SIGTERM from the kernel (parent-death signal) and end. Before,
     they ran on, and a stray sim published into the next run on the same domain."""
     launch = LaunchProcess(['--run-dir', str(tmp_path / 'run')], ros_domain)
+    pids: dict[str, int] = {}
     try:
-        pids = {}
-        for name in ('sim', 'gait', 'mpc', 'wbc'):
-            match = launch.wait_for(rf'started {name} \(pid (\d+)\)', 60)
-            assert match, launch.output
-            pids[name] = int(match.group(1))
+        pids = launch.node_pids(('sim', 'gait', 'mpc', 'wbc'))
         assert all(_pid_alive(pid) for pid in pids.values()), launch.output
         os.kill(launch.process.pid, signal.SIGKILL)        # the launcher, not its nodes
         launch.process.wait(10)
@@ -137,11 +143,7 @@ def test_a_killed_launcher_leaves_no_node_running(ros_domain, tmp_path):
 def test_no_respawn_stops_the_others_and_exits_non_zero(ros_domain, tmp_path):
     launch = LaunchProcess(['--run-dir', str(tmp_path / 'run'), '--no-respawn'], ros_domain)
     try:
-        pids = {}
-        for name in ('sim', 'gait', 'mpc', 'wbc'):
-            match = launch.wait_for(rf'started {name} \(pid (\d+)\)', 60)
-            assert match, launch.output
-            pids[name] = int(match.group(1))
+        pids = launch.node_pids(('sim', 'gait', 'mpc', 'wbc'))
         time.sleep(2.0)
         os.kill(pids['gait'], signal.SIGKILL)
         launch.process.wait(60)
