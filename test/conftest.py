@@ -19,8 +19,8 @@ from harness import (
     DomainReservation,
     Launcher,
     Probe,
+    descends_from,
     domain_processes,
-    parent_pid,
     reap_leftovers,
 )
 
@@ -81,15 +81,17 @@ def no_leftover_processes_of_module(request):
 
 @pytest.fixture(autouse=True)
 def no_leftover_processes(request, no_leftover_processes_of_module):
-    """The same for each test, but for this process's own children: a module fixture's graph
-    outlives its tests, and a test may restart one of its nodes (test_faults.py); those are
-    checked at the module's end. What a script or launcher started and left behind (its nodes
-    are not our children) is caught here."""
+    """The same for each test, but for the descendants of this process: a module fixture's
+    graph outlives its tests, its launcher may start nodes while the first test runs
+    (test_live_view.py), and a test may restart one of them (test_faults.py); those are
+    checked at the module's end. What was left behind orphaned (a killed launcher's nodes, no
+    longer our descendants) is caught here."""
     domain = _session_domain.domain_id
+    me = os.getpid()
     before = set(domain_processes(domain))
     yield
     _no_leftovers(domain, before, f'test {request.node.name}',
-                  keep=lambda pid: parent_pid(pid) == os.getpid())
+                  keep=lambda pid: descends_from(pid, me))
 
 
 @pytest.fixture

@@ -111,6 +111,18 @@ def parent_pid(pid: int) -> int | None:
                  if line.startswith('PPid:')), None)
 
 
+def descends_from(pid: int, ancestor: int) -> bool:
+    """True if ``ancestor`` is among the parents of process ``pid`` (a graph that a launcher
+    of this test process still supervises, however deep); False once ``pid`` is orphaned."""
+    seen = 0
+    while pid > 1 and seen < 64:
+        pid = parent_pid(pid) or 0
+        if pid == ancestor:
+            return True
+        seen += 1
+    return False
+
+
 def reap_leftovers(domain_id: int, before: set[int], grace: float = 10.0,
                    keep: Callable[[int], bool] = lambda pid: False) -> dict[int, str]:
     """Processes of the domain that were not there at ``before``, are not ``keep(pid)`` and are

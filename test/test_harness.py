@@ -9,6 +9,7 @@ from harness import (
     DomainReservation,
     Launcher,
     Probe,
+    descends_from,
     domain_processes,
     graph_env,
     parent_pid,
@@ -65,8 +66,9 @@ def test_a_process_left_on_a_domain_is_found_and_killed(reserve_domain):
         assert stray.pid in domain_processes(domain)
         assert parent_pid(stray.pid) == os.getpid()
         # What the per-test check keeps: this process's own children (a module's graph).
+        assert descends_from(stray.pid, os.getpid()) and not descends_from(stray.pid, stray.pid)
         assert reap_leftovers(domain, before, grace=0.2,
-                              keep=lambda pid: parent_pid(pid) == os.getpid()) == {}
+                              keep=lambda pid: descends_from(pid, os.getpid())) == {}
         assert stray.poll() is None
         left = reap_leftovers(domain, before, grace=0.5)
         assert list(left) == [stray.pid] and 'time.sleep(60)' in left[stray.pid]
