@@ -4,11 +4,12 @@ Two things made the same QP come out differently in two runs of one scenario (is
 controller's first torques 2e-9 N m apart, the runs parting from the first tick):
 
 - **The instruction set.** ``import proxsuite`` loads the build for the widest SIMD the CPU
-  has (AVX-512, else AVX2). Those builds' results depend on where the heap put the solver's
-  own work arrays: a fresh QP object with the same aligned inputs gave forces up to 9e-10 N
-  apart after other allocations (``test_proxqp.py``). The baseline build (SSE2: 16-byte
-  packets, which every allocation meets) gives the same bits whatever the heap, and the same
-  bits on any x86-64 machine. The core's QPs are small (12 forces; the MPC's default path
+  has (AVX-512, else AVX2). Those builds' results depend on the heap's layout: a fresh QP
+  object with the same aligned inputs gave forces up to 9e-10 N apart after other allocations
+  (``test_proxqp.py``; the hypothesis, not traced into proxsuite, is that its work arrays are
+  not aligned to the SIMD packet). The baseline build (SSE2: 16-byte packets, which every
+  allocation meets) gave the same bits whatever the heap, as the same code on any x86-64
+  machine. The core's QPs are small (12 forces; the MPC's default path
   solves its own dual): the baseline build costs 2-3 us per force solve (docs/mpc.md).
 - **The inputs' addresses.** proxsuite reads vector inputs in place, and where an array starts
   decides how Eigen splits its vectorised reductions: fresh numpy arrays start where the heap
