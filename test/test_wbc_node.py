@@ -94,9 +94,13 @@ def test_first_command_waits_for_listeners_then_starts_anyway(launcher, probe):
         'first_command_wait_timeout': 10.0})
     truth = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
     assert probe.spin_until(lambda: 'wbc ready' in wbc.log(), timeout=60), launcher.logs()
-    probe.spin_for(1.5)                  # within the timeout: the sim waits at t = 0
-    assert truth and all(stamp_to_ns(o.header.stamp) == 0 for o in [*truth, *odom_sub]), \
-        launcher.logs()
+    # The sim sends the truth once it has discovered the probe's subscription (it publishes
+    # the truth only to readers): wait for it rather than for a fixed 1.5 s, which a suite run
+    # on a clean clone once did not cover (no truth at all). Within the 10 s timeout the sim
+    # must still wait at t = 0.
+    assert probe.spin_until(lambda: truth, timeout=8.0), launcher.logs()
+    probe.spin_for(0.5)
+    assert all(stamp_to_ns(o.header.stamp) == 0 for o in [*truth, *odom_sub]), launcher.logs()
     assert probe.spin_until(
         lambda: truth and stamp_to_sec(truth[-1].header.stamp) >= 0.5, timeout=60), \
         launcher.logs()
