@@ -12,8 +12,7 @@ from nav_msgs.msg import Odometry
 
 from replan_ros.benchmarks.tick_table import OVERLAPPED
 from replan_ros.messages.interfaces import stamp_to_sec
-from replan_ros.nodes import sim_node, wbc_node
-from replan_ros.telemetry import diagnostics
+from replan_ros.telemetry import diagnostics, tick_budget
 from replan_ros.telemetry.tick_budget import parse_diagnostic_values
 from replan_ros.transport.qos import COMMAND, SENSOR
 
@@ -50,8 +49,8 @@ def test_budget_figures_in_diagnostics_of_sim_and_wbc(launcher, probe):
     assert probe.spin_until(lambda: _latest(diags, 'sim') and _latest(diags, 'wbc'),
                             timeout=10), launcher.logs()
     sim, wbc = _latest(diags, 'sim'), _latest(diags, 'wbc')
-    assert set(sim) == set(sim_node.BUDGET_PHASES)
-    assert set(wbc) == set(wbc_node.BUDGET_PHASES)
+    assert set(sim) == set(tick_budget.SIM_PHASES)
+    assert set(wbc) == set(tick_budget.WBC_PHASES)
     for phases in (sim, wbc):
         for name, stats in phases.items():
             assert set(stats) == {'median_ms', 'mean_ms'}, name

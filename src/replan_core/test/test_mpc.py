@@ -17,8 +17,8 @@ from replan_core.mpc import (
     STATUS_SOLVED,
     LipMpc,
     MpcSettings,
-    _nnqp,
 )
+from replan_core.mpc_working_set import _nnqp
 from replan_core.support import support_schedule
 from replan_core.types import FootholdPlan, Step
 

@@ -52,7 +52,7 @@ from replan_ros.benchmarks.tick_table import read_budgets, table
 from replan_ros.experiments.analysis import read_messages, replan_wall_latency
 from replan_ros.experiments.runner import git_revision, machine_description
 from replan_ros.experiments.scenario import load_scenario, params_document, scenario_inputs
-from replan_ros.launch.launch_graph import Graph, run_graph
+from replan_ros.launch.graph import Graph, run_graph
 from replan_ros.nodes.mpc_node import SOLVE_TIMES_LOG
 from replan_ros.view.live_client import WatchEverything, free_port
 

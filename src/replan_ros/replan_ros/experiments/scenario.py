@@ -17,7 +17,7 @@ A scenario file (see config/scenarios/ and docs/usage.md, "Scenarios"):
       - {t: 0.5, cmd_vel: [0.15, 0.0, 0.0]}            # vx, vy (m/s), wz (rad/s)
       - {t: 8.0, push: {force: [0.0, 150.0, 0.0], duration: 0.2}}   # N, s
 
-Every parameter of the run is checked before anything starts (replan_ros/params.py): a bad
+Every parameter of the run is checked before anything starts (replan_ros/params/): a bad
 one ends the run with one ``config error:`` line and exit code 2. Events are sent before the
 simulation starts, stamped with their sim time, on the transient-local
 schedule topics (`cmd_vel_stamped`, `external_wrench`), so the same file always gives the same run.
@@ -40,22 +40,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
-from geometry_msgs.msg import TwistStamped, WrenchStamped
+from geometry_msgs.msg import TwistStamped
 
-from replan_ros.launch.launch_graph import (
-    DEFAULT_PROFILE,
-    EXIT_CONFIG,
-    Graph,
-    ProgressLine,
-    ScheduledInputs,
-    add_live_option,
-    check_live_port,
-    check_run_files,
-    live_argv,
-    profile_file,
-    run_graph,
-)
-from replan_ros.messages.interfaces import sec_to_stamp, stamp_to_sec
+from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
+from replan_ros.launch.launch_graph import add_live_option, check_live_port, live_argv
+from replan_ros.launch.param_files import DEFAULT_PROFILE, check_run_files, profile_file
+from replan_ros.launch.progress import ProgressLine
+from replan_ros.launch.watch import ScheduledInputs
+from replan_ros.messages.interfaces import sec_to_ns, sec_to_stamp, stamp_to_sec, wrench_to_msg
 from replan_ros.params import ConfigError, Source, load_param_file
 from replan_ros.tools.rerun import (
     RerunError,
@@ -186,7 +178,7 @@ def _terrain_keys(values: dict) -> list[str]:
 def check_scenario(scenario: Scenario, config_dir: Path, extra_param_files=()) -> None:
     """Check the run's parameters before anything starts (ConfigError, one line): the
     scenario's ``params`` and terrain, its profile and the extra files against the nodes'
-    tables (``launch_graph.check_run_files``), and no terrain set in two places: the sim's
+    tables (``param_files.check_run_files``), and no terrain set in two places: the sim's
     terrain comes from the top-level ``terrain:`` (``flat`` when absent), which a
     ``params: {sim: {terrain...}}`` entry or a terrain key in an extra file would contradict
     (before this check one of them silently won)."""
@@ -225,11 +217,7 @@ def scenario_inputs(scenario: Scenario) -> ScheduledInputs:
         setpoints.append(msg)
     for t, force, length in sorted(scenario.push_events):
         for stamp, f in ((t, force), (t + length, (0.0, 0.0, 0.0))):
-            msg = WrenchStamped()
-            msg.header.stamp = sec_to_stamp(stamp)
-            msg.header.frame_id = 'odom'
-            msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = f
-            wrenches.append(msg)
+            wrenches.append(wrench_to_msg(sec_to_ns(stamp), f))
     return ScheduledInputs(setpoints, wrenches)
 
 

@@ -11,7 +11,15 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
-from geometry_msgs.msg import Point, PoseStamped, Quaternion, Transform, Twist, Vector3
+from geometry_msgs.msg import (
+    Point,
+    PoseStamped,
+    Quaternion,
+    Transform,
+    Twist,
+    Vector3,
+    WrenchStamped,
+)
 from nav_msgs.msg import Odometry, Path
 from sensor_msgs.msg import Imu, PointCloud2, PointField
 from sensor_msgs.msg import JointState as JointStateMsg
@@ -256,6 +264,29 @@ _NUMPY_OF_FIELD = {PointField.INT8: 'i1', PointField.UINT8: 'u1', PointField.INT
                    PointField.UINT16: '<u2', PointField.INT32: '<i4', PointField.UINT32: '<u4',
                    PointField.FLOAT32: '<f4', PointField.FLOAT64: '<f8'}
 _FIELD_OF_NUMPY = {np.dtype(v).str: k for k, v in _NUMPY_OF_FIELD.items()}
+
+
+def wrench_to_msg(stamp_ns: int, force, torque=(0.0, 0.0, 0.0)) -> WrenchStamped:
+    """An external wrench on the base (N, N m, world axes) from ``stamp_ns`` on."""
+    msg = WrenchStamped()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = WORLD_FRAME
+    msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = map(float, force)
+    msg.wrench.torque.x, msg.wrench.torque.y, msg.wrench.torque.z = map(float, torque)
+    return msg
+
+
+def wrench_from_msg(msg: WrenchStamped) -> tuple[int, np.ndarray, np.ndarray]:
+    """(stamp ns, force (3,) N, torque (3,) N m); ValueError for another frame than the world
+    (or none) or a non-finite value."""
+    f, t = msg.wrench.force, msg.wrench.torque
+    force, torque = np.array([f.x, f.y, f.z]), np.array([t.x, t.y, t.z])
+    if msg.header.frame_id not in ('', WORLD_FRAME):
+        raise ValueError(f'frame {msg.header.frame_id!r}: only {WORLD_FRAME!r} (world axes) '
+                         'is supported')
+    if not (np.all(np.isfinite(force)) and np.all(np.isfinite(torque))):
+        raise ValueError('non-finite values')
+    return stamp_to_ns(msg.header.stamp), force, torque
 
 
 @functools.lru_cache(maxsize=16)

@@ -1,4 +1,5 @@
-"""Gait node: crawl schedule, the shared touchdown rule and foothold re-planning (issue 4).
+"""Gait node: crawl schedule, the shared touchdown rule and foothold re-planning (issue 4); the
+decisions are ``replan_core.replanner``'s, this node reads the messages and publishes.
 
 - Every tick of ``contacts`` goes through ``contact.StepTracker`` (the rule the controller runs
   too). The ticks are read on demand (``on_demand.py``), in batches: when a ``contact_events``
@@ -27,41 +28,28 @@ from collections import deque
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point, Twist, TwistStamped, Vector3
+from geometry_msgs.msg import Twist, TwistStamped, Vector3
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
-from std_msgs.msg import ColorRGBA
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import MarkerArray
 
-from replan_core.contact import StepTracker
-from replan_core.gait import (
-    CrawlSchedule,
-    GaitParams,
-    IdleMonitor,
-    clamp_velocity,
-    compute_footholds,
-    is_idle_trigger,
-    is_stand_plan,
-    stance_phases,
-    stand_plan,
-)
+from replan_core.gait import GaitParams
 from replan_core.inputs import SetpointArbiter
+from replan_core.replanner import GaitReplanner, check_setpoint
 from replan_core.robot_model import RobotModel
-from replan_core.rotations import yaw_of
-from replan_core.types import LEGS, WORLD_FRAME, ContactState, FootholdPlan
+from replan_core.types import LEGS, ContactState
 from replan_ros.messages.interfaces import (
     base_state_from_odom,
     footholds_from_msg,
     footholds_to_msg,
-    header,
     ns_to_stamp,
     sec_to_stamp,
     stamp_to_ns,
 )
 from replan_ros.messages.tick_cdr import contacts_from_cdr
-from replan_ros.nodes.node_main import run_node
+from replan_ros.nodes.node_main import log_at, run_node
 from replan_ros.params import declare_node_parameters, gait_params
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.on_demand import OnDemandSubscriptions
@@ -76,14 +64,10 @@ from replan_ros.transport.qos import (
     with_depth,
 )
 from replan_ros.transport.stamped_buffer import RawStampedBuffer, cdr_header_stamp_ns
+from replan_ros.view.plan_markers import gait_markers
 
-# Leg colours of the markers (r, g, b), LEGS order.
-_LEG_COLOURS = ((0.9, 0.2, 0.2), (0.2, 0.7, 0.2), (0.2, 0.4, 0.9), (0.9, 0.7, 0.1))
-# Support polygon corners in cyclic order around the trunk: lf, rf, rh, lh.
-_POLYGON_ORDER = (0, 1, 3, 2)
 _ODOM_QUEUE = 20         # newest odom samples queued until a re-plan reads them
 _CONTACTS_QUEUE = 500    # contacts ticks queued between two reads (2 s at 250 Hz): none lost
-_DEFAULT_TICK_NS = 4_000_000   # control period until the stamps have shown it (250 Hz)
 _STATE_WAIT = 0.02       # wall s to wait for a due sample (odom of a re-plan, contacts of an
                          # event) before going on; the sim republishes a tick it waits at
 
@@ -95,9 +79,6 @@ class GaitNode(Node):
         super().__init__('gait')
         p = declare_node_parameters(self, 'gait', on_change=self._on_parameter_change)
         self.params = self._gait_params(p)
-        self.min_swing_fraction = float(p['min_swing_fraction'])
-        self.max_extension = float(p['max_extension'])
-        self.start_delay = max(float(p['start_delay']), 0.0)
         # Set-points, stamped and live (cmd_vel: from the sim time it arrived at).
         self.setpoints = SetpointArbiter(float(p['cmd_vel_timeout']))
         self.reject_above = float(p['cmd_vel_reject_above'])
@@ -130,10 +111,14 @@ class GaitNode(Node):
 
         self.latest_stamp = 0.0        # s, newest state stamp seen (sim time for cmd_vel)
         self.rejected = 0
-        self.forced = 0
         self._warned: dict[str, float] = {}
         self._odom_wait: tuple[int, float] | None = None   # (re-plan stamp ns, wall s since)
-        self._reset('start')
+        # The touchdown rule, re-plan trigger and foothold planning (replan_core.replanner).
+        self.replanner = GaitReplanner(
+            self.params, float(p['min_swing_fraction']), float(p['max_extension']),
+            float(p['start_delay']), log=self._log, warn=self._warn)
+        self.unprocessed: deque[ContactState] = deque()
+        self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
         self.get_logger().info(
             f'gait: crawl {"-".join(LEGS[i] for i in self.params.sequence)}, swing '
             f'{self.params.swing_duration} s + four feet {self.params.four_feet_duration} s, '
@@ -177,23 +162,9 @@ class GaitNode(Node):
         self.params.hip_offsets = tuple((float(x), float(y)) for x, y in offsets)
         return model
 
-    def _reset(self, why: str) -> None:
-        """Forget the run (start, or sim time went backwards: a new run)."""
-        if why != 'start':
-            self.get_logger().warn(f'gait: {why}; starting over with a new initial plan')
-        self.schedule = CrawlSchedule(self.params.sequence)
-        self.plan: FootholdPlan | None = None
-        self.tracker: StepTracker | None = None
-        self.last_tick_ns: int | None = None
-        self.tick_ns: int | None = None    # the control period, as seen in the stamps
-        self.pending: tuple[int, ContactState, bool] | None = None   # (stamp, contacts, initial)
-        self.unprocessed: deque[ContactState] = deque()
-        self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
-        self.replans = 0
-        # Half a step of slack: the zero run is timed from re-plan (touchdown) ticks, which
-        # jitter by a few ms (gait.IdleMonitor).
-        self.idle = IdleMonitor(self.params.idle_after, self.params.idle_stance,
-                                0.5 * self.params.step_period)
+    def _log(self, level: str, text: str) -> None:
+        """The re-planner's log lines (replanner.Log)."""
+        log_at(self.get_logger(), level, text)
 
     def _warn(self, key: str, text: str) -> None:
         """Warning throttled per ``key`` (rclpy's throttle is per call site, and all of these
@@ -206,18 +177,13 @@ class GaitNode(Node):
     # ----------------------------------------------------------------------------- set-point
 
     def _validate(self, values, source: str) -> np.ndarray | None:
-        v = np.array(values, dtype=float)
-        if not np.all(np.isfinite(v)) or np.any(np.abs(v) > self.reject_above):
+        v, problem = check_setpoint(values, self.reject_above, self.params)
+        if v is None:
             self.rejected += 1
-            self._warn(f'{source} rejected',
-                       f'{source}: rejected (vx, vy, wz) = {v.tolist()}: non-finite or above '
-                       f'{self.reject_above}; keeping the last good set-point')
-            return None
-        clamped = clamp_velocity(v, self.params)
-        if not np.array_equal(clamped, v):
-            self._warn(f'{source} clamped',
-                       f'{source}: (vx, vy, wz) = {v.tolist()} clamped to {clamped.tolist()}')
-        return clamped
+        if problem:
+            self._warn(f'{source} {"rejected" if v is None else "clamped"}',
+                       f'{source}: {problem}')
+        return v
 
     def _on_cmd_vel(self, msg: Twist) -> None:
         v = self._validate((msg.linear.x, msg.linear.y, msg.angular.z), 'cmd_vel')
@@ -271,109 +237,31 @@ class GaitNode(Node):
     def _process(self) -> None:
         """Run the ticks in order; a re-plan waits for the odom of its stamp."""
         while True:
-            if self.pending is not None and not self._replan():
+            if self.replanner.pending is not None and not self._replan():
                 return
             if not self.unprocessed:
                 return
-            self._tick(self.unprocessed.popleft())
-
-    def _tick(self, cs: ContactState) -> None:
-        ns = round(cs.stamp * 1e9)
-        if self.last_tick_ns is not None and ns < self.last_tick_ns:
-            self._reset(f'sim time went back from {self.last_tick_ns * 1e-9:.3f} s to '
-                        f'{cs.stamp:.3f} s')
-        if self.last_tick_ns is not None and ns == self.last_tick_ns:
-            return                          # a republished state: already decided
-        if self.last_tick_ns is not None:
-            gap = ns - self.last_tick_ns
-            self.tick_ns = min(self.tick_ns or gap, gap)
-            if gap > 1.5 * self.tick_ns:    # the queue overflowed (this node was starved)
-                self._warn('ticks lost',
-                           f'contacts ticks lost between {self.last_tick_ns * 1e-9:.3f} s and '
-                           f'{cs.stamp:.3f} s: the touchdown rule may disagree with the '
-                           'controller until the next plan')
-        self.last_tick_ns = ns
-        if self.tracker is None:
-            self.pending = (ns, cs, True)  # the first state seen: the initial plan
-            return
-        for event in self.tracker.update(cs.stamp, cs.contact):
-            if event.kind != 'touchdown' or is_idle_trigger(self.plan.steps[event.step]):
-                continue                    # a stand plan's trigger moves no leg
-            self.schedule.touched_down(event.leg)
-            if event.reason == 'forced':
-                self.forced += 1
-                self.get_logger().warn(
-                    f'{LEGS[event.leg]} touchdown forced at t={event.time:.3f} s: no contact '
-                    f'{self.max_extension} s after the planned touchdown')
-        if self.tracker.replan_due:
-            self.pending = (ns, cs, False)
+            cs = self.unprocessed.popleft()
+            if (self.replanner.last_tick_ns is not None
+                    and round(cs.stamp * 1e9) < self.replanner.last_tick_ns):
+                self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
+            self.replanner.tick(cs)
 
     def _replan(self) -> bool:
         """Compute and publish the plan of the pending tick; False while its odom is missing."""
-        ns, cs, initial = self.pending
-        self.state_input.drain(lambda: ns in self.odom, timeout=_STATE_WAIT)
-        stamps = self.odom.stamps()
-        base = None
-        if ns in self.odom:
-            try:
-                base = self.odom.get(ns)
-            except ValueError as err:
-                self._warn('odom', f'odom rejected: {err}')
-                return False               # wait for the sim to send that tick again
+        ns, t = self.replanner.pending.stamp, self.replanner.pending.contacts.stamp
+        base = self._odom_of(ns)
         if base is None:
-            if not stamps or max(stamps) <= ns:
-                # May still come: the sim republishes while it waits, and the contacts of
-                # that republish bring us back here.
-                self._note_odom_wait(ns, stamps)
-                return False
-            # A newer odom came: the one of this stamp was lost (best effort, free-run mode).
-            nearest = min(stamps, key=lambda s: abs(s - ns))
-            try:
-                base = self.odom.get(nearest)
-            except ValueError as err:
-                self._warn('odom', f'odom rejected: {err}')
-                return False
-            self._warn('odom lost', f'no odom stamped {ns * 1e-9:.3f} s: re-planning with the '
-                       f'one of {nearest * 1e-9:.3f} s')
-        t = cs.stamp                       # the very float the controller gets from the stamp
-        feet = cs.foot_position.copy()
-        if self.plan is not None:
-            # A foot whose touchdown was forced is still in the air: plan it at ground height.
-            targets = {s.leg: s.target for s in self.plan.steps
-                       if s.touchdown_time <= t + 1e-9}
-            for leg in range(4):
-                if not cs.contact[leg] and leg in targets:
-                    feet[leg, 2] = targets[leg][2]
-        yaw = yaw_of(base.quaternion)
+            return False
         hips = self.model.hip_positions(base) if self.model is not None else None
         setpoint, source = self.setpoints.at(ns)
-        stand = self.idle.update(t, setpoint) and not initial
-        was_standing = self.plan is not None and is_stand_plan(self.plan)
-        try:
-            if stand:
-                plan = stand_plan(feet, yaw, t, self.schedule.next_leg, self._trigger_time(t))
-            else:
-                # Walking off from a stand, as at the start: the reference trunk stands
-                # through the four-feet phase, so the first strides are partial.
-                delay = (self.start_delay if initial
-                         else self.params.four_feet_duration if was_standing else 0.0)
-                plan = compute_footholds(setpoint, feet, base.position, yaw, hips,
-                                         self.schedule.next_leg, t, self.params, delay=delay)
-        except ValueError as err:
-            self.get_logger().error(f'footholds at t={t:.3f} s failed ({err}); keeping the '
-                                    'previous plan')
-            self.pending = None
+        plan = self.replanner.plan_pending(base, hips, setpoint, source)
+        if plan is None:
             return True
-        # The touchdown rule travels with the plan: the controller applies the same values.
-        plan.min_swing_fraction = self.min_swing_fraction
-        plan.max_extension = self.max_extension
         msg = footholds_to_msg(plan)
         # Track the plan exactly as the controller decodes it from the message, so both trackers
         # compare bit-identical times.
-        self.plan = footholds_from_msg(msg)
-        self.tracker = StepTracker(self.plan)
-        self.pending = None
-        self.replans += 1
+        self.replanner.adopt(footholds_from_msg(msg))
         stamp = ns_to_stamp(ns)
         self.footholds_pub.publish(msg)
         sp = TwistStamped()
@@ -382,19 +270,36 @@ class GaitNode(Node):
         sp.twist.linear = Vector3(x=float(setpoint[0]), y=float(setpoint[1]), z=0.0)
         sp.twist.angular = Vector3(x=0.0, y=0.0, z=float(setpoint[2]))
         self.setpoint_pub.publish(sp)
-        self.markers_pub.publish(self._markers(plan))
+        self.markers_pub.publish(gait_markers(plan))
         self._publish_diagnostics(t, source)
-        if initial:
-            self.get_logger().info(f'initial plan at t={t:.3f} s: stand {self.start_delay} s, '
-                                   f'then {LEGS[self.schedule.next_leg]} first')
-        elif stand and not was_standing:
-            self.get_logger().info(f'idle stance at t={t:.3f} s: set-point zero since '
-                                   f'{self.idle.zero_since:.3f} s, all four feet down')
-        elif was_standing and not stand:
-            self.get_logger().info(f'walking again at t={t:.3f} s ({source} '
-                                   f'{setpoint.tolist()}), {LEGS[self.schedule.next_leg]} '
-                                   'first')
         return True
+
+    def _odom_of(self, ns: int):
+        """The base state of tick ``ns`` (waited for up to _STATE_WAIT), or the nearest one if
+        a newer came (this one was lost); None while it may still come."""
+        self.state_input.drain(lambda: ns in self.odom, timeout=_STATE_WAIT)
+        stamps = self.odom.stamps()
+        if ns in self.odom:
+            try:
+                return self.odom.get(ns)
+            except ValueError as err:
+                self._warn('odom', f'odom rejected: {err}')
+                return None                # wait for the sim to send that tick again
+        if not stamps or max(stamps) <= ns:
+            # May still come: the sim republishes while it waits, and the contacts of
+            # that republish bring us back here.
+            self._note_odom_wait(ns, stamps)
+            return None
+        # A newer odom came: the one of this stamp was lost (best effort, free-run mode).
+        nearest = min(stamps, key=lambda s: abs(s - ns))
+        try:
+            base = self.odom.get(nearest)
+        except ValueError as err:
+            self._warn('odom', f'odom rejected: {err}')
+            return None
+        self._warn('odom lost', f'no odom stamped {ns * 1e-9:.3f} s: re-planning with the '
+                   f'one of {nearest * 1e-9:.3f} s')
+        return base
 
     def _note_odom_wait(self, ns: int, stamps) -> None:
         """Say so when a re-plan has waited long for its odom (wall s): a restarted node
@@ -409,64 +314,18 @@ class GaitNode(Node):
             self._warn('odom wait', f're-plan at t={ns * 1e-9:.3f} s has waited {waited:.1f} '
                        f'wall s for the odom of its tick (newest odom: {newest})')
 
-    def _trigger_time(self, t: float) -> float:
-        """When a stand plan's trigger lifts off: ``idle_replan_period`` after ``t``, half a
-        control tick early. The trackers lift it off at the next tick (on the tick grid) and
-        end it one tick later; half a tick off the grid it is never an MPC sample, so the
-        support stays four feet at every sample (gait.stand_plan)."""
-        tick = (self.tick_ns or _DEFAULT_TICK_NS) * 1e-9
-        return t + self.params.idle_replan_period - 0.5 * tick
-
     # ----------------------------------------------------------------------------- output
 
     def _publish_diagnostics(self, t: float, source: str) -> None:
-        level = diagnostics.WARN if self.forced else diagnostics.OK
-        standing = self.plan is not None and is_stand_plan(self.plan)
-        values = {'replans': self.replans, 'last_replan_time': t, 'setpoint_source': source,
-                  'idle_stance': standing,
-                  'rejected_cmd_vel': self.rejected, 'forced_touchdowns': self.forced,
-                  'next_leg': LEGS[self.schedule.next_leg]}
-        message = 'forced touchdowns happened' if self.forced else 'ok'
+        replanner = self.replanner
+        level = diagnostics.WARN if replanner.forced else diagnostics.OK
+        values = {'replans': replanner.replans, 'last_replan_time': t,
+                  'setpoint_source': source, 'idle_stance': replanner.standing,
+                  'rejected_cmd_vel': self.rejected, 'forced_touchdowns': replanner.forced,
+                  'next_leg': LEGS[replanner.schedule.next_leg]}
+        message = 'forced touchdowns happened' if replanner.forced else 'ok'
         self.diag_pub.publish(diagnostics.array(
             sec_to_stamp(t), diagnostics.status('gait', level, message, values)))
-
-    def _markers(self, plan: FootholdPlan) -> MarkerArray:
-        hdr = header(plan.start_time, WORLD_FRAME)
-        markers = [Marker(header=hdr, action=Marker.DELETEALL)]
-        feet = Marker(header=hdr, ns='initial_feet', id=0, type=Marker.SPHERE_LIST,
-                      action=Marker.ADD)
-        feet.scale = Vector3(x=0.05, y=0.05, z=0.05)
-        feet.pose.orientation.w = 1.0
-        for p in plan.initial_feet:
-            feet.points.append(Point(x=float(p[0]), y=float(p[1]), z=float(p[2])))
-            feet.colors.append(ColorRGBA(r=0.5, g=0.5, b=0.5, a=1.0))
-        markers.append(feet)
-        holds = Marker(header=hdr, ns='footholds', id=0, type=Marker.SPHERE_LIST,
-                       action=Marker.ADD)
-        holds.scale = Vector3(x=0.04, y=0.04, z=0.04)
-        holds.pose.orientation.w = 1.0
-        for k, step in enumerate(plan.steps):
-            r, g, b = _LEG_COLOURS[step.leg]
-            holds.points.append(Point(x=float(step.target[0]), y=float(step.target[1]),
-                                      z=float(step.target[2])))
-            fade = 1.0 - 0.6 * k / max(len(plan.steps), 1)   # later footholds paler
-            holds.colors.append(ColorRGBA(r=r, g=g, b=b, a=fade))
-        markers.append(holds)
-        for k, (_t0, _t1, positions, stance) in enumerate(stance_phases(plan)):
-            poly = Marker(header=hdr, ns='support_polygons', id=k, type=Marker.LINE_STRIP,
-                          action=Marker.ADD)
-            poly.scale.x = 0.005
-            poly.pose.orientation.w = 1.0
-            three = int(stance.sum()) == 3
-            poly.color = (ColorRGBA(r=1.0, g=0.5, b=0.0, a=0.8) if three
-                          else ColorRGBA(r=0.1, g=0.8, b=0.3, a=0.5))
-            corners = [leg for leg in _POLYGON_ORDER if stance[leg]]
-            for leg in [*corners, corners[0]]:
-                p = positions[leg]
-                poly.points.append(Point(x=float(p[0]), y=float(p[1]),
-                                         z=float(p[2]) + 0.002 * k))   # stacked, readable
-            markers.append(poly)
-        return MarkerArray(markers=markers)
 
     def destroy_node(self) -> None:
         self.state_input.destroy()

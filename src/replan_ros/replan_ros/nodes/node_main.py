@@ -3,24 +3,71 @@ external shutdown, then destroyed and rclpy down, whatever happened in between."
 
 from __future__ import annotations
 
+import signal
 import sys
+import time
 from collections.abc import Callable
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+
+def log_at(logger, level: str, text: str) -> None:
+    """``text`` at ``level`` ('debug', 'info', 'warning' or 'error'), one call site per
+    severity: rclpy refuses a call site whose severity changes between calls (ValueError:
+    "Logger severity cannot be changed between calls"), so a shared ``getattr(logger,
+    level)(text)`` crashes a node at its second severity."""
+    if level == 'debug':
+        logger.debug(text)
+    elif level == 'info':
+        logger.info(text)
+    elif level == 'warning':
+        logger.warning(text)
+    elif level == 'error':
+        logger.error(text)
+    else:
+        raise ValueError(f'unknown log level {level!r}')
+
+
+DRAIN_QUIET = 0.3     # s without anything drained: done
+DRAIN_LIMIT = 10.0    # s, longest drain before the node is destroyed anyway
 
 
 def run_node(make_node: Callable[[], Node], args=None, *,
-             one_line_errors: tuple[type[BaseException], ...] = (), label: str = '') -> None:
+             one_line_errors: tuple[type[BaseException], ...] = (), label: str = '',
+             drain: Callable[[Node], int] | None = None) -> None:
     """Run one node in this process. An exception of ``one_line_errors`` (e.g. the live view's
     port taken) is printed as one line ``[label] error`` and ends the process with code 1; a
-    node that refuses its configuration exits by itself (SystemExit 2, params.py)."""
-    rclpy.init(args=args)
+    node that refuses its configuration exits by itself (SystemExit 2, replan_ros.params).
+    With ``drain`` (the recorder, which runs a little behind the graph under load), SIGINT and
+    SIGTERM first call ``drain(node)`` until it returns 0 for ``DRAIN_QUIET`` s (at most
+    ``DRAIN_LIMIT`` s), then destroy the node: rclpy's own handlers would shut the context
+    down at once and lose what is still queued."""
+    stop: list[int] = []
+    if drain is None:
+        rclpy.init(args=args)
+    else:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda signum, _frame: stop.append(signum))
     node = None
     try:
         node = make_node()
-        rclpy.spin(node)
+        if drain is None:
+            rclpy.spin(node)
+        else:
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            while not stop and rclpy.ok():
+                executor.spin_once(timeout_sec=0.1)
+            quiet_since = time.monotonic()
+            end = quiet_since + DRAIN_LIMIT
+            while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
+                if drain(node):
+                    quiet_since = time.monotonic()
+                time.sleep(0.05)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except one_line_errors as err:

@@ -34,28 +34,19 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
 
 from __future__ import annotations
 
-import json
-import os
 import re
-import signal
-import socket
-import subprocess
 import sys
 import time
-from datetime import datetime
-from pathlib import Path
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 from replan_ros.messages.interfaces import ns_to_stamp
 from replan_ros.messages.introspection import message_class
+from replan_ros.nodes.node_main import run_node
 from replan_ros.params import declare_node_parameters
 from replan_ros.recording.bag_io import (
     BagWriter,
@@ -64,6 +55,7 @@ from replan_ros.recording.bag_io import (
     normalize_type_name,
     qos_profiles_yaml,
 )
+from replan_ros.recording.run_metadata import arrival_time, bag_path, run_records
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.on_demand import OnDemandSubscriptions
 from replan_ros.transport.qos import COMMAND, INTERNAL_PUB_EVENTS, LATCHED
@@ -79,15 +71,6 @@ from replan_ros.view.state_view import (
 
 CLOCK_TOPIC = '/clock'
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
-
-
-def _git(root: Path, *args: str) -> str:
-    try:
-        out = subprocess.run(['git', '-C', str(root), *args], capture_output=True, text=True,
-                             timeout=5, check=True)
-        return out.stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return ''
 
 
 def _is_hidden(topic: str) -> bool:
@@ -125,13 +108,18 @@ class RecorderNode(Node):
         self._log_time_clock = p['log_time_clock']
         self._sim_ns = 0                # the newest /clock taken (ns of sim time), 0 before it
 
-        self.path = self._bag_path(p['output'] or p['output_dir'])
+        self.path = bag_path(p['output'] or p['output_dir'])
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._writer = BagWriter(self.path, chunk_size=int(p['chunk_size']),
                                  chunk_interval=float(p['chunk_interval']),
                                  compression=p['compression'],
                                  library='replan_ros recorder_node (mcap-python)')
-        self._write_config(p)
+        # The run's configuration, in mcap metadata records.
+        records, errors = run_records(p, self.get_parameter('use_sim_time').value)
+        for name, record in records:
+            self._writer.add_metadata(name, record)
+        for error in errors:
+            self.get_logger().error(error)
 
         self._recorded: dict[str, _Topic] = {}
         self._skipped: set[str] = set()
@@ -156,65 +144,6 @@ class RecorderNode(Node):
         self._take_timer = self.create_timer(float(p['take_period']), self.take, clock=steady)
         self.get_logger().info(f'recording to {self.path}')
         self._discover()
-
-    # ------------------------------------------------------------------ parameters, config
-
-    @staticmethod
-    def _bag_path(output: str) -> Path:
-        stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
-        target = Path(output) if output else Path(os.environ.get('REPLAN_ROOT', '.'), 'runs')
-        if target.suffix != '.mcap':
-            target = target / f'replan_{stamp}.mcap'
-        return target.resolve()
-
-    def _write_config(self, p: dict) -> None:
-        root = Path(os.environ.get('REPLAN_ROOT', Path(__file__).resolve().parents[4]))
-        # Without git or a .git folder (a Docker image), the revision baked in at build time.
-        revision = (_git(root, 'rev-parse', 'HEAD') or os.environ.get('REPLAN_GIT_REVISION')
-                    or 'unknown')
-        status = _git(root, 'status', '--porcelain', '--untracked-files=no')
-        run = {
-            'git_revision': revision,
-            'git_dirty': 'true' if status else 'false',
-            'git_status': status,
-            'wall_start': datetime.now().astimezone().isoformat(),
-            'hostname': socket.gethostname(),
-            'ros_distro': os.environ.get('ROS_DISTRO', 'jazzy'),
-            'rmw_implementation': os.environ.get('RMW_IMPLEMENTATION', ''),
-            'ros_domain_id': os.environ.get('ROS_DOMAIN_ID', '0'),
-            'command_line': ' '.join(sys.argv),
-            'use_sim_time': str(self.get_parameter('use_sim_time').value).lower(),
-            'log_time_clock': p['log_time_clock'],
-            'recorder_parameters': json.dumps(p, sort_keys=True),
-            'config_files': json.dumps([str(Path(f).resolve()) for f in p['config_files']]),
-            'scenario_file': str(Path(p['scenario_file']).resolve()) if p['scenario_file'] else '',
-        }
-        self._writer.add_metadata('replan_run', run)
-        configs = {}
-        for name in p['config_files']:
-            path = Path(name).resolve()
-            try:
-                configs[str(path)] = path.read_text()
-            except OSError as err:
-                self.get_logger().error(f'config file {path} not stored: {err}')
-        if configs:
-            self._writer.add_metadata('replan_config', configs)
-        if p['scenario_file']:
-            path = Path(p['scenario_file']).resolve()
-            try:
-                self._writer.add_metadata('replan_scenario',
-                                          {'path': str(path), 'content': path.read_text()})
-            except OSError as err:
-                self.get_logger().error(f'scenario file {path} not stored: {err}')
-        if p['metadata_json']:
-            try:
-                extra = json.loads(p['metadata_json'])
-                if not isinstance(extra, dict):
-                    raise ValueError('not a JSON object')
-                self._writer.add_metadata('replan_user', {
-                    str(k): v if isinstance(v, str) else json.dumps(v) for k, v in extra.items()})
-            except ValueError as err:
-                self.get_logger().error(f'metadata_json not stored: {err}')
 
     # ------------------------------------------------------------------ discovery
 
@@ -434,50 +363,9 @@ class RecorderNode(Node):
         super().destroy_node()
 
 
-def arrival_time(received_wall_ns: int, previous: tuple[int, int] | None,
-                 take: tuple[int, int]) -> int:
-    """The ``log_time_clock``'s time when a message arrived: its DDS reception time (wall,
-    CLOCK_REALTIME) placed between the previous take and this one, each a (wall ns, log clock
-    ns) pair, linearly. A message that arrived before the previous take
-    gets that take's time; without a previous take or a reception time, this take's. So log
-    times follow arrival, not the take grid, and never decrease while the clock does not."""
-    if previous is None or received_wall_ns <= 0 or take[0] <= previous[0]:
-        return take[1]
-    fraction = min(max((received_wall_ns - previous[0]) / (take[0] - previous[0]), 0.0), 1.0)
-    return previous[1] + round(fraction * (take[1] - previous[1]))
-
-
-DRAIN_QUIET = 0.3     # s without a new message: the subscriptions are drained
-DRAIN_LIMIT = 10.0    # s, longest drain before closing anyway
-
-
 def main(args=None):
-    # Own signal handling: on SIGINT/SIGTERM the recorder first takes what is still queued in
-    # its subscriptions (it runs a little behind the graph under load), then closes the bag.
-    # rclpy's handlers would shut the context down at once and lose that tail.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop: list[int] = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, _frame: stop.append(signum))
-    node = None
-    try:
-        node = RecorderNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while not stop and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-        end = time.monotonic() + DRAIN_LIMIT
-        quiet_since = time.monotonic()
-        while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
-            if node.take():
-                quiet_since = time.monotonic()
-            time.sleep(0.05)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    # Before it is destroyed, the recorder takes what is still queued in its subscriptions.
+    run_node(RecorderNode, args, drain=RecorderNode.take)
 
 
 if __name__ == '__main__':

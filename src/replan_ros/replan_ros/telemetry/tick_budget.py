@@ -27,6 +27,45 @@ _NS_PER_MS = 1e6
 DIAGNOSTIC_PREFIX = 'tick_'
 LOG_PREFIX = 'tick budget: '
 
+# The sim node's phases of a lock-step tick, from the command's arrival to the next one.
+SIM_PHASES = (
+    'sim_transport_cmd',          # joint_torque_cmd: wbc's DDS write -> our DDS reader
+    'sim_wake',                   # our DDS reader -> _on_command (executor, take, deserialize)
+    'sim_decode',                 # the command to torques
+    'sim_physics',                # the physics steps of one control period after the lead ones
+    'sim_sensing',                # IMU and joint sensor models
+    'sim_conversion',             # imu and joint_states messages built
+    'sim_publish_imu',
+    'sim_publish_joint_states',
+    'sim_truth_first',            # truth_first: the truth sensed, built and published first
+    'sim_wait',                   # joint_states published -> the next command's callback
+    # While the controller works (after joint_states, inside sim_wait):
+    'sim_truth_sensing',          # the simulator's exact base state and contact forces
+    'sim_truth_conversion',       # their messages built
+    'sim_publish_truth_odom',
+    'sim_publish_truth_contacts',
+    'sim_publish_clock',
+    'sim_lead_physics',           # due wrenches, the next period's lead physics steps
+    'sim_tick',                   # wall time between two commands' callbacks
+)
+
+# The wbc node's phases of an answered tick, from the sim's joint_states write to its command's
+# publish.
+WBC_PHASES = (
+    'wbc_transport_in',      # joint_states: the sim's DDS write -> our DDS reader
+    'wbc_wake',              # our DDS reader -> _on_joint_states (executor, take, deserialize)
+    'wbc_decode',            # joint_states to the core joint state
+    'wbc_take',              # the tick's queued imu / ground truth taken and decoded
+    'wbc_estimator',         # state estimator update
+    'wbc_state_msgs',        # odom, contacts and contact_events messages built
+    'wbc_logic',             # the protocol's decisions: plan following, adoption, stand
+    'wbc_plan_wait',         # a re-plan tick held until its plans arrived
+    'wbc_controller',        # references and controller maths (pinocchio, proxsuite)
+    'wbc_command',           # joint_torque_cmd built and published
+    'wbc_publish_state',     # then odom, contacts (and contact_events) published
+    'wbc_estimator_next',    # then the estimator's next covariance step (prepare_next)
+)
+
 
 class TickBudget:
     """Nanoseconds per phase of each tick, the last ``capacity`` ticks kept."""

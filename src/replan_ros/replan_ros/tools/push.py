@@ -24,7 +24,7 @@ from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock
 
 from replan_core.types import WORLD_FRAME
-from replan_ros.messages.interfaces import ns_to_stamp, sec_to_ns, stamp_to_ns
+from replan_ros.messages.interfaces import sec_to_ns, stamp_to_ns, wrench_to_msg
 from replan_ros.transport import qos
 
 
@@ -45,12 +45,7 @@ class PushPublisher(Node):
         self.sim_ns = max(self.sim_ns or 0, stamp_to_ns(msg.header.stamp))
 
     def wrench(self, stamp_ns: int, force, torque) -> WrenchStamped:
-        msg = WrenchStamped()
-        msg.header.stamp = ns_to_stamp(stamp_ns)
-        msg.header.frame_id = WORLD_FRAME
-        msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = map(float, force)
-        msg.wrench.torque.x, msg.wrench.torque.y, msg.wrench.torque.z = map(float, torque)
-        return msg
+        return wrench_to_msg(stamp_ns, force, torque)
 
 
 def _spin_until(node: Node, predicate, timeout: float) -> bool:

@@ -36,7 +36,7 @@ from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 
-from replan_ros.launch.launch_graph import NODES
+from replan_ros.launch.graph import NODES
 from replan_ros.messages.interfaces import stamp_to_ns, stamp_to_sec
 from replan_ros.params import ConfigError
 from replan_ros.recording.bag_io import check_bag
@@ -277,8 +277,9 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 0.0, gui: bool = False
           progress=None) -> tuple[Comparison, int, MessageComparison]:
     """Re-run ``bag`` into ``out_dir``; returns the trajectory comparison, the launcher's
     exit code and the message comparison.
-    ``progress``: a ``launch_graph.ProgressLine`` to print the progress on while it runs."""
-    from replan_ros.launch.launch_graph import Graph, ScheduledInputs, run_graph
+    ``progress``: a ``progress.ProgressLine`` to print the progress on while it runs."""
+    from replan_ros.launch.graph import Graph, run_graph
+    from replan_ros.launch.watch import ScheduledInputs
     from replan_ros.transport import qos
 
     run = load_run(bag)
@@ -359,7 +360,7 @@ def main(argv=None) -> int:
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'rerun-{time.strftime("%Y%m%d-%H%M%S")}'
     try:
-        from replan_ros.launch.launch_graph import ProgressLine
+        from replan_ros.launch.progress import ProgressLine
         comparison, code, messages = rerun(args.bag, out, tolerance=args.tolerance,
                                            gui=args.gui,
                                            progress=None if args.quiet else ProgressLine())

@@ -8,16 +8,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from replan_ros.experiments.claims import bisect_impulse
 from replan_ros.experiments.page import compare, spread, write_page
-from replan_ros.experiments.runner import (
-    ExperimentError,
-    RunResult,
-    bisect_impulse,
-    load_plan,
-    planned_runs,
-    run_key,
-    variant,
-)
+from replan_ros.experiments.plan import ExperimentError, load_plan, planned_runs, variant
+from replan_ros.experiments.runs import RunResult, run_key
 
 CONFIG = Path(__file__).resolve().parents[4] / 'config'
 BASE = {'name': 'walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0.0, 0.0]}]}
@@ -152,7 +146,7 @@ class RecordingRunner:
 def test_every_run_of_the_plan_passes_the_scenario_checks(quick):
     """The runs are checked like any scenario before they start: a setting the nodes refuse
     (a misnamed terrain key, say) must fail here, not an hour into a full run."""
-    from replan_ros.experiments.runner import run_all
+    from replan_ros.experiments.claims import run_all
     from replan_ros.experiments.scenario import check_scenario, parse_scenario
     plan, selected = load_plan(CONFIG / 'experiments.yaml', quick, [])
     runner = RecordingRunner()

@@ -4,13 +4,13 @@ import io
 
 import pytest
 
-from replan_ros.launch.launch_graph import (
+from replan_ros.launch.graph import cpu_per_sim_s
+from replan_ros.launch.progress import (
     EVENT_WORDS,
     PROGRESS_PLAIN_PERIOD,
     PROGRESS_TTY_PERIOD,
     ProgressLine,
     RunProgress,
-    cpu_per_sim_s,
     format_progress,
     is_terminal,
 )

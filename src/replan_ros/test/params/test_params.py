@@ -1,4 +1,4 @@
-"""The parameter tables (replan_ros/params.py) and the check of a run's parameter files."""
+"""The parameter tables (replan_ros/params/) and the check of a run's parameter files."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ from replan_core.estimator import EstimatorParams
 from replan_core.sim_world import STANDING_POSE, TERRAINS, ActuatorParams
 from replan_ros import params
 from replan_ros.experiments.scenario import check_scenario, parse_scenario
-from replan_ros.launch.launch_graph import check_run_files
+from replan_ros.launch.param_files import check_run_files
 from replan_ros.params import ConfigError, Source, check_run, resolve, sources_from_argv
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[4]
 CONFIG = REPO / 'config'
 NODES = tuple(params.TABLES)
 

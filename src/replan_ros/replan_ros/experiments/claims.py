@@ -1,0 +1,307 @@
+"""The experiments, one function each: the runs it makes (in parallel where they do not
+depend on each other) and the rows it gives the results page; ``run_all`` runs a plan's."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import yaml
+
+from replan_ros.experiments.plan import node_settings, variant
+from replan_ros.experiments.runs import Runner, RunResult
+
+
+@dataclass
+class Context:
+    runner: Runner
+    settings: dict          # node_settings(): the node parameters the experiments derive from
+
+
+def _parallel(jobs: list[Callable[[], object]]) -> list:
+    """Run ``jobs`` (callables that make runs) in threads; their results in order."""
+    out: list = [None] * len(jobs)
+    errors: list[BaseException] = []
+
+    def call(i: int) -> None:
+        try:
+            out[i] = jobs[i]()
+        except BaseException as err:     # re-raised below, in the caller's thread
+            errors.append(err)
+
+    threads = [threading.Thread(target=call, args=(i,), daemon=True) for i in range(len(jobs))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    if errors:
+        raise errors[0]
+    return out
+
+
+def _summary(result: RunResult, **extra) -> dict:
+    m = result.metrics
+    row = {'run': result.key, 'fell': result.fell, 'ok': result.ok,
+           'cop_margin_min_m': m.get('cop_margin_min_m'),
+           'cop_margin_p5_m': m.get('cop_margin_p5_m'),
+           'mpc_solve_ms_median': m.get('mpc_solve_ms_median'),
+           'mpc_solve_ms_p99': m.get('mpc_solve_ms_p99'),
+           'final_x_m': (m.get('final_position_m') or [None])[0],
+           'cop_zmp_deviation_rms_m': (m.get('cop_zmp_deviation_m') or {}).get('rms'),
+           'estimator_xy_error_end_m': (m.get('estimator') or {}).get('xy_error_end_m'),
+           'real_time_factor': m.get('real_time_factor')}
+    tracking = [s for s in m.get('velocity_tracking') or [] if any(s.get('commanded', []))]
+    if tracking:
+        last = tracking[-1]
+        row.update(linear_error_mps=last.get('linear_error_mps'),
+                   achieved=last.get('achieved'), commanded=last.get('commanded'),
+                   settle_time_s=last.get('settle_time_s'), settle_steps=last.get('settle_steps'),
+                   rise_time_s=last.get('rise_time_s'), rise_steps=last.get('rise_steps'),
+                   yaw_rate_error_radps=last.get('yaw_rate_error_radps'))
+    pitch = m.get('touchdown_pitch_peak_deg') or {}
+    timing = m.get('touchdown_timing_error_s') or {}
+    row.update(pitch_peak_mean_deg=pitch.get('mean'), pitch_peak_max_deg=pitch.get('max'),
+               touchdown_timing_median_abs_s=timing.get('median_abs'),
+               max_pitch_deg=(math.degrees(m['max_pitch_rad'])
+                              if m.get('max_pitch_rad') is not None else None))
+    row.update(extra)
+    return row
+
+
+def velocity_changes(ctx: Context, cfg: dict, world: str = 'realistic') -> list[dict]:
+    runner = ctx.runner
+    specs = [(name, seed) for name in cfg['scenarios'] for seed in cfg['seeds']]
+
+    def one(name: str, seed: int):
+        def make():
+            doc = variant(runner.scenario(name), world=world, seed=seed,
+                          duration=cfg.get('duration'))
+            return _summary(runner.run(doc), scenario=name, seed=seed, world=world,
+                            prompt_steps=int(cfg.get('prompt_steps', 4)))
+        return make
+    return _parallel([one(n, s) for n, s in specs])
+
+
+def bisect_impulse(runner: Runner, base: dict, cfg: dict, setting: dict, push_time: float
+                   ) -> dict:
+    """Largest lateral impulse survived at one push time: the first probe at
+    ``first_impulse``, then bisection between the largest survived and the smallest fallen
+    (``max_impulse`` standing in for the latter until one falls)."""
+    direction = np.asarray(cfg['direction'], dtype=float)
+    direction /= np.linalg.norm(direction)
+    survived, fallen = 0.0, float(cfg['max_impulse'])
+    fell_seen = False
+    probes, first = [], None
+    impulse = float(cfg['first_impulse'])
+    for i in range(int(cfg['probes'])):
+        force = direction * impulse / cfg['push_duration']
+        duration = cfg.get('duration') or push_time + float(cfg['after_push'])
+        doc = variant(base, params=setting, seed=cfg['seed'], duration=duration,
+                      push=(push_time, (force[0], force[1], 0.0), cfg['push_duration']))
+        result = runner.run(doc)
+        if not result.ok:
+            break
+        push = (result.metrics.get('pushes') or [{}])[0]
+        probes.append({'impulse_ns': impulse, 'fell': result.fell, 'run': result.key,
+                       'velocity_change_mps': push.get('velocity_change_mps'),
+                       'support_inradius_min_m': push.get('support_inradius_min_m'),
+                       'support_inradius_before_m': push.get('support_inradius_before_m')})
+        if i == 0:
+            first = probes[-1]
+        if result.fell:
+            fallen, fell_seen = impulse, True
+        else:
+            survived = impulse
+        impulse = 0.5 * (survived + fallen)
+    return {'survived_ns': survived, 'fallen_ns': fallen if fell_seen else None,
+            'probes': probes, 'first': first, 'complete': len(probes) == int(cfg['probes'])}
+
+
+def lateral_push(ctx: Context, cfg: dict) -> dict:
+    base = ctx.runner.scenario(cfg['scenario'])
+    phases = int(cfg['phases'])
+    cycle = ctx.settings['crawl_cycle_s']
+    times = [cfg['first_push'] + cycle * k / phases for k in range(phases)]
+    jobs, keys = [], []
+    for name, setting in cfg['settings'].items():
+        for k, t in enumerate(times):
+            keys.append((name, k, t))
+            jobs.append(lambda s=setting, t=t: bisect_impulse(ctx.runner, base, cfg, s, t))
+    outcomes = _parallel(jobs)
+    table: dict = {name: [] for name in cfg['settings']}
+    for (name, k, t), outcome in zip(keys, outcomes, strict=True):
+        table[name].append({'phase': k, 'phase_fraction': k / phases, 'push_time_s': t,
+                            **outcome})
+    return {'settings': table, 'config': {**cfg, 'cycle': cycle},
+            'robot_mass_kg': _robot_mass(ctx.runner)}
+
+
+def _robot_mass(runner: Runner) -> float | None:
+    """Mass of the simulated realistic robot (kg): the model's URDF plus the profile's
+    payload; None if either cannot be read."""
+    try:
+        from replan_core.robot_model import RobotModel
+        urdf = os.environ.get('REPLAN_URDF', str(runner.config_dir.parent / 'urdf' / 'hyq.urdf'))
+        profile = yaml.safe_load((runner.config_dir / 'profiles' / 'realistic.yaml').read_text())
+        payload = float(profile['sim']['ros__parameters'].get('payload_mass', 0.0))
+        return RobotModel(urdf).total_mass + payload
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
+        return None
+
+
+def replan_window(ctx: Context, cfg: dict, world: str = 'realistic') -> list[dict]:
+    runner = ctx.runner
+    base = runner.scenario(cfg.get('scenario', 'exp_walk'))
+    jobs = []
+    for window in cfg['windows']:
+        for seed in cfg['seeds']:
+            for v in cfg['setpoints']:
+                def make(window=window, seed=seed, v=v):
+                    doc = variant(base, world=world, seed=seed, setpoint=(v, 0.0, 0.0),
+                                  duration=cfg.get('duration'),
+                                  params={'gait': {'replan_window': int(window)}}
+                                  if window != 1 else None)
+                    return _summary(runner.run(doc), window=window, seed=seed, setpoint=v,
+                                    world=world)
+                jobs.append(make)
+    return _parallel(jobs)
+
+
+def haptic(ctx: Context, cfg: dict, world: str = 'realistic',
+           terrains: list[str] | None = None) -> list[dict]:
+    runner = ctx.runner
+    base = runner.scenario(cfg.get('scenario', 'exp_blind_terrain'))
+    jobs = []
+    for terrain_name, terrain in cfg['terrains'].items():
+        if terrains is not None and terrain_name not in terrains:
+            continue
+        for mode in (True, False):
+            for seed in cfg['seeds']:
+                def make(terrain_name=terrain_name, terrain=terrain, mode=mode, seed=seed):
+                    doc = variant(base, world=world, seed=seed, terrain=terrain,
+                                  duration=(cfg.get('durations') or {}).get(
+                                      terrain_name, cfg.get('duration')),
+                                  params=None if mode else {'gait': {'haptic': False}})
+                    result = runner.run(doc)
+                    crossed = None
+                    end = _terrain_end(terrain)
+                    if end is not None and result.ok:
+                        x = (result.metrics.get('final_position_m') or [0.0])[0]
+                        crossed = bool(not result.fell and x > end)
+                    return _summary(result, terrain=terrain_name, haptic=mode, seed=seed,
+                                    world=world, crossed=crossed, terrain_end_x=end)
+                jobs.append(make)
+    return _parallel(jobs)
+
+
+def _terrain_end(terrain: dict) -> float | None:
+    """x the base must pass for the hind feet to be over the terrain feature (0.5 m behind the
+    base: HyQ's hips are 0.37 m behind it, the feet a little further)."""
+    margin = 0.5
+    if terrain.get('type') == 'step_down':
+        return float(terrain.get('step_x', 0.6)) + margin
+    if terrain.get('type') == 'rough':
+        return (float(terrain.get('rough_start_x', 0.6)) + float(terrain.get('rough_length', 4.0))
+                + margin)
+    return None
+
+
+def velocity_term(ctx: Context, cfg: dict) -> list[dict]:
+    runner = ctx.runner
+    base = runner.scenario(cfg['scenario'])
+    jobs = []
+    for on in (True, False):
+        for seed in cfg['seeds']:
+            for v in cfg['setpoints']:
+                def make(on=on, seed=seed, v=v):
+                    doc = variant(base, seed=seed, setpoint=(v, 0.0, 0.0),
+                                  duration=cfg.get('duration'),
+                                  params=None if on else {'mpc': {'velocity_weight': 0.0}})
+                    return _summary(runner.run(doc), velocity_term=on, seed=seed, setpoint=v)
+                jobs.append(make)
+    return _parallel(jobs)
+
+
+def qp_timing(ctx: Context, cfg: dict) -> dict:
+    """The re-planner alone at the paper's size (replan_core.bench.mpc_bench), one
+    single-threaded process per formulation, while no graph runs."""
+    out = {}
+    for formulation in cfg['formulations']:
+        env = dict(os.environ, OMP_NUM_THREADS='1')
+        with ctx.runner.machine_lock():
+            proc = subprocess.run(
+                [sys.executable, '-m', 'replan_core.bench.mpc_bench', '--formulation',
+                 formulation,
+                 '--replans', str(cfg['replans'])], env=env, capture_output=True, text=True,
+                timeout=1800)
+        lines = proc.stdout.strip().splitlines()
+        try:
+            out[formulation] = json.loads(lines[-1])
+        except (IndexError, json.JSONDecodeError):
+            out[formulation] = {'error': (proc.stderr.strip().splitlines() or ['no output'])[-1]}
+    return out
+
+
+def fastest_crawl(ctx: Context, cfg: dict) -> dict:
+    """Set-points tried in turn up to the first fall, and the speed bound of the gait's step
+    length clamp: max_step_length_x per crawl cycle (each leg steps once per cycle)."""
+    runner = ctx.runner
+    base = runner.scenario(cfg['scenario'])
+    clamp = float(cfg['velocity_clamp'])
+    rows = []
+    for v in cfg['setpoints']:       # one after the other: stop at the first fall
+        doc = variant(base, seed=cfg['seed'], setpoint=(v, 0.0, 0.0),
+                      params={'gait': {'max_linear_x': clamp}})
+        rows.append(_summary(runner.run(doc), setpoint=v))
+        if rows[-1]['fell'] or not rows[-1]['ok']:
+            break
+    step, cycle = ctx.settings['max_step_length_x_m'], ctx.settings['crawl_cycle_s']
+    return {'runs': rows, 'step_length_bound': {'max_step_length_x_m': step, 'cycle_s': cycle,
+                                                'speed_mps': step / cycle}}
+
+
+def ideal_world(ctx: Context, cfg: dict, plan: dict) -> dict:
+    """Some experiments again in the ideal world, with the realistic ones' settings except
+    those ``cfg`` overrides (fewer seeds, set-points, terrains)."""
+    makers = {}
+    if 'replan_window' in cfg and 'replan_window' in plan:
+        makers['replan_window'] = lambda: replan_window(
+            ctx, {**plan['replan_window'], **cfg['replan_window']}, world='ideal')
+    if 'haptic' in cfg and 'haptic' in plan:
+        makers['haptic'] = lambda: haptic(
+            ctx, {**plan['haptic'], 'seeds': cfg['haptic']['seeds']}, world='ideal',
+            terrains=cfg['haptic']['terrains'])
+    if 'velocity_changes' in cfg and 'velocity_changes' in plan:
+        makers['velocity_changes'] = lambda: velocity_changes(
+            ctx, {**plan['velocity_changes'], **cfg['velocity_changes']}, world='ideal')
+    return dict(zip(makers, _parallel(list(makers.values())), strict=True))
+
+
+def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
+    """The ``selected`` experiments of ``plan``; returns their data for the page."""
+    settings = node_settings(runner.config_dir)        # ExperimentError: nothing run
+    ctx = Context(runner, settings)
+    results: dict = {}
+    if 'qp_timing' in selected:       # before any graph loads the cores
+        results['qp_timing'] = qp_timing(ctx, plan['qp_timing'])
+    makers = {
+        'velocity_changes': lambda: velocity_changes(ctx, plan['velocity_changes']),
+        'lateral_push': lambda: lateral_push(ctx, plan['lateral_push']),
+        'replan_window': lambda: replan_window(ctx, plan['replan_window']),
+        'haptic': lambda: haptic(ctx, plan['haptic']),
+        'velocity_term': lambda: velocity_term(ctx, plan['velocity_term']),
+        'fastest_crawl': lambda: fastest_crawl(ctx, plan['fastest_crawl']),
+        'ideal_world': lambda: ideal_world(ctx, plan['ideal_world'], plan),
+    }
+    names = [n for n in makers if n in selected]
+    for name, value in zip(names, _parallel([makers[n] for n in names]), strict=True):
+        results[name] = value
+    results['settings'] = settings
+    return results

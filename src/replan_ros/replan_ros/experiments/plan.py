@@ -1,0 +1,141 @@
+"""The experiment plan (``config/experiments.yaml``): its checked ``full`` or ``quick`` section,
+the number of runs it makes, the node settings the experiments derive from, and ``variant``,
+the scenario document of one run."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import yaml
+
+# The keys each experiment reads: a misspelt one in the plan file is an error, not a default.
+PLAN_KEYS = {
+    'velocity_changes': {'scenarios', 'seeds', 'prompt_steps', 'duration'},
+    'lateral_push': {'scenario', 'phases', 'first_push', 'after_push', 'push_duration',
+                     'direction', 'first_impulse', 'max_impulse', 'probes', 'seed', 'settings',
+                     'duration'},
+    'replan_window': {'scenario', 'windows', 'seeds', 'setpoints', 'duration'},
+    'haptic': {'scenario', 'seeds', 'duration', 'durations', 'terrains'},
+    'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration'},
+    'qp_timing': {'replans', 'formulations'},
+    'fastest_crawl': {'scenario', 'setpoints', 'velocity_clamp', 'seed'},
+    'ideal_world': {'replan_window', 'haptic', 'velocity_changes'},
+}
+EXPERIMENTS = tuple(PLAN_KEYS)
+
+
+class ExperimentError(ValueError):
+    """A plan file or option that cannot be run, with the reason."""
+
+
+def variant(base: dict, *, params: dict | None = None,
+            world: str = 'realistic', seed: int | None = None, terrain: dict | None = None,
+            setpoint: tuple[float, float, float] | None = None, duration: float | None = None,
+            push: tuple[float, tuple[float, float, float], float] | None = None) -> dict:
+    """A copy of scenario ``base`` with the experiment's changes: parameter overrides (per
+    node), the world profile, the seed (sim ``noise_seed``; the terrain seed too), the terrain,
+    the first set-point, the duration and one push (t, force, duration)."""
+    doc = json.loads(json.dumps(base))
+    doc['profile'] = world
+    merged: dict = doc.get('params') or {}
+    for node, values in (params or {}).items():
+        merged.setdefault(node, {}).update(values)
+    if seed is not None:
+        merged.setdefault('sim', {})['noise_seed'] = int(seed)
+    if terrain is not None:
+        doc['terrain'] = dict(terrain)
+        if terrain.get('type') == 'rough' and seed is not None:
+            merged.setdefault('sim', {})['seed'] = int(seed)       # the heightfield's seed
+    if merged:
+        doc['params'] = merged
+    events = list(doc.get('events') or [])
+    if setpoint is not None:
+        first = next(i for i, e in enumerate(events) if 'cmd_vel' in e)
+        events[first] = {'t': events[first]['t'], 'cmd_vel': [float(v) for v in setpoint]}
+    if duration is not None:
+        doc['duration'] = float(duration)
+        events = [e for e in events if e['t'] <= duration]
+    if push is not None:
+        t, force, length = push
+        events.append({'t': round(float(t), 4), 'push': {
+            'force': [round(float(f), 4) for f in force], 'duration': float(length)}})
+    doc['events'] = events
+    return doc
+
+
+def planned_runs(plan: dict, selected: list[str]) -> int:
+    """Upper bound of the runs of the ``selected`` experiments of ``plan`` (a run shared by two
+    experiments counted twice)."""
+    n = 0
+    for name in selected:
+        cfg = plan[name]
+        if name == 'velocity_changes':
+            n += len(cfg['scenarios']) * len(cfg['seeds'])
+        elif name == 'lateral_push':
+            n += len(cfg['settings']) * int(cfg['phases']) * int(cfg['probes'])
+        elif name == 'replan_window':
+            n += len(cfg['windows']) * len(cfg['seeds']) * len(cfg['setpoints'])
+        elif name == 'haptic':
+            n += 2 * len(cfg['terrains']) * len(cfg['seeds'])
+        elif name == 'velocity_term':
+            n += 2 * len(cfg['seeds']) * len(cfg['setpoints'])
+        elif name == 'fastest_crawl':
+            n += len(cfg['setpoints'])
+        elif name == 'ideal_world':
+            sub = {k: {**plan.get(k, {}), **v} for k, v in cfg.items() if k in plan}
+            n += planned_runs(sub, list(sub))
+    return n
+
+
+def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]]:
+    """The ``full`` or ``quick`` section of the plan file and the experiments to run."""
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as err:
+        raise ExperimentError(f'cannot read {path}: {err}') from err
+    section = 'quick' if quick else 'full'
+    plan = (doc or {}).get(section)
+    if not isinstance(plan, dict):
+        raise ExperimentError(f'{path}: no {section}: section')
+    unknown = set(plan) - set(EXPERIMENTS)
+    if unknown:
+        raise ExperimentError(f'{path}: {section}: unknown experiments {sorted(unknown)} '
+                              f'(known: {", ".join(EXPERIMENTS)})')
+    entries = [(name, cfg) for name, cfg in plan.items()]
+    entries += [(f'ideal_world.{k}', v) for k, v in (plan.get('ideal_world') or {}).items()]
+    for where, entry in entries:
+        keys = PLAN_KEYS.get(where.split('.')[-1], set())   # ideal_world: the realistic keys
+        if not isinstance(entry, dict):
+            raise ExperimentError(f'{path}: {section}.{where} must be a mapping')
+        unknown = set(entry) - keys
+        if unknown:
+            raise ExperimentError(f'{path}: {section}.{where}: unknown keys {sorted(unknown)} '
+                                  f'(known: {", ".join(sorted(keys))})')
+    bad = set(only) - set(plan)
+    if bad:
+        raise ExperimentError(f'--only: {sorted(bad)} not in the {section} plan '
+                              f'(there: {", ".join(plan)})')
+    return plan, [name for name in plan if not only or name in only]
+
+
+def node_settings(config_dir: Path) -> dict:
+    """The node parameters the experiments derive from (the push phases from the crawl cycle)
+    and the page's explanations quote, from the node files (the realistic profile does not
+    change them); ExperimentError if a file or key is missing."""
+    try:
+        gait = yaml.safe_load((config_dir / 'gait.yaml').read_text())['gait']['ros__parameters']
+        wbc = yaml.safe_load((config_dir / 'wbc.yaml').read_text())['wbc']['ros__parameters']
+        out = {'crawl_cycle_s': 4.0 * (float(gait['swing_duration'])
+                                       + float(gait['four_feet_duration'])),
+               'max_step_length_x_m': float(gait['max_step_length_x']),
+               'max_extension_s': float(gait['max_extension']),
+               'correction_threshold_m': float(gait['correction_threshold']),
+               'touchdown_depth_m': float(wbc['touchdown_depth']),
+               'haptic_velocity_mps': float(wbc['haptic_velocity'])}
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
+        raise ExperimentError(f'cannot read the gait and wbc settings in {config_dir}: '
+                              f'{err!r}') from err
+    out['haptic_search_m'] = (out['touchdown_depth_m']
+                              + out['haptic_velocity_mps'] * out['max_extension_s'])
+    return out

@@ -1,0 +1,190 @@
+"""The runs of the experiments: each scenario run's folder is named after a hash of its
+document and read again instead of made again (``Runner.run``), at most ``jobs`` runs at once,
+each on its own ROS_DOMAIN_ID, with a progress line (``Progress``)."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from replan_ros.experiments.plan import ExperimentError
+
+DEFAULT_DOMAIN_BASE = 150      # the node tests reserve 2..101 (test/harness.py)
+
+
+def run_key(doc: dict) -> str:
+    """Folder name of the run of scenario document ``doc``: its name and a hash of it."""
+    text = yaml.safe_dump(doc, sort_keys=True)
+    return f'{doc.get("name", "run")}-{hashlib.sha1(text.encode()).hexdigest()[:10]}'
+
+
+@dataclass
+class RunResult:
+    key: str
+    doc: dict
+    metrics: dict
+    folder: Path
+
+    @property
+    def ok(self) -> bool:
+        """The run completed and its metrics can be used (a fall is a valid outcome)."""
+        return bool(self.metrics.get('sim_time_s')) and self.metrics.get('fell') is not None
+
+    @property
+    def fell(self) -> bool:
+        return bool(self.metrics.get('fell'))
+
+
+class Progress:
+    """One line: runs done, running, left (an upper bound where a bisection may stop early)
+    and the time to go at the pace so far."""
+
+    def __init__(self, total: int, stream=sys.stdout, quiet: bool = False) -> None:
+        self.total, self.stream, self.quiet = total, stream, quiet
+        self.done = self.running = self.reused = 0
+        self.start = time.monotonic()
+        self.lock = threading.Lock()
+
+    def update(self, *, started: int = 0, finished: int = 0, reused: int = 0,
+               skipped: int = 0) -> None:
+        with self.lock:
+            self.running += started - finished
+            self.done += finished + reused
+            self.reused += reused
+            self.total -= skipped
+            if self.quiet:
+                return
+            made = self.done - self.reused
+            elapsed = time.monotonic() - self.start
+            left = max(self.total - self.done, 0)
+            eta = f'{elapsed / made * left / 60:.0f} min' if made else '?'
+            self.stream.write(f'\r[experiments] {self.done}/{self.total} runs done '
+                              f'({self.reused} reused), {self.running} running, {left} left, '
+                              f'about {eta} to go   ')
+            self.stream.flush()
+
+    def close(self) -> None:
+        if not self.quiet:
+            self.stream.write('\n')
+            self.stream.flush()
+
+
+class Runner:
+    """Makes scenario runs, at most ``jobs`` at a time, each on its own ROS_DOMAIN_ID."""
+
+    def __init__(self, out_dir: Path, config_dir: Path, *, jobs: int = 1,
+                 domain_base: int = DEFAULT_DOMAIN_BASE, fresh: bool = False,
+                 progress: Progress | None = None,
+                 lock_file: Path | None = None) -> None:
+        self.out_dir, self.config_dir = out_dir, config_dir
+        self.lock_file = lock_file
+        self.fresh, self.progress = fresh, progress
+        self.slots = [domain_base + i for i in range(jobs)]
+        self.free = threading.Condition()
+        self.results: dict[str, RunResult | threading.Event] = {}
+        self.lock = threading.Lock()
+        self.failures: list[str] = []
+
+    def scenario(self, name: str) -> dict:
+        path = self.config_dir / 'scenarios' / f'{name}.yaml'
+        try:
+            return yaml.safe_load(path.read_text())
+        except (OSError, yaml.YAMLError) as err:
+            raise ExperimentError(f'cannot read scenario {path}: {err}') from err
+
+    def run(self, doc: dict) -> RunResult:
+        """The run of scenario ``doc``: made now, or read if made before or under way."""
+        key = run_key(doc)
+        with self.lock:
+            entry = self.results.get(key)
+            if entry is None:
+                self.results[key] = threading.Event()
+        if isinstance(entry, RunResult):
+            if self.progress:
+                self.progress.update(reused=1)
+            return entry
+        if isinstance(entry, threading.Event):
+            entry.wait()
+            if self.progress:
+                self.progress.update(reused=1)
+            return self.results[key]
+        event = self.results[key]
+        try:
+            result = self._make(key, doc)
+        except (OSError, subprocess.SubprocessError, ValueError) as err:
+            self.failures.append(f'{key}: {err}')
+            result = RunResult(key, doc, {}, self.out_dir / 'runs' / key)
+        with self.lock:
+            self.results[key] = result
+        event.set()
+        return result
+
+    @contextlib.contextmanager
+    def machine_lock(self):
+        """Hold ``lock_file`` (flock) for the run, if one was given: graphs of other tools
+        that take the same lock then never run at the same time as this one."""
+        if self.lock_file is None:
+            yield
+            return
+        with open(self.lock_file, 'a') as handle:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(handle, fcntl.LOCK_UN)
+
+    def _make(self, key: str, doc: dict) -> RunResult:
+        folder = self.out_dir / 'runs' / key
+        text = yaml.safe_dump(doc, sort_keys=False)
+        metrics_file = folder / 'metrics.json'
+        if (not self.fresh and metrics_file.exists()
+                and (folder / 'input.yaml').exists()
+                and (folder / 'input.yaml').read_text() == text):
+            result = RunResult(key, doc, json.loads(metrics_file.read_text()), folder)
+            if result.ok:
+                if self.progress:
+                    self.progress.update(reused=1)
+                return result
+        if folder.exists():
+            shutil.rmtree(folder)
+        folder.mkdir(parents=True)
+        (folder / 'input.yaml').write_text(text)
+        with self.free:
+            while not self.slots:
+                self.free.wait()
+            domain = self.slots.pop()
+        if self.progress:
+            self.progress.update(started=1)
+        try:
+            env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
+            env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+            with open(folder / 'output.log', 'w') as output, self.machine_lock():
+                code = subprocess.run(
+                    [sys.executable, '-m', 'replan_ros.experiments.scenario',
+                     str(folder / 'input.yaml'),
+                     '--out', str(folder), '--quiet', '--no-plots', '--no-bag'],
+                    env=env, stdout=output, stderr=subprocess.STDOUT, timeout=3600).returncode
+        finally:
+            with self.free:
+                self.slots.append(domain)
+                self.free.notify()
+            if self.progress:
+                self.progress.update(finished=1)
+        metrics = json.loads(metrics_file.read_text()) if metrics_file.exists() else {}
+        result = RunResult(key, doc, metrics, folder)
+        if not result.ok:
+            tail = (folder / 'output.log').read_text()[-400:].strip().splitlines()
+            self.failures.append(f'{key}: exit {code}: {tail[-1] if tail else "no output"}')
+        return result

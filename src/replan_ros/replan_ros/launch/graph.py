@@ -1,0 +1,410 @@
+"""The node graph of one run as processes: which nodes run with which command and parameter
+files (``Graph``), each in its own process group with its log (``ManagedNode``); started,
+respawned after a back-off (up to a limit), stopped; ``run_graph`` supervises it to the end."""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ament_index_python.packages import get_package_prefix
+from rclpy.duration import Duration as RclpyDuration
+
+from replan_ros.launch.param_files import DEFAULT_PROFILE, check_run_files, profile_file
+from replan_ros.launch.progress import ProgressLine, RunProgress
+from replan_ros.launch.watch import ClockWatch
+from replan_ros.transport.on_demand import helper_name
+
+NODES = ('sim', 'gait', 'mpc', 'wbc')
+# Published by sim, gait and mpc as soon as they are up; with a recorder in the graph the wbc,
+# whose first command lets the sim advance, starts only once the recorder listens to all of them.
+RECORDED_BEFORE_START = ('/clock', '/joint_states', '/imu', '/ground_truth/odom',
+                         '/ground_truth/contacts', '/applied_wrench', '/footholds',
+                         '/velocity_setpoint', '/com_plan', '/zmp_plan')
+RECORDER_WAIT = 20.0    # s, wall
+DELIVERY_WAIT = 30.0    # s, wall: scheduled inputs acknowledged by the nodes that use them
+STOP_TIMEOUT = 10.0     # s, SIGINT -> SIGKILL
+RESPAWN_DELAY = 1.0     # s, wall: first back-off, doubled at each further death
+RESPAWN_LIMIT = 3       # deaths of one node within RESPAWN_WINDOW that stop the graph
+RESPAWN_WINDOW = 30.0   # s, wall
+LOG_TAIL = 20           # lines of a node's log printed when it keeps dying
+EXIT_DONE, EXIT_DIED, EXIT_CONFIG, EXIT_WALL_TIME, EXIT_RESPAWN_LIMIT = 0, 1, 2, 3, 4
+
+
+def _executable(name: str) -> str:
+    return str(Path(get_package_prefix('replan_ros')) / 'lib' / 'replan_ros' / name)
+
+
+def _stamp() -> str:
+    return datetime.datetime.now().strftime('%H:%M:%S')
+
+
+# A node gets SIGTERM when the launcher dies, however it dies: a launcher killed with SIGKILL
+# (or by a test's timeout) left its nodes running in their own sessions, and a stray sim
+# published into the next run on the same domain. setpriv (util-linux, in every Debian) sets
+# the parent-death signal and execs the node, which keeps it across the ROS wheels' re-exec.
+_SETPRIV = shutil.which('setpriv')
+_DIE_WITH_LAUNCHER = (_SETPRIV, '--pdeathsig', 'TERM') if _SETPRIV else ()
+
+
+@dataclass
+class ManagedNode:
+    name: str
+    cmd: list[str]
+    log_path: Path
+    respawn: bool
+    process: subprocess.Popen | None = None
+    starts: int = 0
+    log_file: object = field(default=None, repr=False)
+    deaths: list[float] = field(default_factory=list)   # monotonic times, within the window
+    respawn_at: float | None = None                       # monotonic time of the next start
+
+    def start(self, env: dict[str, str]) -> None:
+        if self.log_file is None:
+            self.log_file = open(self.log_path, 'ab')  # noqa: SIM115 (closed in stop)
+        self.starts += 1
+        self.log_file.write(f'\n[launch {_stamp()}] start #{self.starts}: '
+                            f'{" ".join(self.cmd)}\n'.encode())
+        self.log_file.flush()
+        self.process = subprocess.Popen([*_DIE_WITH_LAUNCHER, *self.cmd], env=env,
+                                        stdout=self.log_file, stderr=subprocess.STDOUT,
+                                        stdin=subprocess.DEVNULL, start_new_session=True)
+
+    @property
+    def alive(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def signal(self, sig: int) -> None:
+        if self.alive:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.process.pid, sig)
+
+    def log_tail(self, lines: int = LOG_TAIL) -> list[str]:
+        """The last ``lines`` lines of the node's log."""
+        if self.log_file is not None:
+            self.log_file.flush()
+        try:
+            return self.log_path.read_text(errors='replace').splitlines()[-lines:]
+        except OSError:
+            return []
+
+    def close(self) -> None:
+        if self.log_file is not None:
+            self.log_file.close()
+            self.log_file = None
+
+
+class Graph:
+    """The node graph of one run: start, supervise, stop."""
+
+    def __init__(self, run_dir: Path, *, config_dir: Path, param_files: list[Path] = (),
+                 profile: str | None = DEFAULT_PROFILE,
+                 record_dir: Path | None = None, gui: bool = False, respawn: bool = True,
+                 extra_params: dict[str, dict[str, str]] | None = None,
+                 env: dict[str, str] | None = None, log=print,
+                 live_port: int | None = None, stop_time: float | None = None) -> None:
+        """ConfigError (nothing started, nothing written) when a parameter file of the run
+        does not pass ``params.check_run``. With ``live_port`` the live view
+        (``replan_ros.view.live_view``, a Foxglove WebSocket on that port) runs with the graph.
+        ``stop_time`` (sim s, a run's duration): the sim steps no further than the first tick
+        at or after it, so the run ends at the same tick every time."""
+        extra_params = extra_params or {}
+        if stop_time is not None:
+            sim = {**extra_params.get('sim', {}), 'stop_time': repr(float(stop_time))}
+            extra_params = {**extra_params, 'sim': sim}
+        if profile is not None:
+            param_files = [profile_file(config_dir, profile), *param_files]
+        self.resolved = check_run_files(config_dir, param_files, extra_params)
+        self.run_dir = run_dir
+        self.log_dir = run_dir / 'logs'
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.env = dict(env or os.environ)
+        self.env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+        self.env['PYTHONUNBUFFERED'] = '1'
+        self.log = log
+        self.nodes: list[ManagedNode] = []
+        # The node files are the ideal world; the profile's settings come on top of them and
+        # the user's files last (None: the files already hold one, as in a re-run).
+        self.profile = profile
+        names = (['recorder'] if record_dir is not None else []) + list(NODES)
+        for name in names:
+            cmd = [_executable(f'{name}_node'), '--ros-args', '-r', f'__node:={name}',
+                   '--params-file', str(config_dir / f'{name}.yaml')]
+            for extra in param_files:
+                cmd += ['--params-file', str(extra)]
+            if name == 'sim' and gui:
+                cmd += ['-p', 'gui:=true']
+            if name == 'wbc' and record_dir is not None:
+                # The estimate (odom, contacts) comes from the wbc, which starts last: its first
+                # command waits until the recorder listens, so the bag holds it from t = 0.
+                cmd += ['-p', f'first_command_waits_for:=[{helper_name("recorder")}]']
+            if name == 'recorder':
+                cmd += ['-p', f'output_dir:={record_dir}']
+                cmd += ['-p', 'config_files:=[' + ', '.join(
+                    str(p) for p in [*(config_dir / f'{n}.yaml' for n in NODES), *param_files])
+                    + ']']
+            for key, value in extra_params.get(name, {}).items():
+                cmd += ['-p', f'{key}:={value}']
+            self.nodes.append(ManagedNode(name, cmd, self.log_dir / f'{name}.log', respawn))
+        if live_port is not None:
+            # First, so that viewers see the graph from its start; it publishes nothing the
+            # graph waits for (docs/usage.md, "Watch the robot").
+            cmd = [sys.executable, '-m', 'replan_ros.view.live_view', '--ros-args',
+                   '-r', '__node:=live_view',
+                   '--params-file', str(config_dir / 'live_view.yaml')]
+            for extra in param_files:
+                cmd += ['--params-file', str(extra)]
+            cmd += ['-p', f'port:={live_port}']
+            for key, value in extra_params.get('live_view', {}).items():
+                cmd += ['-p', f'{key}:={value}']
+            self.nodes.insert(0, ManagedNode('live_view', cmd, self.log_dir / 'live_view.log',
+                                             respawn))
+        self.failed: list[str] = []
+        self.peak_memory_mb: dict[str, float] = {}     # filled by run_graph before stopping
+        self.real_time_factor: float | None = None     # sim s per wall s from the first tick
+        # CPU time (user + system) per sim s of each node, ms, from the first tick to the stop:
+        # the graph's cost that does not depend on how loaded the machine was.
+        self.cpu_ms_per_sim_s: dict[str, float] = {}
+
+    def start(self, watch: ClockWatch | None = None, deliveries=()) -> None:
+        """Start every node. With a ``watch`` node, the wbc (whose first command lets the sim
+        advance) starts only once the recorder, if any, subscribed to the graph's topics (the
+        bag then holds the run from t = 0) and every ``deliveries`` entry (publisher, topic,
+        consumer node name) was received by its consumer (scheduled inputs are then in place
+        before sim time moves, so a run never depends on start-up speed)."""
+        recording = any(n.name == 'recorder' for n in self.nodes)
+        for node in self.nodes:
+            if node.name == 'wbc' and watch is not None:
+                if recording:
+                    self._wait_for_recorder(watch)
+                for publisher, topic, consumer in deliveries:
+                    self._wait_for_delivery(watch, publisher, topic, consumer)
+            node.start(self.env)
+            self.log(f'[launch {_stamp()}] started {node.name} (pid {node.process.pid}), '
+                     f'log {node.log_path}')
+
+    def _wait_for_delivery(self, watch: ClockWatch, publisher, topic: str,
+                           consumer: str) -> None:
+        deadline = time.monotonic() + DELIVERY_WAIT
+        while time.monotonic() < deadline:
+            if any(info.node_name == consumer
+                   for info in watch.node.get_subscriptions_info_by_topic(topic)):
+                break
+            watch.spin(0.1)
+        remaining = max(deadline - time.monotonic(), 0.1)
+        if not publisher.wait_for_all_acked(RclpyDuration(seconds=remaining)):
+            self.log(f'[launch {_stamp()}] {topic}: {consumer} did not acknowledge the '
+                     f'scheduled inputs within {DELIVERY_WAIT} s; starting anyway (the run may '
+                     'differ from a re-run)')
+
+    def _wait_for_recorder(self, watch: ClockWatch) -> None:
+        deadline = time.monotonic() + RECORDER_WAIT
+        missing = list(RECORDED_BEFORE_START)
+        while time.monotonic() < deadline:
+            missing = [t for t in RECORDED_BEFORE_START
+                       if not any(info.node_name == helper_name('recorder') for info in
+                                  watch.node.get_subscriptions_info_by_topic(t))]
+            if not missing:
+                return
+            watch.spin(0.1)
+        self.log(f'[launch {_stamp()}] recorder not subscribed to {missing} after '
+                 f'{RECORDER_WAIT} s; starting anyway (the bag may miss the first messages)')
+
+    def poll(self) -> int | None:
+        """Check the nodes once; respawn the dead ones after their back-off. None while the
+        graph runs on, else the exit code it must stop with (EXIT_DIED without respawn,
+        EXIT_RESPAWN_LIMIT when a node died RESPAWN_LIMIT times within RESPAWN_WINDOW)."""
+        now = time.monotonic()
+        for node in self.nodes:
+            if node.respawn_at is not None:
+                if now >= node.respawn_at:
+                    node.respawn_at = None
+                    node.start(self.env)
+                    self.log(f'[launch {_stamp()}] respawned {node.name} '
+                             f'(pid {node.process.pid})')
+                continue
+            if node.process is None or node.alive:
+                continue
+            code = node.process.returncode
+            self.log(f'[launch {_stamp()}] node {node.name} died (exit code {code}) '
+                     f'after start #{node.starts}; log {node.log_path}')
+            self.failed.append(node.name)
+            if not node.respawn:
+                return EXIT_DIED
+            node.deaths = [t for t in node.deaths if now - t <= RESPAWN_WINDOW] + [now]
+            if len(node.deaths) >= RESPAWN_LIMIT:
+                tail = node.log_tail()
+                self.log(f'[launch {_stamp()}] {node.name} died {len(node.deaths)} times '
+                         f'within {RESPAWN_WINDOW:.0f} s: stopping the graph. The last '
+                         f'{len(tail)} lines of {node.log_path}:')
+                for line in tail:
+                    self.log(f'    {line}')
+                return EXIT_RESPAWN_LIMIT
+            # Back-off: a node that dies at start would otherwise restart in a tight loop.
+            delay = RESPAWN_DELAY * 2 ** (len(node.deaths) - 1)
+            node.respawn_at = now + delay
+            self.log(f'[launch {_stamp()}] respawning {node.name} in {delay:.0f} s')
+        return None
+
+    def cpu_seconds(self) -> dict[str, float]:
+        """CPU time used so far (user + system, s) by each running node process, by pid, so
+        that a respawned node does not count its predecessor's."""
+        ticks = os.sysconf('SC_CLK_TCK')
+        used = {}
+        for node in self.nodes:
+            if node.process is None or node.process.poll() is not None:
+                continue
+            try:
+                stat = Path(f'/proc/{node.process.pid}/stat').read_text()
+            except OSError:
+                continue
+            # Fields after the command name (which may hold spaces): utime, stime are 14, 15.
+            fields = stat.rsplit(')', 1)[1].split()
+            used[f'{node.name}:{node.process.pid}'] = (int(fields[11]) + int(fields[12])) / ticks
+        return used
+
+    def memory_peaks_mb(self) -> dict[str, float]:
+        """Peak resident memory (VmHWM, MB) of each running node process."""
+        peaks = {}
+        for node in self.nodes:
+            if not node.alive:
+                continue
+            try:
+                status = Path(f'/proc/{node.process.pid}/status').read_text()
+            except OSError:
+                continue
+            for line in status.splitlines():
+                if line.startswith('VmHWM:'):
+                    peaks[node.name] = int(line.split()[1]) / 1024.0
+        return peaks
+
+    def stop(self) -> None:
+        """SIGINT to every node, the recorder last (it drains what it has not written yet),
+        SIGKILL to any that does not exit within STOP_TIMEOUT."""
+        producers = [n for n in self.nodes if n.name != 'recorder']
+        recorders = [n for n in self.nodes if n.name == 'recorder']
+        for group in (producers, recorders):
+            for node in reversed(group):
+                node.signal(signal.SIGINT)
+            deadline = time.monotonic() + STOP_TIMEOUT
+            for node in group:
+                if node.process is None:
+                    continue
+                try:
+                    node.process.wait(max(deadline - time.monotonic(), 0.1))
+                except subprocess.TimeoutExpired:
+                    self.log(f'[launch {_stamp()}] {node.name} ignored SIGINT, killing it')
+                    node.signal(signal.SIGKILL)
+                    node.process.wait(5)
+                node.close()
+        self.log(f'[launch {_stamp()}] all nodes stopped')
+
+
+def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None = None,
+              on_start=None, on_tick=None, progress: ProgressLine | None = None,
+              event_times=()) -> int:
+    """Start, supervise until the sim-time duration, Ctrl-C, a death (no respawn) or a wall
+    timeout; stop. ``on_start(node)`` gets the launcher's own rclpy node before the graph
+    starts, to publish inputs; it may return (publisher, topic, consumer node) entries that
+    must be delivered before the sim may advance. ``on_tick(sim_time)`` is called about every
+    0.1 s. With ``progress``, a progress line (``RunProgress``) is printed on it; the sim times
+    of the timed inputs (``event_times``) count as events there. Returns an
+    exit code: 0 done, 1 a node died without respawn, 3 wall-time limit."""
+    stop_requested = []
+
+    def request_stop(signum, _frame):
+        stop_requested.append(signum)
+
+    old_int = signal.signal(signal.SIGINT, request_stop)
+    old_term = signal.signal(signal.SIGTERM, request_stop)
+    # The truth only when the run records it anyway: a plain launch has no reader of the
+    # simulator's truth at all (test/test_launch.py checks it), so it shows the estimate.
+    recording = any(n.name == 'recorder' for n in graph.nodes)
+    watch = ClockWatch(graph.env, follow_run=progress is not None, truth=recording)
+    tracker = RunProgress(duration, event_times)
+    log = graph.log
+    if progress is not None:
+        def log_clear(text: str) -> None:     # an event line must not land on the progress
+            progress.clear()
+            log(text)
+        graph.log = log_clear
+    code = 0
+    start_wall = time.monotonic()
+    first_tick: tuple[float, float] | None = None      # (wall, sim) when the sim first moved
+    cpu_at_first_tick: dict[str, float] = {}
+    try:
+        deliveries = on_start(watch.node) if on_start is not None else None
+        graph.start(watch, deliveries or ())
+        while not stop_requested:
+            watch.spin(0.1)
+            if first_tick is None and watch.sim_time > 0.0:
+                first_tick = (time.monotonic(), watch.sim_time)
+                cpu_at_first_tick = graph.cpu_seconds()
+            if on_tick is not None:
+                on_tick(watch.sim_time)
+            if progress is not None:
+                now = time.monotonic()
+                tracker.sample(now, watch.sim_time)
+                if progress.due(now):
+                    progress.show(tracker.text(watch.distance(), estimated=not recording,
+                                               replans=watch.replans), now)
+            result = graph.poll()
+            if result is not None:
+                if result == EXIT_DIED:
+                    graph.log(f'[launch {_stamp()}] --no-respawn: stopping the rest')
+                code = result
+                break
+            if duration is not None and watch.sim_time >= duration:
+                graph.log(f'[launch {_stamp()}] reached {duration} s of sim time')
+                break
+            if wall_timeout is not None and time.monotonic() - start_wall > wall_timeout:
+                graph.log(f'[launch {_stamp()}] wall-time limit {wall_timeout} s reached at '
+                          f'sim time {watch.sim_time:.2f} s')
+                code = 3
+                break
+        if stop_requested:
+            graph.log(f'[launch {_stamp()}] signal {stop_requested[0]}: stopping')
+        graph.peak_memory_mb = graph.memory_peaks_mb()
+        if first_tick is not None and watch.sim_time > first_tick[1]:
+            wall = time.monotonic() - first_tick[0]
+            sim = watch.sim_time - first_tick[1]
+            graph.real_time_factor = sim / wall
+            graph.cpu_ms_per_sim_s = cpu_per_sim_s(cpu_at_first_tick, graph.cpu_seconds(), sim)
+            graph.log(f'[launch {_stamp()}] {watch.sim_time:.1f} s of sim time, real-time '
+                      f'factor {graph.real_time_factor:.2f} (from the first tick); peak memory '
+                      f'{sum(graph.peak_memory_mb.values()):.0f} MB in '
+                      f'{len(graph.peak_memory_mb)} nodes')
+            if graph.cpu_ms_per_sim_s:
+                graph.log(f'[launch {_stamp()}] CPU time per sim s since the first tick: '
+                          + ', '.join(f'{name} {ms:.0f} ms' for name, ms
+                                      in graph.cpu_ms_per_sim_s.items())
+                          + f'; all {sum(graph.cpu_ms_per_sim_s.values()):.0f} ms')
+    finally:
+        if progress is not None:
+            progress.clear()
+        graph.stop()
+        graph.log = log
+        watch.close()
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+    return code
+
+
+def cpu_per_sim_s(before: dict[str, float], after: dict[str, float],
+                  sim_seconds: float) -> dict[str, float]:
+    """CPU ms per sim s of each node (``name:pid`` keys of ``Graph.cpu_seconds``) between two
+    samples; for a node respawned meanwhile, its new process's whole CPU time (the old
+    process's went with it)."""
+    used: dict[str, float] = {}
+    for key, seconds in after.items():
+        name = key.split(':', 1)[0]
+        used[name] = used.get(name, 0.0) + seconds - before.get(key, 0.0)
+    return {name: 1e3 * seconds / sim_seconds for name, seconds in used.items()}

@@ -1,0 +1,45 @@
+"""The parameter files of a run: the world profile's file (``profile_file``) and the check of
+every file of the run against the nodes' parameter tables before anything starts
+(``check_run_files``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from replan_ros.params import TABLES, Source, check_run, load_param_file, load_yaml
+
+PROFILES = ('realistic', 'ideal')
+DEFAULT_PROFILE = 'realistic'
+
+
+def profile_file(config_dir: Path, profile: str) -> Path:
+    """The parameter file of a profile: a name in ``config/profiles/`` or a path."""
+    path = Path(profile)
+    if path.suffix in ('.yaml', '.yml'):
+        if not path.is_file():
+            raise ValueError(f'profile file {path} does not exist')
+        return path
+    path = config_dir / 'profiles' / f'{profile}.yaml'
+    if not path.is_file():
+        known = sorted(p.stem for p in (config_dir / 'profiles').glob('*.yaml'))
+        raise ValueError(f'unknown profile {profile!r} (known: {", ".join(known)})')
+    return path
+
+
+def check_run_files(config_dir: Path, param_files, extra_params=None):
+    """Check the node files of ``config_dir``, then ``param_files`` in order (the profile and
+    the user's files: paths, or ``params.Source`` for parameters not in a file yet), then the
+    ``-p`` values of ``extra_params`` ({node: {name: text}}), against the parameter tables and
+    each other; returns the effective values (``params.Resolved``). ConfigError names the
+    file, the node, the key, the value and what is allowed."""
+    sources = []
+    for name in TABLES:
+        path = config_dir / f'{name}.yaml'
+        if path.is_file():
+            sources.append(Source(str(path), load_param_file(path), nodes=(name,)))
+    sources += [item if isinstance(item, Source) else Source(str(item), load_param_file(item))
+                for item in param_files]
+    for name, values in (extra_params or {}).items():
+        sources.append(Source('command line (-p)', {
+            name: {key: load_yaml(str(text)) for key, text in values.items()}}, nodes=(name,)))
+    return check_run(sources, TABLES)

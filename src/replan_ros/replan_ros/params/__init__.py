@@ -1,0 +1,77 @@
+"""Every node parameter in one place (issue 15): each node declares its parameters from its
+table (``declare``), the launcher and the scenario runner check every parameter file of a run
+against the same tables before anything starts (``files.check_run``), and each node repeats the
+check on its own command line, so a bad value stops the start with one line naming the file,
+the node, the key, the value and what is allowed (``config error: /tmp/x.yaml:
+gait.replan_window = 0 is out of range [1, 8]``); ``spec`` holds ``ParamSpec`` and the value
+checks, ``tables`` the per-node tables (``GAIT``, ``MPC`` and ``WBC`` built on first use, so
+that importing this package loads neither pinocchio, proxsuite nor PyBullet), ``convert`` the
+one conversion of checked values into the core's dataclasses. This module re-exports the
+public names of all of them.
+"""
+
+from __future__ import annotations
+
+from replan_ros.params.convert import (
+    MPC_FIXED,
+    actuator_params,
+    dataclass_from_params,
+    estimator_params,
+    gait_params,
+    imu_noise_params,
+    joint_sensor_params,
+    mpc_settings,
+    protocol_params,
+    wbc_params,
+)
+from replan_ros.params.declare import declare_node_parameters
+from replan_ros.params.files import (
+    Resolved,
+    Source,
+    check_run,
+    cross_node_checks,
+    load_param_file,
+    load_yaml,
+    parse_param_doc,
+    resolve,
+    sources_from_argv,
+)
+from replan_ros.params.spec import (
+    BUILTIN,
+    INF,
+    KINDS,
+    RESTART_HINT,
+    ConfigError,
+    ParamSpec,
+    check_value,
+)
+from replan_ros.params.tables import (
+    _TABLE_NAMES,
+    LIVE_VIEW,
+    RECORDER,
+    SIM,
+    STANDING_POSE,
+    TABLES,
+    TERRAINS,
+    defaults,
+    table,
+)
+
+# GAIT, MPC and WBC are not listed: ``from replan_ros.params import *`` must not build them.
+__all__ = [
+    'BUILTIN', 'INF', 'KINDS', 'LIVE_VIEW', 'MPC_FIXED', 'RECORDER', 'RESTART_HINT', 'SIM',
+    'STANDING_POSE', 'TABLES', 'TERRAINS', 'ConfigError', 'ParamSpec', 'Resolved', 'Source',
+    'actuator_params', 'check_run', 'check_value', 'cross_node_checks', 'dataclass_from_params',
+    'declare_node_parameters', 'defaults', 'estimator_params', 'gait_params',
+    'imu_noise_params', 'joint_sensor_params', 'load_param_file', 'load_yaml', 'mpc_settings',
+    'parse_param_doc', 'protocol_params', 'resolve', 'sources_from_argv', 'table',
+    'wbc_params',
+]
+
+
+def __getattr__(name: str):
+    """``params.GAIT``, ``params.MPC``, ``params.WBC``: built on first use (PEP 562), the same
+    tuples as ``params.tables.GAIT`` ... and ``params.TABLES['gait']`` ..."""
+    if name in _TABLE_NAMES:
+        return TABLES[_TABLE_NAMES[name]]
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')

@@ -1,0 +1,122 @@
+"""From a node's checked parameter values to the core's dataclasses: ``dataclass_from_params``
+fills any core dataclass field by field (a field without its parameter is an error, so a field
+added to the core cannot miss its table unnoticed), and one function per dataclass says how
+(``gait_params``, ``mpc_settings``, ``wbc_params``, ``protocol_params``, ``estimator_params``,
+``actuator_params``, ``imu_noise_params``, ``joint_sensor_params``); each imports its core module
+on use, as the tables do, so importing this module loads neither numpy nor the core's solvers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
+
+from replan_core.types import LEGS
+
+
+def dataclass_from_params(cls: type, values: Mapping[str, Any], *, prefix: str = '',
+                          names: Mapping[str, str] | None = None,
+                          convert: Mapping[str, Callable[[Any], Any]] | None = None,
+                          fixed: Iterable[str] = ()) -> Any:
+    """A core dataclass (``cls``, every field with a default) from a node's checked parameter
+    values: field ``f`` takes ``values[names.get(f, prefix + f)]``, converted by
+    ``convert[f]`` or to the type of the field's default (a numpy array becomes a float
+    array, a tuple a tuple). The fields in ``fixed`` are not parameters: they keep the core's
+    default. Any other field without its parameter is a KeyError naming it, so a field added
+    to the core cannot miss its parameter table unnoticed. ValueError from a converter passes
+    through (the node reports it as a config error)."""
+    import numpy as np
+
+    names, convert, fixed = names or {}, convert or {}, set(fixed)
+    defaults_ = cls()
+    kwargs = {}
+    for item in dataclasses.fields(cls):
+        if item.name in fixed:
+            continue
+        key = names.get(item.name, prefix + item.name)
+        if key not in values:
+            raise KeyError(f'{cls.__name__}.{item.name} has no parameter {key!r} (and is not '
+                           'one of the fixed fields)')
+        value = values[key]
+        if item.name in convert:
+            kwargs[item.name] = convert[item.name](value)
+            continue
+        default = getattr(defaults_, item.name)
+        if isinstance(default, np.ndarray):
+            kwargs[item.name] = np.array(value, dtype=float)
+        elif isinstance(default, (tuple, list, bool, int, float, str)):
+            kwargs[item.name] = type(default)(value)
+        else:
+            kwargs[item.name] = value
+    return cls(**kwargs)
+
+
+# How each node's checked values fill the core's dataclasses (dataclass_from_params); the core
+# modules are imported here on use, as for the tables (_LazyTables).
+# The MpcSettings fields that are not node parameters: the solver's internals, the core's
+# defaults (scripts/bench_mpc.sh compares the alternatives).
+MPC_FIXED = ('formulation', 'warm_start', 'violation_tol', 'slack_weight', 'max_rounds',
+             'drop_inactive', 'add_peaks_only', 'working_set_tol', 'dual_mu_in',
+             'iteration_budget', 'exact_dual')
+
+
+def _stance_offsets(values) -> tuple:
+    offsets = [float(v) for v in values]
+    if len(offsets) != 8:
+        raise ValueError('stance_offsets needs 8 values (x, y per leg)')
+    return tuple((offsets[2 * i], offsets[2 * i + 1]) for i in range(4))
+
+
+def gait_params(values: Mapping[str, Any]):
+    """``GaitParams`` of the gait node (leg names to indices, offsets to pairs; the hip
+    offsets are the core's)."""
+    from replan_core.gait import GaitParams
+    return dataclass_from_params(GaitParams, values, fixed=('hip_offsets',), convert={
+        'sequence': lambda names: tuple(LEGS.index(str(n).lower()) for n in names),
+        'stance_offsets': _stance_offsets})
+
+
+def mpc_settings(values: Mapping[str, Any]):
+    """``MpcSettings`` of the mpc node."""
+    from replan_core.mpc import MpcSettings
+    return dataclass_from_params(MpcSettings, values, fixed=MPC_FIXED)
+
+
+def wbc_params(values: Mapping[str, Any]):
+    """``WbcParams`` of the wbc node (the force QP's solver settings are the core's)."""
+    from replan_core.wbc import WbcParams
+    return dataclass_from_params(WbcParams, values, fixed=('qp_max_iter', 'qp_eps_abs'))
+
+
+def protocol_params(values: Mapping[str, Any]):
+    """``ProtocolParams`` of the wbc node (the controller's re-plan protocol)."""
+    from replan_core.tick_protocol import ProtocolParams
+    return dataclass_from_params(ProtocolParams, values)
+
+
+def estimator_params(values: Mapping[str, Any]):
+    """``EstimatorParams`` of the wbc node (``estimator.<field>``)."""
+    from replan_core.estimator import EstimatorParams
+    return dataclass_from_params(EstimatorParams, values, prefix='estimator.')
+
+
+def actuator_params(values: Mapping[str, Any]):
+    """``ActuatorParams`` of the sim node."""
+    from replan_core.sim_world import ActuatorParams
+    return dataclass_from_params(ActuatorParams, values, names={
+        'time_constant': 'actuator_time_constant', 'delay': 'actuator_delay',
+        'viscous_damping': 'joint_viscous_damping', 'coulomb_friction': 'joint_coulomb_friction'})
+
+
+def imu_noise_params(values: Mapping[str, Any]):
+    """``ImuNoiseParams`` of the sim node (``imu_<field>``)."""
+    from replan_core.sensors import ImuNoiseParams
+    return dataclass_from_params(ImuNoiseParams, values, prefix='imu_')
+
+
+def joint_sensor_params(values: Mapping[str, Any]):
+    """``JointSensorParams`` of the sim node (``joint_<field>``)."""
+    from replan_core.sensors import JointSensorParams
+    return dataclass_from_params(JointSensorParams, values, prefix='joint_',
+                                 names={'encoder_counts_per_rev': 'encoder_counts_per_rev'})
