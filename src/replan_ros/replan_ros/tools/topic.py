@@ -9,8 +9,8 @@
     scripts/topic.sh talk TOPIC [--rate HZ]         (publishes std_msgs/String, for graph checks)
 
 No daemon caches the graph: list, info and nodes first listen to DDS discovery for --wait
-seconds (default 3: a node can take one Fast DDS announcement period to appear; while no other
-node has been discovered, up to 6 s more: a loaded machine can be that slow); echo and hz
+seconds (default 4.5: a node can take one Fast DDS announcement period, 3 s, to appear, and
+longer under load; while no other node has been discovered, up to 6 s more); echo and hz
 wait up to --wait seconds for a publisher. They subscribe with a QoS that matches every publisher:
 transient local when all publishers are (so latched plans and schedules are received), best
 effort when any publisher is. Messages are printed as YAML, like ros2 topic echo. Arguments
@@ -173,9 +173,17 @@ def _is_hidden(name: str) -> bool:
     return any(part.startswith('_') for part in name.split('/'))
 
 
-# s: listening on while nothing but this tool's own node is discovered (two Fast DDS
-# announcement periods of 3 s).
+# s: Fast DDS's participant announcement period (its default, which rmw_fastrtps keeps). A
+# participant that missed this tool's first announcements (or whose answer came before the tool
+# listened) is heard at its next periodic one: measured beside a running sim with 5 busy
+# processes, 7 of 10 fresh participants saw it at once, 3 after 2.0-2.8 s (bimodal).
+_ANNOUNCEMENT_PERIOD = 3.0
+# s: how late that announcement may come under load, on top of the period.
+_ANNOUNCEMENT_MARGIN = 1.5
+DISCOVERY_WAIT = _ANNOUNCEMENT_PERIOD + _ANNOUNCEMENT_MARGIN    # s, --wait's default
+# s: listening on while nothing but this tool's own node is discovered (two periods).
 _LONELY_EXTRA = 6.0
+
 
 class TopicTool:
     """The commands, on one rclpy node that only discovers and subscribes."""
@@ -191,14 +199,16 @@ class TopicTool:
     def settle(self, snapshot: Callable[[], object], wait: float,
                done: Callable[[], bool] = lambda: True, quiet: float = 0.5,
                extra: float = 2.0) -> None:
-        """Listen to discovery for ``wait`` s, then until ``done()`` and no change for ``quiet`` s.
+        """Listen to discovery for ``wait`` s (by default one announcement period plus a
+        margin: DISCOVERY_WAIT), then until ``done()`` and no change for ``quiet`` s.
 
-        Without a daemon caching the graph, listening is the only way to learn it, and a node
-        can take up to one announcement period (3 s in Fast DDS; 2.7 s measured here) to be
-        discovered. Gives up ``extra`` s after ``wait``, or, while no node but this one has
-        been discovered, two more announcement periods after that: on a loaded machine a
-        running sim was not discovered within 5 s in one run of four (test_topic_tool.py with
-        two busy processes beside it), and an empty answer then looks like an empty graph.
+        Without a daemon caching the graph, listening is the only way to learn it, and a
+        participant can take up to one announcement period (3 s in Fast DDS; 2.8 s measured
+        here) to be discovered, later under load: with the 3 s of ``wait`` alone, a running
+        sim was missed in a suite run beside two test runs (test_topic_tool.py; the list held
+        the test probe's topics only, so the tool was not alone). Gives up ``extra`` s after
+        that, or, while no node but this one has been discovered, two more announcement
+        periods after that: an empty answer looks like an empty graph.
         """
         start = time.monotonic()
         last, changed = snapshot(), start
@@ -383,12 +393,13 @@ def build_parser(prog: str = 'topic.sh') -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
-    wait_help = 'wall s of listening to discovery first (default 3)'
+    wait_help = (f'wall s of listening to discovery first (default {DISCOVERY_WAIT:g}: one '
+                 'DDS announcement period and a margin)')
 
     p = sub.add_parser('list', help='topics (ros2 topic list)')
     p.add_argument('-t', '--show-types', action='store_true', help='also the types')
     p.add_argument('--include-hidden-topics', action='store_true')
-    p.add_argument('--wait', type=_positive(float), default=3.0, help=wait_help)
+    p.add_argument('--wait', type=_positive(float), default=DISCOVERY_WAIT, help=wait_help)
 
     p = sub.add_parser('echo', help='print messages as YAML (ros2 topic echo)')
     p.add_argument('topic')
@@ -407,7 +418,7 @@ def build_parser(prog: str = 'topic.sh') -> argparse.ArgumentParser:
     p = sub.add_parser('info', help='type, endpoints and their QoS (ros2 topic info)')
     p.add_argument('topic')
     p.add_argument('-v', '--verbose', action='store_true', help='each endpoint with its QoS')
-    p.add_argument('--wait', type=_positive(float), default=3.0, help=wait_help)
+    p.add_argument('--wait', type=_positive(float), default=DISCOVERY_WAIT, help=wait_help)
 
     p = sub.add_parser('hz', help='publishing rate (ros2 topic hz)')
     p.add_argument('topic')
@@ -420,7 +431,7 @@ def build_parser(prog: str = 'topic.sh') -> argparse.ArgumentParser:
 
     p = sub.add_parser('nodes', help='node names (ros2 node list)')
     p.add_argument('-a', '--all', action='store_true', help='also hidden nodes')
-    p.add_argument('--wait', type=_positive(float), default=3.0, help=wait_help)
+    p.add_argument('--wait', type=_positive(float), default=DISCOVERY_WAIT, help=wait_help)
 
     p = sub.add_parser('talk', help='publish std_msgs/String (graph checks)')
     p.add_argument('topic')
