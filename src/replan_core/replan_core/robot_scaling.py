@@ -1,0 +1,67 @@
+"""The robot-dependent parameters of a robot, derived from a reference robot's tuned values by
+the rules of ``config/robots/scaling.yaml`` (docs/robot_files.md, "Scaling rules").
+
+value(R) = value(reference) * scale(R) / scale(reference), each scale measured on the models
+(``robot_file.RobotFacts``): ``weight`` m g, ``length`` the leg length l, ``time`` sqrt(l / g),
+``speed`` sqrt(g l), ``rate`` sqrt(g / l), ``joint_inertia`` the smallest joint inertia. Values
+``measured`` on the model (CoM height, feet about the hips) are set, not scaled.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from replan_core.robot_file import RobotFacts
+
+G = 9.81    # m/s^2
+
+SCALES = {
+    'weight': lambda f: f.mass * G,                          # N
+    'length': lambda f: f.leg_length,                        # m
+    'time': lambda f: math.sqrt(f.leg_length / G),           # s
+    'speed': lambda f: math.sqrt(G * f.leg_length),          # m/s
+    'rate': lambda f: math.sqrt(G / f.leg_length),           # 1/s
+    'joint_inertia': lambda f: f.min_joint_inertia,          # kg m^2
+}
+MEASURED = {
+    'com_height': lambda f: float(f.com_height),
+    'feet_about_hips': lambda f: [float(v) for v in np.asarray(f.feet_about_hips).ravel()],
+}
+
+
+def _split(key: str) -> tuple[str, str]:
+    """'wbc.estimator.contact_force_threshold' -> ('wbc', 'estimator.contact_force_threshold')."""
+    node, _, name = key.partition('.')
+    if not node or not name:
+        raise ValueError(f'{key!r} is not node.parameter')
+    return node, name
+
+
+def derived_parameters(facts: RobotFacts, reference: RobotFacts,
+                       reference_values: Mapping[str, Mapping], rules: Mapping,
+                       measure: bool = True) -> dict:
+    """node -> {parameter: value} for the robot of ``facts``: each parameter of
+    ``rules['rules']`` scaled from ``reference_values`` (node -> {parameter: value}, the
+    reference robot's), each of ``rules['measured']`` set from ``facts`` (with ``measure``;
+    the reference robot itself keeps its files' tuned values: measure=False). ValueError
+    names an unknown scale, measurement or parameter."""
+    out: dict[str, dict] = {}
+    for scale, keys in rules.get('rules', {}).items():
+        if scale not in SCALES:
+            raise ValueError(f'unknown scale {scale!r} (known: {", ".join(SCALES)})')
+        ratio = SCALES[scale](facts) / SCALES[scale](reference)
+        for key in keys:
+            node, name = _split(key)
+            if name not in reference_values.get(node, {}):
+                raise ValueError(f'{key}: the reference has no such parameter')
+            out.setdefault(node, {})[name] = float(reference_values[node][name]) * ratio
+    for key, what in (rules.get('measured', {}) if measure else {}).items():
+        if what not in MEASURED:
+            raise ValueError(f'{key}: unknown measurement {what!r} (known: '
+                             f'{", ".join(MEASURED)})')
+        node, name = _split(key)
+        out.setdefault(node, {})[name] = MEASURED[what](facts)
+    return out

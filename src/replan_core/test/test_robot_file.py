@@ -1,0 +1,152 @@
+"""Robot files (robot_file.py) and the scaling rules (robot_scaling.py): the four robots of
+config/robots/ load with every name checked against their models, their facts agree with
+independent measurements (shared/notes/quadrupeds.md), a wrong name stops with one line, and
+the derived parameters follow the rules."""
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from replan_core.robot_file import (
+    RobotFileError,
+    load_robot_file,
+    robot_facts,
+    robot_spec,
+    srdf_standing_pose,
+)
+from replan_core.robot_scaling import derived_parameters
+
+ROOT = Path(__file__).resolve().parents[3]
+ROBOTS = ROOT / 'config' / 'robots'
+# kg, total mass; m, standing height over the ground (measured with PyBullet and pinocchio
+# for the notes, independently of this code).
+EXPECTED = {'hyq': (86.76, 0.60), 'anymal_c': (52.13, 0.54), 'go1': (13.10, 0.27),
+            'b1': (55.69, 0.53)}
+
+
+@pytest.fixture(scope='module')
+def facts():
+    return {name: robot_facts(load_robot_file(ROBOTS / f'{name}.yaml', ROOT))
+            for name in EXPECTED}
+
+
+@pytest.mark.parametrize('name', sorted(EXPECTED))
+def test_each_robot_file_maps_its_model_into_the_project_names(name, facts):
+    spec = load_robot_file(ROBOTS / f'{name}.yaml', ROOT)
+    assert spec.name == name and len(spec.joints) == 12 and len(spec.feet) == 4
+    assert spec.urdf.is_file() and spec.standing_pose.shape == (12,)
+    mass, height = EXPECTED[name]
+    assert facts[name].mass == pytest.approx(mass, abs=0.01)
+    assert facts[name].standing_height == pytest.approx(height, abs=0.01)
+    # The feet stand outside (or under) their hips, symmetric left to right.
+    about = facts[name].feet_about_hips
+    assert np.allclose(about[0], about[1] * [1, -1], atol=1e-3)
+    assert 0.0 <= about[0, 1] < 0.2
+
+
+def test_a_standing_pose_from_the_srdf_is_its_standing_group_state():
+    spec = load_robot_file(ROBOTS / 'go1.yaml', ROOT)
+    assert spec.srdf is not None
+    assert spec.standing_pose.tolist() == [0.0, 0.8, -1.853] * 4
+    assert srdf_standing_pose(spec.srdf, spec.joints[:3]).tolist() == [0.0, 0.8, -1.853]
+    with pytest.raises(KeyError, match='no group state'):
+        srdf_standing_pose(spec.srdf, spec.joints, 'lying')
+
+
+def _doc(name='go1'):
+    return yaml.safe_load((ROBOTS / f'{name}.yaml').read_text())
+
+
+@pytest.mark.parametrize('change, key, problem', [
+    (lambda d: d['legs']['lf']['joints'].__setitem__(0, 'FL_hip_jont'), 'legs.lf.joints[0]',
+     "no joint 'FL_hip_jont' in go1.urdf"),
+    (lambda d: d['legs']['rh'].__setitem__('foot', 'RR_toe'), 'legs.rh.foot', "no link 'RR_toe'"),
+    (lambda d: d['legs']['lf']['joints'].__setitem__(0, 'FL_foot_fixed'), 'legs.lf.joints[0]',
+     'is fixed, not revolute'),
+    (lambda d: d['legs'].pop('lh'), 'legs', 'needs exactly the legs lf, rf, lh, rh'),
+    (lambda d: d.__setitem__('root_link', 'trunkk'), 'root_link', "no link 'trunkk'"),
+    (lambda d: d.__setitem__('colour', 'red'), 'colour', 'unknown key'),
+    (lambda d: d['model'].__setitem__('source', 'internet'), 'model.source', "'internet'"),
+    (lambda d: d['model'].__setitem__('urdf', 'go1_description/urdf/go2.urdf'), 'model.urdf',
+     'no file'),
+    (lambda d: d['model'].pop('srdf'), 'standing_pose', "'srdf' needs model.srdf"),
+    (lambda d: d.__setitem__('standing_pose', [0.0] * 11), 'standing_pose', '12 values'),
+    (lambda d: d['foot_contact'].__setitem__('radius', 0.0), 'foot_contact.radius', 'radius'),
+    (lambda d: d.__setitem__('actuator', 'steam'), 'actuator', "'steam' is not one of"),
+    (lambda d: d.__setitem__('parameters', {'wbc': 3}), 'parameters', 'mapping'),
+])
+def test_a_wrong_robot_file_stops_with_one_line_naming_file_and_key(change, key, problem):
+    doc = _doc()
+    change(doc)
+    with pytest.raises(RobotFileError) as error:
+        robot_spec(doc, 'my_go1.yaml', ROOT)
+    message = str(error.value)
+    assert message.startswith(f'robot file my_go1.yaml: {key}: ') and problem in message
+    assert '\n' not in message
+
+
+def test_an_unreadable_robot_file_is_one_line_too(tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('name: [unclosed\n')
+    with pytest.raises(RobotFileError, match=re.escape(f'robot file {bad}: ')):
+        load_robot_file(bad, ROOT)
+    with pytest.raises(RobotFileError, match=re.escape('missing.yaml')):
+        load_robot_file(tmp_path / 'missing.yaml', ROOT)
+
+
+RULES = {'rules': {'weight': ['wbc.fz_max'], 'length': ['gait.step_height'],
+                   'time': ['gait.swing_duration'], 'speed': ['gait.max_linear_x'],
+                   'rate': ['gait.max_angular_z'], 'joint_inertia': ['wbc.fall_damping']},
+         'measured': {'mpc.com_height': 'com_height'}}
+VALUES = {'wbc': {'fz_max': 800.0, 'fall_damping': 2.0},
+          'gait': {'step_height': 0.1, 'swing_duration': 0.5, 'max_linear_x': 0.2,
+                   'max_angular_z': 0.25},
+          'mpc': {'com_height': 0.55}}
+
+
+def test_the_reference_robot_keeps_its_tuned_values_exactly(facts):
+    hyq = facts['hyq']
+    assert derived_parameters(hyq, hyq, VALUES, RULES, measure=False) == {
+        'wbc': {'fz_max': 800.0, 'fall_damping': 2.0},
+        'gait': {'step_height': 0.1, 'swing_duration': 0.5, 'max_linear_x': 0.2,
+                 'max_angular_z': 0.25}}
+
+
+def test_each_rule_scales_by_its_physics(facts):
+    hyq, go1 = facts['hyq'], facts['go1']
+    out = derived_parameters(go1, hyq, VALUES, RULES)
+    legs = go1.leg_length / hyq.leg_length
+    assert out['wbc']['fz_max'] == pytest.approx(800.0 * go1.mass / hyq.mass)
+    assert out['gait']['step_height'] == pytest.approx(0.1 * legs)
+    assert out['gait']['swing_duration'] == pytest.approx(0.5 * math.sqrt(legs))
+    assert out['gait']['max_linear_x'] == pytest.approx(0.2 * math.sqrt(legs))
+    assert out['gait']['max_angular_z'] == pytest.approx(0.25 / math.sqrt(legs))
+    assert out['mpc']['com_height'] == pytest.approx(go1.com_height)
+    assert out['mpc']['com_height'] == pytest.approx(0.255, abs=0.005)
+
+
+def test_derived_joint_damping_stays_below_what_250_hz_can_apply(facts):
+    rules = yaml.safe_load((ROBOTS / 'scaling.yaml').read_text())
+    assert rules['reference'] == 'hyq'
+    for name, robot in facts.items():
+        damping = derived_parameters(robot, facts['hyq'], VALUES,
+                                     {'rules': {'joint_inertia': ['wbc.fall_damping']}})
+        # Explicit damping at a control period dt is stable below 2 I / dt.
+        assert damping['wbc']['fall_damping'] < 0.5 * 2 * robot.min_joint_inertia / 0.004, name
+
+
+def test_unknown_scales_measurements_and_parameters_are_refused(facts):
+    hyq = facts['hyq']
+    with pytest.raises(ValueError, match="unknown scale 'mass'"):
+        derived_parameters(hyq, hyq, VALUES, {'rules': {'mass': ['wbc.fz_max']}})
+    no_such = re.escape('wbc.fz_mx: the reference has no such parameter')
+    with pytest.raises(ValueError, match=no_such):
+        derived_parameters(hyq, hyq, VALUES, {'rules': {'weight': ['wbc.fz_mx']}})
+    with pytest.raises(ValueError, match="unknown measurement 'height'"):
+        derived_parameters(hyq, hyq, VALUES, {'measured': {'mpc.com_height': 'height'}})
+    with pytest.raises(ValueError, match=re.escape('is not node.parameter')):
+        derived_parameters(hyq, hyq, VALUES, {'rules': {'weight': ['fz_max']}})
