@@ -123,7 +123,8 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         f'graph time in all (this call: {meta["wall_time_min"]} min; runs made by an earlier '
         'call with the same scenario, or shared between experiments, are read). Do not edit '
         'by hand: every number, verdict and plot below comes from the runs '
-        '(`replan_ros/experiments/runner.py`, `experiment_page.py`; the plan is '
+        '(`replan_ros/experiments/`: `claims.py` the experiments, `page.py` this page; the '
+        'plan is '
         '`config/experiments.yaml`).',
         '',
     ]
