@@ -104,8 +104,9 @@ def test_installs_git_and_bakes_in_the_revision():
     steps = instructions()
     assert any(k == 'ARG' and a.split('=')[0] == 'GIT_REVISION' for k, a in steps)
     assert ('ENV', 'REPLAN_GIT_REVISION=${GIT_REVISION}') in steps
-    recorder = REPO_ROOT / 'src' / 'replan_ros' / 'replan_ros' / 'nodes' / 'recorder_node.py'
-    assert "'REPLAN_GIT_REVISION'" in recorder.read_text()
+    # The recorder's run records read it where git is missing (test_run_metadata.py runs it).
+    metadata = REPO_ROOT / 'src' / 'replan_ros' / 'replan_ros' / 'recording' / 'run_metadata.py'
+    assert "'REPLAN_GIT_REVISION'" in metadata.read_text()
 
 
 @pytest.mark.parametrize('folder', ['.venv', 'build', 'install', 'log', 'runs'])

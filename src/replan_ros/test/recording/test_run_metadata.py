@@ -62,3 +62,13 @@ def test_the_run_records_hold_the_configuration_and_say_what_could_not_be_stored
     records, errors = run_records(_params(tmp_path, metadata_json='[1, 2]'), False)
     assert [name for name, _ in records] == ['replan_run']
     assert errors == ['metadata_json not stored: not a JSON object']
+
+
+def test_without_git_the_revision_is_the_one_baked_in(tmp_path, monkeypatch):
+    from replan_ros.recording.run_metadata import run_records
+
+    monkeypatch.setenv('REPLAN_ROOT', str(tmp_path))          # no repository there
+    monkeypatch.setenv('REPLAN_GIT_REVISION', 'abc1234')
+    records, _ = run_records(_params(tmp_path), False)
+    run = dict(records)['replan_run']
+    assert run['git_revision'] == 'abc1234' and run['git_dirty'] == 'false'
