@@ -114,8 +114,15 @@ def _child(executor_name: str, mode: str, case: str, topic: str, duration: float
         report(stopped_by_sigint=True)
     except (KeyboardInterrupt, ExternalShutdownException):
         report(stopped_by_sigint=True)
-    except Exception as error:           # the finding itself: what the executor raised
-        report(error=f'{type(error).__name__}: {error}')
+    except Exception as error:
+        if not rclpy.ok():
+            # SIGINT's shutdown came while spin_once set up its wait: rclpy then raises
+            # RCLError ("failed to create timer: the given context is not valid"), not
+            # ExternalShutdownException (a suite run, spin_once_timeout, after all 50 calls).
+            # The spin ended because of SIGINT all the same.
+            report(stopped_by_sigint=True)
+        else:                            # the finding itself: what the executor raised
+            report(error=f'{type(error).__name__}: {error}')
     rclpy.try_shutdown()
     return 0
 
