@@ -98,15 +98,17 @@ class GaitReplanner:
         """The plan in force is a stand plan (idle stance)."""
         return self.plan is not None and is_stand_plan(self.plan)
 
-    def tick(self, contacts: ContactState) -> None:
+    def tick(self, contacts: ContactState) -> bool:
         """The contacts of the next tick, in stamp order: the touchdown rule; sets
-        ``pending`` when a re-plan is due (and at the first state seen)."""
+        ``pending`` when a re-plan is due (and at the first state seen). True if the tick
+        started a new run (sim time went back): the caller drops what it kept of the old."""
         ns = round(contacts.stamp * 1e9)
-        if self.last_tick_ns is not None and ns < self.last_tick_ns:
+        new_run = self.last_tick_ns is not None and ns < self.last_tick_ns
+        if new_run:
             self.reset(f'sim time went back from {self.last_tick_ns * 1e-9:.3f} s to '
                        f'{contacts.stamp:.3f} s')
         if self.last_tick_ns is not None and ns == self.last_tick_ns:
-            return                          # a republished state: already decided
+            return new_run                  # a republished state: already decided
         if self.last_tick_ns is not None:
             gap = ns - self.last_tick_ns
             self.tick_ns = min(self.tick_ns or gap, gap)
@@ -118,7 +120,7 @@ class GaitReplanner:
         self.last_tick_ns = ns
         if self.tracker is None:
             self.pending = Replan(ns, contacts, True)   # the first state seen: the initial plan
-            return
+            return new_run
         for event in self.tracker.update(contacts.stamp, contacts.contact):
             if event.kind != 'touchdown' or is_idle_trigger(self.plan.steps[event.step]):
                 continue                    # a stand plan's trigger moves no leg
@@ -130,6 +132,7 @@ class GaitReplanner:
                                     'touchdown')
         if self.tracker.replan_due:
             self.pending = Replan(ns, contacts, False)
+        return new_run
 
     def plan_pending(self, base: BaseState, hips: np.ndarray | None, setpoint: np.ndarray,
                      source: str) -> FootholdPlan | None:

@@ -241,11 +241,8 @@ class GaitNode(Node):
                 return
             if not self.unprocessed:
                 return
-            cs = self.unprocessed.popleft()
-            if (self.replanner.last_tick_ns is not None
-                    and round(cs.stamp * 1e9) < self.replanner.last_tick_ns):
+            if self.replanner.tick(self.unprocessed.popleft()):    # a new run
                 self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
-            self.replanner.tick(cs)
 
     def _replan(self) -> bool:
         """Compute and publish the plan of the pending tick; False while its odom is missing."""

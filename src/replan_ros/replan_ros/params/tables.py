@@ -168,13 +168,17 @@ def _estimator_specs() -> tuple[ParamSpec, ...]:
 def _wbc_table() -> tuple[ParamSpec, ...]:
     from replan_core.wbc import WbcParams  # lazy: see _LazyTables
     _W = WbcParams()
+    from replan_core.tick_protocol import ProtocolParams  # lazy, as WbcParams
+    _P = ProtocolParams()   # one default each: the protocol's dataclass
     return (
         _p('urdf_path', '', _URDF),
-        _p('control_rate', 250.0, 'the sim control tick rate, 1 / sim.control_period: stale-input '
+        _p('control_rate', _P.control_rate,
+           'the sim control tick rate, 1 / sim.control_period: stale-input '
            'check', 'Hz', min=1.0, max=10000.0),
         _p('plan_timeout', 2.0, 'wait this long for footholds + com_plan of a due re-plan; then go '
            'on with the old plans and report WARN', 'wall s', min=0.0, max=600.0, read_only=False),
-        _p('missed_replans_to_stand', 2, 'this many due re-plans in a row without their plans '
+        _p('missed_replans_to_stand', _P.missed_replans_to_stand,
+           'this many due re-plans in a row without their plans '
            '(each after plan_timeout) mean a planner is gone, not slow: stand with the feet in '
            'place until a new plan pair arrives', 're-plans', min=1, max=1000),
         _p('stand_up_time', _W.stand_up_time, 'a robot that sat down (legs folded: the sim\'s '
@@ -190,28 +194,34 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
         _p('standing_joint_positions', list(STANDING_POSE), 'the pose a robot that sat down '
            'stands up to, JOINT_NAMES order; must equal sim.standing_joint_positions (set both, '
            'or once in a /** section)', 'rad', min=-math.pi, max=math.pi, length=12),
-        _p('sat_down_height', 0.1, 'legs this much shorter (median of the four, base above '
+        _p('sat_down_height', _P.sat_down_height,
+           'legs this much shorter (median of the four, base above '
            'foot) than in the standing pose mean the robot sat down (the sim\'s damping mode): '
            'it stands up in joint space before it walks', 'm', min=0.01, max=0.5),
-        _p('stand_adopt_age', 0.5, 'a stand ends only with a plan pair at most this old: one '
+        _p('stand_adopt_age', _P.stand_adopt_age,
+           'a stand ends only with a plan pair at most this old: one '
            'that waited while the sim ran on would start seconds into its schedule', 'sim s',
            min=0.004, max=10.0),
-        _p('stand_adopt_lead', 0.1, 'a stand ends only with a plan whose first swing lifts off '
+        _p('stand_adopt_lead', _P.stand_adopt_lead,
+           'a stand ends only with a plan whose first swing lifts off '
            'at least this long after its adoption, so that the CoM reaches the support of the '
            'other three feet first (a plan adopted after its lift-off tipped the robot over '
            'the swing leg)', 'sim s', min=0.0, max=10.0),
         _p('fall_tilt', _W.fall_tilt, 'a trunk tilted further than this from upright has '
            'fallen: joints damped, plans ignored, /diagnostics ERROR, until the wbc is '
            'restarted', 'rad', min=0.1, max=math.pi),
-        _p('fall_time', 0.1, 'the trunk tilted beyond fall_tilt for this long (every tick) '
+        _p('fall_time', _P.fall_time,
+           'the trunk tilted beyond fall_tilt for this long (every tick) '
            'is a fall: one odd estimate is not', 'sim s', min=0.0, max=5.0),
         _p('fall_damping', _W.fall_damping, 'joint damping of a fallen robot', 'N m s/rad',
            min=0.0, max=500.0),
         _p('first_plan_timeout', 30.0, 'wait this long for the very first plans before standing',
            'wall s', min=0.0, max=3600.0),
-        _p('plan_max_age', 6.0, 'a plan pair older than this (or past its horizon) -> stand',
+        _p('plan_max_age', _P.plan_max_age,
+           'a plan pair older than this (or past its horizon) -> stand',
            'sim s', min=0.0, max=60.0),
-        _p('stale_ticks', 3, 'a gap of more than this many control periods between answered ticks '
+        _p('stale_ticks', _P.stale_ticks,
+           'a gap of more than this many control periods between answered ticks '
            'means the inputs went stale: stand until a new plan', 'ticks', min=1, max=10000),
         _p('haptic_velocity', _W.haptic_velocity,
            'descent of a haptic swing foot after its planned touchdown', 'm/s', min=0.0, max=2.0),
@@ -242,7 +252,8 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
            "the simulator's ground_truth/odom (ideal)"),
         _p('contact_estimation', False, "true: foot contacts from forces estimated from the joint "
            "torques; false: the simulator's ground_truth/contacts (ideal)"),
-        _p('plan_latency', 0.0, 'from a re-plan trigger until its plans take effect (rounded up to '
+        _p('plan_latency', _P.plan_latency,
+           'from a re-plan trigger until its plans take effect (rounded up to '
            'control ticks)', 'sim s', min=0.0, max=0.99),
         _p('first_command_waits_for', [], 'nodes that must subscribe to odom, contacts and '
            'contact_events before the first command lets the sim move (the launcher sets the '
