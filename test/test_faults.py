@@ -174,7 +174,15 @@ class Walk:
         return self.x - x0
 
     def logs(self) -> str:
-        return self.launcher.logs(tail=60)
+        """The processes' logs, after what the probe saw last: the truth's time and each
+        node's latest /diagnostics status (which side stopped, when a wait fails)."""
+        latest = {}
+        for t, status in self.diags:
+            latest[status.name] = (t, status)
+        seen = '; '.join(f'{name} at t={t:.3f}: level {_level(s)} {s.message!r}'
+                         for name, (t, s) in sorted(latest.items()))
+        return (f'probe: truth t={self.t:.3f} s, {len(self.odom)} truth samples; latest '
+                f'diagnostics: {seen or "none"}\n{self.launcher.logs(tail=60)}')
 
     def log_of(self, name: str) -> str:
         return '\n'.join(p.log() for p in self.launcher.processes if p.name == name)

@@ -256,6 +256,20 @@ def test_idle_stance_stands_then_walks_off_at_the_next_trigger(launcher, probe):
     assert 'idle stance at t=1.300' in launcher.processes[0].log()
 
 
+def test_no_contacts_after_the_start_says_so_then_plans_when_they_come(launcher, probe):
+    """A gait node the sim's contacts do not reach (no sim here) warns, every warn_period,
+    that it has none and plans nothing; the first tick then brings the initial plan."""
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
+                   params={**TIMING, 'warn_period': 0.5, 'contacts_wait_warn': 1.0})
+    sim = FakeSim(probe)
+    assert probe.spin_until(lambda: launcher.logs().count('no contacts received') >= 2, 60), \
+        launcher.logs()
+    assert not sim.footholds
+    sim.wait_connected(launcher)
+    plan = sim.replan_at(0.0, launcher)
+    assert plan.start_time == 0.0
+
+
 def test_a_replan_waiting_for_its_odom_says_so_then_plans_when_it_comes(launcher, probe):
     """Contacts without odom (a restarted node whose odom reader is not matched yet): no plan,
     and a warning naming the tick and what odom it holds, then the plan once odom comes."""

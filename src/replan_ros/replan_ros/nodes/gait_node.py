@@ -83,6 +83,8 @@ class GaitNode(Node):
         self.setpoints = SetpointArbiter(float(p['cmd_vel_timeout']))
         self.reject_above = float(p['cmd_vel_reject_above'])
         self.warn_period = float(p['warn_period'])
+        self.contacts_wait_warn = float(p['contacts_wait_warn'])    # wall s
+        self._started = time.monotonic()
         self.model = self._robot_model(p['urdf_path'])
 
         self.footholds_pub = self.create_publisher(PointCloud2, 'footholds', LATCHED,
@@ -233,6 +235,16 @@ class GaitNode(Node):
     def _poll(self) -> None:
         self.state_input.drain()
         self._process()
+        if self.replanner.last_tick_ns is None:
+            self._note_no_contacts()
+
+    def _note_no_contacts(self) -> None:
+        """Say so while no contacts tick has come since the start (wall s): a (restarted) node
+        that the sim's contacts do not reach would otherwise wait silently."""
+        waited = time.monotonic() - self._started
+        if waited >= self.contacts_wait_warn:
+            self._warn('no contacts', f'no contacts received {waited:.1f} wall s after the '
+                       'start: no plan until the sim\'s contacts come (is the sim running?)')
 
     def _process(self) -> None:
         """Run the ticks in order; a re-plan waits for the odom of its stamp."""

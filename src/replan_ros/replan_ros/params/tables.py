@@ -94,6 +94,9 @@ def _gait_table() -> tuple[ParamSpec, ...]:
            max=1.0),
         _p('warn_period', 2.0, 'throttle of repeated warnings', 'wall s', min=0.0, max=3600.0,
            read_only=False),
+        _p('contacts_wait_warn', 10.0, 'warn (every warn_period) while no contacts tick has '
+           'come this long after the start: a node the sim\'s contacts do not reach would '
+           'otherwise wait silently', 'wall s', min=0.1, max=3600.0),
     )
 
 
