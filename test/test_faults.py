@@ -40,7 +40,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
-from replan_ros.messages.interfaces import ns_to_stamp, stamp_to_sec
+from replan_ros.messages.stamps import ns_to_stamp, stamp_to_sec
 from replan_ros.recording.bag_io import check_bag, iter_decoded, recover
 from replan_ros.telemetry.diagnostics import values_of
 from replan_ros.transport.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR

@@ -18,13 +18,10 @@ from visualization_msgs.msg import MarkerArray
 
 from replan_core.gait import GaitParams, clamp_velocity
 from replan_core.types import LEGS, BaseState, ContactState
-from replan_ros.messages.interfaces import (
-    contacts_to_msg,
-    footholds_from_msg,
-    odom_from_base_state,
-    sec_to_stamp,
-    stamp_to_ns,
-)
+from replan_ros.messages.contacts import contacts_to_msg
+from replan_ros.messages.footholds import footholds_from_msg
+from replan_ros.messages.odom import odom_from_base_state
+from replan_ros.messages.stamps import sec_to_stamp, stamp_to_ns
 from replan_ros.transport.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR
 
 BASE = np.array([0.0, 0.0, 0.599])

@@ -21,13 +21,11 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 from replan_core.bench.mpc_bench import HIP, crawl_plan
 from replan_core.robot_model import RobotModel
 from replan_core.types import BaseState, JointState
-from replan_ros.messages.interfaces import (
-    com_plan_from_msg,
-    footholds_to_msg,
-    joint_state_to_msg,
-    odom_from_base_state,
-    stamp_to_ns,
-)
+from replan_ros.messages.com_plan import com_plan_from_msg
+from replan_ros.messages.footholds import footholds_to_msg
+from replan_ros.messages.joint_state import joint_state_to_msg
+from replan_ros.messages.odom import odom_from_base_state
+from replan_ros.messages.stamps import stamp_to_ns
 from replan_ros.telemetry.diagnostics import values_of
 from replan_ros.transport.qos import COMMAND, LATCHED, SENSOR
 

@@ -14,14 +14,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
 from replan_core.types import JOINT_NAMES
-from replan_ros.messages.interfaces import (
-    contacts_from_msg,
-    imu_from_msg,
-    joint_state_from_msg,
-    ns_to_stamp,
-    stamp_to_ns,
-    torque_cmd_to_msg,
-)
+from replan_ros.messages.contacts import contacts_from_msg
+from replan_ros.messages.imu import imu_from_msg
+from replan_ros.messages.joint_state import joint_state_from_msg, torque_cmd_to_msg
+from replan_ros.messages.stamps import ns_to_stamp, stamp_to_ns
 from replan_ros.telemetry.diagnostics import values_of
 from replan_ros.transport import qos
 

@@ -11,7 +11,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 
 from replan_ros.benchmarks.tick_table import OVERLAPPED
-from replan_ros.messages.interfaces import stamp_to_sec
+from replan_ros.messages.stamps import stamp_to_sec
 from replan_ros.telemetry import diagnostics, tick_budget
 from replan_ros.telemetry.tick_budget import parse_diagnostic_values
 from replan_ros.transport.qos import COMMAND, SENSOR

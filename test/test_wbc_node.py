@@ -20,15 +20,12 @@ from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.types import BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
-from replan_ros.messages.interfaces import (
-    com_plan_to_msg,
-    contacts_to_msg,
-    footholds_to_msg,
-    joint_state_to_msg,
-    odom_from_base_state,
-    stamp_to_ns,
-    stamp_to_sec,
-)
+from replan_ros.messages.com_plan import com_plan_to_msg
+from replan_ros.messages.contacts import contacts_to_msg
+from replan_ros.messages.footholds import footholds_to_msg
+from replan_ros.messages.joint_state import joint_state_to_msg
+from replan_ros.messages.odom import odom_from_base_state
+from replan_ros.messages.stamps import stamp_to_ns, stamp_to_sec
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.qos import COMMAND, CONTACTS, LATCHED, SENSOR
 

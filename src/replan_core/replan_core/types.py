@@ -1,4 +1,4 @@
-"""Data exchanged between the core modules (and, through replan_ros.messages.interfaces, the nodes).
+"""Data exchanged between the core modules (and, through replan_ros.messages, the nodes).
 
 Conventions used everywhere in the project:
 - Legs are indexed 0..3 in the order of ``LEGS`` (LF, RF, LH, RH); arrays with one row per leg

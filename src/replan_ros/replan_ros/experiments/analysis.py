@@ -32,15 +32,12 @@ from replan_core.metrics import (
     touchdown_timing,
     tracking_errors,
 )
-from replan_ros.messages.interfaces import (
-    base_state_from_odom,
-    contacts_from_msg,
-    footholds_from_msg,
-    joint_state_from_msg,
-    stamp_to_ns,
-    stamp_to_sec,
-)
+from replan_ros.messages.contacts import contacts_from_msg
+from replan_ros.messages.footholds import footholds_from_msg
 from replan_ros.messages.introspection import message_class
+from replan_ros.messages.joint_state import joint_state_from_msg
+from replan_ros.messages.odom import base_state_from_odom
+from replan_ros.messages.stamps import stamp_to_ns, stamp_to_sec
 from replan_ros.recording.bag_io import iter_raw
 
 # The simulator's truth is what the robot did; /odom is what the robot believed (the

@@ -61,7 +61,7 @@ How each fault is handled:
   finished chunk (one closes every `chunk_interval`).
 - **malformed messages** (non-finite, wrong-sized, missing fields) on an internal topic: the
   receiver drops the message with one throttled line and keeps its last good input
-  (`replan_ros/messages/interfaces.py` checks sizes, layouts and finiteness of every decoded
+  (the modules of `replan_ros/messages/` check sizes, layouts and finiteness of every decoded
   message).
 - **a damaged bag** for `replay.sh` / `rerun.sh`: every chunk is read (CRC checked) before
   anything is published or started; one line and exit code 2.

@@ -47,7 +47,8 @@ from replan_ros.launch.launch_graph import add_live_option, check_live_port, liv
 from replan_ros.launch.param_files import DEFAULT_PROFILE, check_run_files, profile_file
 from replan_ros.launch.progress import ProgressLine
 from replan_ros.launch.watch import ScheduledInputs
-from replan_ros.messages.interfaces import sec_to_ns, sec_to_stamp, stamp_to_sec, wrench_to_msg
+from replan_ros.messages.stamps import sec_to_ns, sec_to_stamp, stamp_to_sec
+from replan_ros.messages.wrench import wrench_to_msg
 from replan_ros.params import ConfigError, Source, load_param_file
 from replan_ros.tools.rerun import (
     RerunError,

@@ -1,34 +1,118 @@
-"""Hand-written CDR for the plan messages, byte for byte what rclpy's ``serialize_message``
-writes (XCDR1, little endian; unit tests compare the bytes).
+"""CDR (XCDR1, little endian) written and read by hand, byte for byte what rclpy's serializer
+writes: the pieces each message family's fast codec is built from (unit tests compare with
+rclpy's serializer and decoder).
 
-A re-plan's ``com_plan`` (``trajectory_msgs/MultiDOFJointTrajectory``, 201 points over 8 s) is
-about 1800 Python message objects: building and serializing it took the mpc node 4.6 ms and
-deserializing it took the controller 4.4 ms, against a 2 ms solve; both are on the re-plan's
-path (docs/ARCHITECTURE.md, "Re-plan path"). The plan's arrays go straight to bytes and back
-here. Anything this decoder does not expect (another byte order, several transforms per point,
-a truncated payload) returns ``None``: the caller then falls back to rclpy's generic
-deserialization, so a plan published by another tool is still read.
+Why by hand. Every tick the sim publishes ``imu``, ``joint_states`` (and, to a reader, the
+truth), the controller decodes them, publishes ``joint_torque_cmd`` and its estimate (``odom``,
+``contacts``), and the sim decodes the command: all on the lock-step chain or beside it. Each
+message through rclpy's Python classes costs a Python object per field both ways: 12-27 us
+per message to build and serialize or to decode, against 1-7 us by hand, on an idle core
+(``python -m replan_ros.benchmarks.bench_msgs``); in the running graph the difference was worth
+about a fifth of the real-time factor (docs/ARCHITECTURE.md, "Per-tick budget"). A re-plan's
+``com_plan`` (201 points over 8 s) is about 1800 Python message objects: building and
+serializing it took the mpc node 4.6 ms and deserializing it took the controller 4.4 ms,
+against a 2 ms solve (docs/ARCHITECTURE.md, "Re-plan path").
+
+The layouts are fixed (our joint names in ``JOINT_NAMES`` order, our frames), so each message is
+one ``struct`` pack or unpack. A decoder returns ``None`` for any other layout (another joint
+order, a frame it does not know, another byte order, a truncated payload); the ``*_from_cdr``
+functions then use rclpy's generic decoder (``deserialize_or_raise``), so a message from another
+tool is still read, with the same checks and error messages as its rclpy conversion.
 """
 
 from __future__ import annotations
 
+import math
 import struct
 
 import numpy as np
 from rclpy.serialization import deserialize_message
-from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from replan_core.types import ComPlan
-from replan_ros.messages.interfaces import com_plan_from_arrays, com_plan_from_msg, stamp_to_ns
+NS = 1_000_000_000
+
+
+STAMP = struct.Struct('<iI')
+
+
+def pad_to(pos: int, n: int) -> int:
+    return -pos % n
+
+
+class CdrStrings:
+    """Constant strings and string sequences (a str, or a tuple of str) from body offset
+    ``pos``: their struct format, with ``x`` for CDR's padding (zero when written, skipped
+    when read: rclpy does not zero it), the values it packs, and the offset after them."""
+
+    def __init__(self, pos: int, *parts) -> None:
+        fmt, values = [], []
+
+        def align4() -> None:
+            nonlocal pos
+            if pad_to(pos, 4):
+                fmt.append(f'{pad_to(pos, 4)}x')
+                pos += pad_to(pos, 4)
+
+        for part in parts:
+            texts = (part,) if isinstance(part, str) else part
+            if not isinstance(part, str):
+                align4()
+                fmt.append('I')
+                values.append(len(texts))
+                pos += 4
+            for text in texts:
+                data = text.encode() + b'\x00'
+                align4()
+                fmt.append(f'I{len(data)}s')
+                values += [len(data), data]
+                pos += 4 + len(data)
+        self.fmt = ''.join(fmt)
+        self.values = tuple(values)
+        self.end = pos
+
+
+def double_sequences(pos: int, counts: tuple[int, ...]) -> tuple[str, int]:
+    """The struct format of sequences of ``counts`` doubles from body offset ``pos``."""
+    fmt = ''
+    for count in counts:
+        if pad_to(pos, 4):
+            fmt += f'{pad_to(pos, 4)}x'
+            pos += pad_to(pos, 4)
+        fmt += 'I'
+        pos += 4
+        if count:
+            if pad_to(pos, 8):
+                fmt += f'{pad_to(pos, 8)}x'
+                pos += pad_to(pos, 8)
+            fmt += f'{count}d'
+            pos += 8 * count
+    return fmt, pos
+
+
+def stamp_pair(ns: int) -> tuple[int, int]:
+    sec, nanosec = divmod(int(ns), NS)
+    return sec, nanosec
+
+
+def all_finite(values: tuple[float, ...]) -> bool:
+    # A sum is finite when every term is, short of an overflow (then numpy decides): one
+    # call instead of numpy's per-array overhead, several us per tick.
+    return math.isfinite(sum(values)) or bool(np.all(np.isfinite(values)))
+
+
+def deserialize_or_raise(data: bytes, msg_type: type):
+    try:
+        return deserialize_message(data, msg_type)
+    except Exception as err:       # rclpy raises its own error types on bad CDR
+        raise ValueError(f'cannot deserialize {msg_type.__name__}: {err}') from err
+
 
 ENCAPSULATION = b'\x00\x01\x00\x00'        # CDR, little endian, no options
+
+
 _U32 = struct.Struct('<I')
+
+
 _TIME = struct.Struct('<iI')                 # builtin_interfaces Time / Duration: sec, nanosec
-_NS = 1_000_000_000
-# One MultiDOFJointTrajectoryPoint with one transform, one velocity, one acceleration: its
-# doubles are 8-aligned, so its layout depends on its start offset modulo 8 (4 or 0).
-_POINT_AT_4 = struct.Struct('<I7dI4x6dI4x6diI')
-_POINT_AT_0 = struct.Struct('<I4x7dI4x6dI4x6diI')
 
 
 class CdrWriter:
@@ -47,7 +131,7 @@ class CdrWriter:
     def time(self, ns: int) -> None:
         """A builtin_interfaces Time or Duration of ``ns`` nanoseconds."""
         self.align(4)
-        self.buf.extend(_TIME.pack(*divmod(int(ns), _NS)))
+        self.buf.extend(_TIME.pack(*divmod(int(ns), NS)))
 
     def string(self, text: str) -> None:
         data = text.encode() + b'\x00'
@@ -100,86 +184,3 @@ class CdrReader:
         text = bytes(self.data[self.pos:self.pos + size - 1]).decode()
         self.pos += size
         return text
-
-
-def encode_com_plan(plan: ComPlan, stamp_ns: int, frame_id: str) -> bytes:
-    """``com_plan`` as ``interfaces.com_plan_to_msg`` builds it (joint ``com``, identity
-    rotations, sample ``k`` at ``k * dt``), with ``header.stamp = stamp_ns``, serialized."""
-    w = CdrWriter()
-    w.header(stamp_ns, frame_id)
-    w.u32(1)
-    w.string('com')
-    n = len(plan.position)
-    w.u32(n)
-    pos = np.asarray(plan.position, dtype=float).tolist()
-    vel = np.asarray(plan.velocity, dtype=float).tolist()
-    acc = np.asarray(plan.acceleration, dtype=float).tolist()
-    buf = w.buf
-    for k in range(n):
-        fmt = _POINT_AT_0 if (len(buf) - 4) % 8 == 0 else _POINT_AT_4
-        sec, nanosec = divmod(round(k * plan.dt * 1e9), _NS)      # as sec_to_duration
-        buf.extend(fmt.pack(1, *pos[k], 0.0, 0.0, 0.0, 1.0, 1, *vel[k], 0.0, 0.0, 0.0,
-                            1, *acc[k], 0.0, 0.0, 0.0, sec, nanosec))
-    return w.bytes()
-
-
-def decode_com_plan(data: bytes) -> tuple[int, ComPlan] | None:
-    """(``header.stamp`` ns, plan) of a serialized ``com_plan`` with one joint and one
-    transform, velocity and acceleration per point; ``None`` for anything else (the caller
-    then uses the generic decoder, which also gives the precise error)."""
-    try:
-        r = CdrReader(data)
-        sec, nanosec = r.time()
-        r.string()                                           # frame_id
-        if r.u32() != 1 or r.string() != 'com':
-            return None
-        n = r.u32()
-        if n < 2 or r.pos + n * _POINT_AT_4.size > len(r.data):
-            return None
-        rows = np.empty((n, 24))
-        for k in range(n):
-            fmt = _POINT_AT_0 if (r.pos - 4) % 8 == 0 else _POINT_AT_4
-            rows[k] = r.unpack(fmt, 1)
-    except (ValueError, UnicodeDecodeError, struct.error):
-        return None
-    # Columns: count, 7 transform, count, 6 twist, count, 6 twist, sec, nanosec.
-    if not (np.all(rows[:, 0] == 1) and np.all(rows[:, 8] == 1) and np.all(rows[:, 15] == 1)):
-        return None
-    # The same float arithmetic as com_plan_from_msg, so both decoders give identical plans.
-    times = rows[:, 22] + rows[:, 23] * 1e-9
-    return sec * _NS + nanosec, com_plan_from_arrays(
-        sec + nanosec * 1e-9, times, rows[:, 1:4].copy(), rows[:, 9:12].copy(),
-        rows[:, 16:19].copy())
-
-
-def com_plan_from_cdr(data: bytes) -> tuple[int, ComPlan]:
-    """(``header.stamp`` ns, plan) of a serialized ``com_plan``: ``decode_com_plan``, or
-    rclpy's generic decoder for a layout that one declines. ``ValueError`` for a bad plan."""
-    decoded = decode_com_plan(data)
-    if decoded is not None:
-        return decoded
-    try:
-        msg = deserialize_message(data, MultiDOFJointTrajectory)
-    except Exception as err:       # rclpy raises its own error types on bad CDR
-        raise ValueError(f'cannot deserialize: {err}') from err
-    return stamp_to_ns(msg.header.stamp), com_plan_from_msg(msg)
-
-
-POSE = struct.Struct('<7d')      # geometry_msgs Pose / Transform: x y z, qx qy qz qw
-
-
-def encode_path(stamp_ns: int, start_time: float, dt: float, points: np.ndarray,
-                frame_id: str) -> bytes:
-    """``nav_msgs/Path`` stamped ``stamp_ns`` as ``interfaces.path_msg`` builds it: one pose
-    per row of ``points`` (n, 2 or 3; z 0 if absent), pose ``k`` stamped
-    ``start_time + k * dt`` (s), identity orientation."""
-    w = CdrWriter()
-    w.header(stamp_ns, frame_id)
-    xyz = np.zeros((len(points), 3))
-    points = np.asarray(points, dtype=float)
-    xyz[:, :points.shape[1]] = points[:, :3]
-    w.u32(len(xyz))
-    for k, (x, y, z) in enumerate(xyz.tolist()):
-        w.header(round((start_time + k * dt) * 1e9), frame_id)     # as interfaces.header
-        w.packed(POSE, 8, x, y, z, 0.0, 0.0, 0.0, 1.0)
-    return w.bytes()

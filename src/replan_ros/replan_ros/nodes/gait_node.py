@@ -40,15 +40,10 @@ from replan_core.inputs import SetpointArbiter
 from replan_core.replanner import GaitReplanner, check_setpoint
 from replan_core.robot_model import RobotModel
 from replan_core.types import LEGS, ContactState
-from replan_ros.messages.interfaces import (
-    base_state_from_odom,
-    footholds_from_msg,
-    footholds_to_msg,
-    ns_to_stamp,
-    sec_to_stamp,
-    stamp_to_ns,
-)
-from replan_ros.messages.tick_cdr import contacts_from_cdr
+from replan_ros.messages.contacts import contacts_from_cdr
+from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
+from replan_ros.messages.odom import base_state_from_odom
+from replan_ros.messages.stamps import ns_to_stamp, sec_to_stamp, stamp_to_ns
 from replan_ros.nodes.node_main import log_at, run_node
 from replan_ros.params import declare_node_parameters, gait_params
 from replan_ros.telemetry import diagnostics

@@ -42,15 +42,12 @@ from replan_core.mpc import LipMpc, MpcResult, MpcSettings
 from replan_core.robot_model import RobotModel
 from replan_core.support import implied_velocity
 from replan_core.types import WORLD_FRAME, BaseState, ComPlan, FootholdPlan, JointState
-from replan_ros.messages import cdr
-from replan_ros.messages.interfaces import (
-    base_state_from_odom,
-    footholds_from_msg,
-    joint_state_from_msg,
-    sec_to_ns,
-    sec_to_stamp,
-    stamp_to_ns,
-)
+from replan_ros.messages.com_plan import encode_com_plan
+from replan_ros.messages.footholds import footholds_from_msg
+from replan_ros.messages.joint_state import joint_state_from_msg
+from replan_ros.messages.odom import base_state_from_odom
+from replan_ros.messages.path import encode_path
+from replan_ros.messages.stamps import sec_to_ns, sec_to_stamp, stamp_to_ns
 from replan_ros.nodes.node_main import run_node
 from replan_ros.params import declare_node_parameters, mpc_settings
 from replan_ros.telemetry import diagnostics
@@ -256,16 +253,16 @@ class MpcNode(Node):
         self._publish_diag(t, res, '')
 
     def _publish_plan(self, t: float, res: MpcResult) -> None:
-        # Serialized by hand (cdr.py: 0.19 ms against 4.05 ms through rclpy's messages,
-        # python -m replan_ros.benchmarks.bench_msgs), the controller's com_plan first: the
-        # re-plan waits for it.
+        # Serialized by hand (messages.com_plan, messages.path: 0.19 ms against 4.05 ms through
+        # rclpy's messages, python -m replan_ros.benchmarks.bench_msgs), the controller's com_plan
+        # first: the re-plan waits for it.
         plan = res.plan
         stamp_ns = sec_to_ns(t)                   # exactly the footholds' stamp
-        self.com_plan_pub.publish(cdr.encode_com_plan(plan, stamp_ns, WORLD_FRAME))
+        self.com_plan_pub.publish(encode_com_plan(plan, stamp_ns, WORLD_FRAME))
         ground = plan.position[0, 2] - self.settings.com_height
         zmp = np.column_stack([res.zmp, np.full(len(res.zmp), ground)])
-        self.zmp_pub.publish(cdr.encode_path(stamp_ns, t, plan.dt, zmp, WORLD_FRAME))
-        self.com_path_pub.publish(cdr.encode_path(stamp_ns, t, plan.dt, plan.position,
+        self.zmp_pub.publish(encode_path(stamp_ns, t, plan.dt, zmp, WORLD_FRAME))
+        self.com_path_pub.publish(encode_path(stamp_ns, t, plan.dt, plan.position,
                                                   WORLD_FRAME))
 
     def _publish_diag(self, t: float, res: MpcResult | None, why: str) -> None:

@@ -44,8 +44,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 
-from replan_ros.messages.interfaces import ns_to_stamp
 from replan_ros.messages.introspection import message_class
+from replan_ros.messages.stamps import ns_to_stamp
 from replan_ros.nodes.node_main import run_node
 from replan_ros.params import declare_node_parameters
 from replan_ros.recording.bag_io import (

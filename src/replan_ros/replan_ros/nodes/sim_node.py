@@ -44,15 +44,9 @@ from replan_core.sim_modes import (
 )
 from replan_core.sim_world import SimWorld
 from replan_core.types import JOINT_NAMES
-from replan_ros.messages.interfaces import (
-    ns_to_stamp,
-    sec_to_ns,
-    wrench_from_msg,
-    wrench_to_msg,
-)
-from replan_ros.messages.tick_cdr import (
-    torque_command_from_cdr,
-)
+from replan_ros.messages.joint_state import torque_command_from_cdr
+from replan_ros.messages.stamps import ns_to_stamp, sec_to_ns
+from replan_ros.messages.wrench import wrench_from_msg, wrench_to_msg
 from replan_ros.nodes.node_main import log_at, run_node
 from replan_ros.nodes.sim_outputs import TickOutputs
 from replan_ros.params import (
@@ -247,7 +241,7 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ inputs
     def _on_command(self, data: bytes, info: dict) -> None:
-        """A serialized ``joint_torque_cmd`` (subscribed raw: tick_cdr.py decodes it)."""
+        """A serialized ``joint_torque_cmd`` (subscribed raw: messages.joint_state decodes it)."""
         start_ns = time.perf_counter_ns()
         start_wall_ns = time.time_ns()
         try:

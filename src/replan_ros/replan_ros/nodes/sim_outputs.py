@@ -11,13 +11,11 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
-from replan_ros.messages.interfaces import ns_to_stamp, sec_to_ns
-from replan_ros.messages.tick_cdr import (
-    encode_contacts,
-    encode_imu,
-    encode_joint_state,
-    encode_odom,
-)
+from replan_ros.messages.contacts import encode_contacts
+from replan_ros.messages.imu import encode_imu
+from replan_ros.messages.joint_state import encode_joint_state
+from replan_ros.messages.odom import encode_odom
+from replan_ros.messages.stamps import ns_to_stamp, sec_to_ns
 from replan_ros.transport import qos
 from replan_ros.transport.on_demand import helper_name
 
@@ -66,8 +64,8 @@ class TickOutputs:
         # Serialized when first published to a reader: a topic nobody reads (the truth without
         # the recorder, the imu in the ideal profile) costs nothing (volatile topics: a sample
         # published to no reader is lost anyway). The samples are drawn all the same. The
-        # messages are CDR bytes written by hand (tick_cdr.py), which rclpy publishes as they
-        # are.
+        # messages are CDR bytes written by hand (replan_ros.messages), which rclpy publishes as
+        # they are.
         self._tick_sources = [
             None, None, (self.imu_pub, encode_imu,
                          (imu, self._gyro_variance, self._accel_variance))]

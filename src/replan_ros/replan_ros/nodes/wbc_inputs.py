@@ -11,13 +11,9 @@ import time
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, PointCloud2
 
-from replan_ros.messages.tick_cdr import (
-    base_state_from_cdr,
-    contacts_from_cdr,
-    encode_contacts,
-    encode_odom,
-    imu_from_cdr,
-)
+from replan_ros.messages.contacts import contacts_from_cdr, encode_contacts
+from replan_ros.messages.imu import imu_from_cdr
+from replan_ros.messages.odom import base_state_from_cdr, encode_odom
 from replan_ros.transport.on_demand import OnDemandSubscriptions
 from replan_ros.transport.qos import CONTACTS, SENSOR
 

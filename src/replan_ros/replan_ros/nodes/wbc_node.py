@@ -31,13 +31,11 @@ from replan_core.estimator import StateEstimator
 from replan_core.robot_model import RobotModel
 from replan_core.tick_protocol import ControllerProtocol
 from replan_core.wbc import WholeBodyController
-from replan_ros.messages.cdr import com_plan_from_cdr
-from replan_ros.messages.interfaces import footholds_from_msg, ns_to_sec, ns_to_stamp, stamp_to_ns
-from replan_ros.messages.tick_cdr import (
-    encode_contact_events,
-    encode_torque_command,
-    joint_state_from_cdr,
-)
+from replan_ros.messages.com_plan import com_plan_from_cdr
+from replan_ros.messages.contacts import encode_contact_events
+from replan_ros.messages.footholds import footholds_from_msg
+from replan_ros.messages.joint_state import encode_torque_command, joint_state_from_cdr
+from replan_ros.messages.stamps import ns_to_sec, ns_to_stamp, stamp_to_ns
 from replan_ros.nodes.node_main import log_at, run_node
 from replan_ros.nodes.wbc_inputs import TickInputs
 from replan_ros.params import (
@@ -173,7 +171,7 @@ class WbcNode(Node):
 
     # ------------------------------------------------------------------------------ inputs
     def _on_joint_states(self, data: bytes, info: dict) -> None:
-        """A serialized ``joint_states`` (subscribed raw: tick_cdr.py decodes it)."""
+        """A serialized ``joint_states`` (subscribed raw: messages.joint_state decodes it)."""
         clock = time.perf_counter_ns
         t0 = clock()
         wall0 = time.time_ns()

@@ -25,7 +25,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock
 
-from replan_ros.messages.interfaces import stamp_to_sec
+from replan_ros.messages.stamps import stamp_to_sec
 from replan_ros.transport import qos
 
 

@@ -37,7 +37,7 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 
 from replan_ros.launch.graph import NODES
-from replan_ros.messages.interfaces import stamp_to_ns, stamp_to_sec
+from replan_ros.messages.stamps import stamp_to_ns, stamp_to_sec
 from replan_ros.params import ConfigError
 from replan_ros.recording.bag_io import check_bag
 from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns

@@ -8,7 +8,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from replan_core.gait import stance_phases
 from replan_core.types import WORLD_FRAME, FootholdPlan
-from replan_ros.messages.interfaces import header
+from replan_ros.messages.stamps import header
 
 # Leg colours of the markers (r, g, b), LEGS order.
 _LEG_COLOURS = ((0.9, 0.2, 0.2), (0.2, 0.7, 0.2), (0.2, 0.4, 0.9), (0.9, 0.7, 0.1))

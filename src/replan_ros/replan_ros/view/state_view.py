@@ -40,12 +40,11 @@ from replan_core.frames import LinkFrames, base_transform
 from replan_core.metrics import cop_margins
 from replan_core.support import convex_hull
 from replan_core.types import WORLD_FRAME
-from replan_ros.messages.cdr import ENCAPSULATION, POSE, CdrWriter
-from replan_ros.messages.tick_cdr import (
-    contacts_from_cdr,
-    joint_state_from_cdr,
-    odom_fields_from_cdr,
-)
+from replan_ros.messages.cdr import ENCAPSULATION, CdrWriter
+from replan_ros.messages.contacts import contacts_from_cdr
+from replan_ros.messages.joint_state import joint_state_from_cdr
+from replan_ros.messages.odom import odom_fields_from_cdr
+from replan_ros.messages.path import POSE
 from replan_ros.recording.bag_io import message_definition, normalize_type_name
 from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 

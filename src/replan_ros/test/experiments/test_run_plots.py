@@ -12,15 +12,12 @@ from replan_ros.experiments.analysis import (
     replan_wall_latency,
 )
 from replan_ros.experiments.scenario import parse_scenario
-from replan_ros.messages.interfaces import (
-    com_plan_to_msg,
-    contacts_to_msg,
-    footholds_to_msg,
-    joint_state_to_msg,
-    odom_from_base_state,
-    sec_to_stamp,
-    stamp_to_ns,
-)
+from replan_ros.messages.com_plan import com_plan_to_msg
+from replan_ros.messages.contacts import contacts_to_msg
+from replan_ros.messages.footholds import footholds_to_msg
+from replan_ros.messages.joint_state import joint_state_to_msg
+from replan_ros.messages.odom import odom_from_base_state
+from replan_ros.messages.stamps import sec_to_stamp, stamp_to_ns
 from replan_ros.recording.bag_io import BagWriter
 
 TICK = 0.004          # s

@@ -14,13 +14,14 @@ from test_bag_io import _write_bag
 
 from replan_core.types import ContactState, FootholdPlan, Step
 from replan_ros.experiments import robustness_page, soak
-from replan_ros.messages import interfaces as itf
+from replan_ros.messages.contacts import contact_events_from_msg, contacts_from_msg, contacts_to_msg
+from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
 from replan_ros.recording.bag_io import check_bag
 
 
 def _contacts_msg() -> PointCloud2:
     rng = np.random.default_rng(1)
-    return itf.contacts_to_msg(ContactState(0.5, rng.normal(size=(4, 3)), rng.normal(size=(4, 3)),
+    return contacts_to_msg(ContactState(0.5, rng.normal(size=(4, 3)), rng.normal(size=(4, 3)),
                                             np.ones(4, bool), np.zeros(4, bool),
                                             np.zeros(4, bool)))
 
@@ -29,7 +30,7 @@ def _footholds_msg() -> PointCloud2:
     feet = np.array([[0.37, 0.3, 0.0], [0.37, -0.3, 0.0], [-0.37, 0.3, 0.0], [-0.37, -0.3, 0.0]])
     steps = [Step(leg, 10.2 + i, 10.7 + i, feet[leg] + [0.1, 0, 0], 0.1, True, i == 0, 0.0)
              for i, leg in enumerate([2, 0, 3, 1])]
-    return itf.footholds_to_msg(FootholdPlan(10.0, feet, 0.0, steps, 0.4, 0.25))
+    return footholds_to_msg(FootholdPlan(10.0, feet, 0.0, steps, 0.4, 0.25))
 
 
 def _with_float(msg: PointCloud2, row: int, field: str, value: float) -> PointCloud2:
@@ -44,20 +45,20 @@ def _with_float(msg: PointCloud2, row: int, field: str, value: float) -> PointCl
 @pytest.mark.parametrize('field', ['y', 'z', 'liftoff_time', 'step_height', 'yaw'])
 def test_footholds_with_any_non_finite_value_are_rejected(field):
     with pytest.raises(ValueError, match=f'non-finite {field}'):
-        itf.footholds_from_msg(_with_float(_footholds_msg(), 5, field, math.nan))
+        footholds_from_msg(_with_float(_footholds_msg(), 5, field, math.nan))
 
 
 @pytest.mark.parametrize('field', ['x', 'fz'])
 def test_contacts_with_non_finite_positions_or_forces_are_rejected(field):
     with pytest.raises(ValueError, match=f'non-finite {field}'):
-        itf.contacts_from_msg(_with_float(_contacts_msg(), 2, field, math.inf))
+        contacts_from_msg(_with_float(_contacts_msg(), 2, field, math.inf))
 
 
 def test_a_table_shorter_than_its_header_says_is_one_clear_error():
     msg = _footholds_msg()
     msg.data = bytes(msg.data[:len(msg.data) // 2])
     with pytest.raises(ValueError, match='holds only'):
-        itf.footholds_from_msg(msg)
+        footholds_from_msg(msg)
 
 
 def test_a_table_with_an_unknown_datatype_or_a_bad_layout_is_one_clear_error():
@@ -66,11 +67,11 @@ def test_a_table_with_an_unknown_datatype_or_a_bad_layout_is_one_clear_error():
     fields[0] = PointField(name='x', offset=0, datatype=99, count=1)
     msg.fields = fields
     with pytest.raises(ValueError, match='unsupported datatype'):
-        itf.contacts_from_msg(msg)
+        contacts_from_msg(msg)
     msg = _contacts_msg()
     msg.point_step = 4                      # smaller than the fields it lists
     with pytest.raises(ValueError, match='does not fit point_step'):
-        itf.contacts_from_msg(msg)
+        contacts_from_msg(msg)
 
 
 def test_contact_events_naming_a_fifth_leg_are_rejected():
@@ -79,7 +80,7 @@ def test_contact_events_naming_a_fifth_leg_are_rejected():
     data[next(f.offset for f in msg.fields if f.name == 'leg')] = 4
     msg.data = bytes(data)
     with pytest.raises(ValueError, match=r'outside 0\.\.3'):
-        itf.contact_events_from_msg(msg)
+        contact_events_from_msg(msg)
 
 
 def test_check_bag_reads_a_good_bag_and_names_a_damaged_one(tmp_path):

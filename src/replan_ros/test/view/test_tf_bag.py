@@ -19,8 +19,9 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from replan_core.frames import LinkFrames, base_transform
 from replan_core.types import BaseState, ContactState, JointState
-from replan_ros.messages.interfaces import contacts_to_msg, joint_state_to_msg, odom_from_base_state
-from replan_ros.messages.tick_cdr import encode_odom, odom_fields_from_cdr
+from replan_ros.messages.contacts import contacts_to_msg
+from replan_ros.messages.joint_state import joint_state_to_msg
+from replan_ros.messages.odom import encode_odom, odom_fields_from_cdr, odom_from_base_state
 from replan_ros.recording.bag_io import BagWriter, qos_profiles_yaml
 from replan_ros.transport.qos import LATCHED
 from replan_ros.view.state_view import (

@@ -1,10 +1,11 @@
-"""External wrench messages: one encoding for the push tool, scenarios and the sim's
-applied_wrench, and the sim's checks of what it receives."""
+"""Wrenches through their message (one encoding for the sim, the push tool and scenarios)."""
+
+from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from replan_ros.messages.interfaces import wrench_from_msg, wrench_to_msg
+from replan_ros.messages.wrench import wrench_from_msg, wrench_to_msg
 
 
 def test_a_wrench_goes_through_its_message_unchanged():
