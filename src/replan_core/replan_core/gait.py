@@ -88,6 +88,12 @@ class GaitParams:
     idle_stance: bool = True
     idle_after: float = 3.0                # s of zero set-point before the crawl stands still
     idle_replan_period: float = 0.5        # s between two re-plan triggers while standing
+    # Velocity feedback in foot placement (speed_feedback.py): the stride correction grows by
+    # gain * (set-point - mean velocity over the last cycle) * dt at each re-plan (per cycle:
+    # the remaining error shrinks by about 1 - gain); 0 = off. limit: m, its largest norm.
+    velocity_feedback_gain: float = 0.0
+    velocity_feedback_limit: float = 0.10
+    velocity_feedback_max_error: float = 0.03    # m/s: a larger error is a disturbance (a push)
 
     @property
     def step_period(self) -> float:
@@ -116,12 +122,14 @@ class GaitParams:
             raise ValueError('hip_offsets and stance_offsets need one (x, y) per leg')
         values = (self.step_height, self.max_step_length_x, self.max_step_length_y,
                   self.max_linear_x, self.max_linear_y, self.max_angular_z,
-                  self.correction_threshold, self.idle_after)
+                  self.correction_threshold, self.idle_after, self.velocity_feedback_gain,
+                  self.velocity_feedback_limit, self.velocity_feedback_max_error)
         if not (math.isfinite(self.idle_replan_period) and self.idle_replan_period > 0):
             raise ValueError('idle_replan_period must be finite, > 0')
         if not all(math.isfinite(v) and v >= 0 for v in values):
             raise ValueError('heights, step-length and velocity limits, the correction '
-                             'threshold and idle_after must be finite, >= 0')
+                             'threshold, idle_after and the velocity feedback gain and limit '
+                             'must be finite, >= 0')
 
 
 @dataclass
@@ -238,7 +246,7 @@ def _clamp_step(prev_xy: np.ndarray, target_xy: np.ndarray, yaw: float,
 def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_position: np.ndarray,
                       base_yaw: float, hips: np.ndarray | None, next_leg: int,
                       start_time: float, params: GaitParams, n: int | None = None,
-                      delay: float = 0.0) -> FootholdPlan:
+                      delay: float = 0.0, stride_correction=None) -> FootholdPlan:
     """compFootholds of Algorithm 1: the next ``n`` steps from the actual state at ``start_time``.
 
     velocity_set_point: (vx, vy, wz), body frame, m/s and rad/s; clamped to the limits.
@@ -249,6 +257,8 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
     next_leg: the leg that swings first (its lift-off comes after a four-feet phase).
     delay: s of standing before the first lift-off and before the reference starts to move
         (the start of a run); 0 for a re-plan at a touchdown.
+    stride_correction: (2,) m, body frame, added to every stride (velocity feedback,
+        speed_feedback.SpeedFeedback); None: none.
     Footholds keep each foot's actual height (flat terrain).
     """
     params.validate()
@@ -262,6 +272,8 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
     else:
         hips_xy = np.asarray(hips, dtype=float).reshape(4, 3)[:, :2]
     twist = clamp_velocity(velocity_set_point, params)
+    correction = (np.zeros(2) if stride_correction is None
+                  else np.asarray(stride_correction, dtype=float).reshape(2))
     ref = ReferenceTrajectory(start_time, base_xy.copy(), float(base_yaw), twist, float(delay))
     half_stance = 0.5 * params.stance_duration
 
@@ -283,9 +295,11 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         mid = touchdown + half_stance                 # middle of the coming stance
         offset = hip_offsets[leg] + stance[leg]
         _, yaw_td = ref.pose(touchdown)
+        shift = _rot(yaw_td) @ correction             # velocity feedback, world frame
         if leg in last_mid:
             # Later footholds of a leg: previous foothold plus one stride of the reference.
-            target = last_xy[leg] + ref.foot(mid, offset) - ref.foot(last_mid[leg], offset)
+            target = (last_xy[leg] + ref.foot(mid, offset) - ref.foot(last_mid[leg], offset)
+                      + shift)
         else:
             # First foothold, uncorrected: the foot's actual position plus one stride.
             prev_mid = mid - params.cycle_duration
@@ -302,6 +316,7 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
                 corrected = hips_xy[leg] + (hip_mid - hip_now) + _rot(yaw_mid) @ stance[leg]
                 if np.linalg.norm(corrected - target) > params.correction_threshold:
                     target = corrected
+            target = target + shift
         target = _clamp_step(last_xy[leg], target, yaw_td, params)
         last_xy[leg] = target
         last_mid[leg] = mid

@@ -26,6 +26,7 @@ from replan_core.gait import (
     stand_plan,
 )
 from replan_core.rotations import yaw_of
+from replan_core.speed_feedback import SpeedFeedback
 from replan_core.types import LEGS, BaseState, ContactState, FootholdPlan
 
 DEFAULT_TICK_NS = 4_000_000     # control period until the stamps have shown it (250 Hz)
@@ -92,6 +93,11 @@ class GaitReplanner:
         # jitter by a few ms (gait.IdleMonitor).
         self.idle = IdleMonitor(self.params.idle_after, self.params.idle_stance,
                                 0.5 * self.params.step_period)
+        # Velocity feedback in foot placement, over one crawl cycle (speed_feedback.py).
+        self.speed = SpeedFeedback(self.params.velocity_feedback_gain,
+                                   self.params.velocity_feedback_limit,
+                                   self.params.cycle_duration,
+                                   self.params.velocity_feedback_max_error)
 
     @property
     def standing(self) -> bool:
@@ -157,14 +163,20 @@ class GaitReplanner:
         was_standing = self.standing
         try:
             if stand:
+                self.speed.reset()
                 plan = stand_plan(feet, yaw, t, self.schedule.next_leg, self._trigger_time(t))
             else:
+                if was_standing:
+                    self.speed.reset()
+                correction = self.speed.update(t, base.position, yaw,
+                                               clamp_velocity(setpoint, self.params))
                 # Walking off from a stand, as at the start: the reference trunk stands
                 # through the four-feet phase, so the first strides are partial.
                 delay = (self.start_delay if initial
                          else self.params.four_feet_duration if was_standing else 0.0)
                 plan = compute_footholds(setpoint, feet, base.position, yaw, hips,
-                                         self.schedule.next_leg, t, self.params, delay=delay)
+                                         self.schedule.next_leg, t, self.params, delay=delay,
+                                         stride_correction=correction)
         except ValueError as err:
             self.log('error', f'footholds at t={t:.3f} s failed ({err}); keeping the previous '
                               'plan')

@@ -117,8 +117,8 @@ def main(argv=None) -> int:
     made = sum(1 for r in runner.results.values()
                if isinstance(r, RunResult) and r.ok)
     meta = {'command': command.strip(), 'machine': machine_description(),
-            'revision': git_revision(root), 'date': time.strftime('%Y-%m-%d %H:%M UTC',
-                                                                  time.gmtime()),
+            'revision': git_revision(root), 'code': runner.code,
+            'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
             'wall_time_min': round(wall / 60.0, 1), 'runs': made,
             'reused': progress.reused,
             'run_time_min': round(sum(

@@ -24,9 +24,37 @@ from replan_ros.experiments.plan import ExperimentError
 DEFAULT_DOMAIN_BASE = 150      # the node tests reserve 2..101 (test/harness.py)
 
 
-def run_key(doc: dict) -> str:
-    """Folder name of the run of scenario document ``doc``: its name and a hash of it."""
-    text = yaml.safe_dump(doc, sort_keys=True)
+# What shapes a run besides its scenario document: the code of the core and of everything a
+# scenario run starts or reads (nodes, messages, parameters, launch, scenario and analysis),
+# the node parameter files, profiles, scenarios and robot files, and the URDF. Not what only
+# reads runs (the plan and the page) nor what a scenario never runs (benchmarks, tests).
+_SHAPING = ('src/replan_core/replan_core/**/*.py', 'src/replan_ros/replan_ros/**/*.py',
+            'config/*.yaml', 'config/profiles/**/*', 'config/scenarios/**/*',
+            'config/robots/**/*', 'urdf/**/*')
+_NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
+                'replan_ros/experiments/claims.py', 'replan_ros/experiments/plan.py',
+                'replan_ros/experiments/runner.py', 'replan_ros/experiments/runs.py',
+                'replan_ros/benchmarks/')
+
+
+def code_fingerprint(root: Path) -> str:
+    """A hash of every file under ``root`` (the repository) that shapes a run (``_SHAPING``):
+    a change to any of them gives every run a new key, so the cache never serves a run of
+    other code."""
+    digest = hashlib.sha1()
+    files = {path for pattern in _SHAPING for path in root.glob(pattern) if path.is_file()}
+    for path in sorted(files):
+        rel = path.relative_to(root).as_posix()
+        if '__pycache__' in rel or any(part in rel for part in _NOT_SHAPING):
+            continue
+        digest.update(rel.encode() + b'\0' + path.read_bytes() + b'\0')
+    return digest.hexdigest()[:12]
+
+
+def run_key(doc: dict, code: str = '') -> str:
+    """Folder name of the run of scenario document ``doc`` made by code ``code``
+    (``code_fingerprint``): its name and a hash of both."""
+    text = yaml.safe_dump({'scenario': doc, 'code': code}, sort_keys=True)
     return f'{doc.get("name", "run")}-{hashlib.sha1(text.encode()).hexdigest()[:10]}'
 
 
@@ -89,6 +117,7 @@ class Runner:
                  progress: Progress | None = None,
                  lock_file: Path | None = None) -> None:
         self.out_dir, self.config_dir = out_dir, config_dir
+        self.code = code_fingerprint(config_dir.resolve().parent)
         self.lock_file = lock_file
         self.fresh, self.progress = fresh, progress
         self.slots = [domain_base + i for i in range(jobs)]
@@ -106,7 +135,7 @@ class Runner:
 
     def run(self, doc: dict) -> RunResult:
         """The run of scenario ``doc``: made now, or read if made before or under way."""
-        key = run_key(doc)
+        key = run_key(doc, self.code)
         with self.lock:
             entry = self.results.get(key)
             if entry is None:

@@ -89,6 +89,15 @@ def _gait_table() -> tuple[ParamSpec, ...]:
         _p('idle_replan_period', _G.idle_replan_period, 'while standing, re-plan this often (a '
            'zero-length trigger step, so a new set-point is picked up deterministically)', 's',
            min=0.05, max=5.0),
+        _p('velocity_feedback_gain', _G.velocity_feedback_gain, 'velocity feedback in foot '
+           'placement: each re-plan adds gain * (set-point - the mean estimated velocity over the '
+           'last crawl cycle) * dt to the stride correction (per cycle the remaining speed error '
+           'shrinks by about 1 - gain); 0: off (docs/gait.md)', '1/cycle', min=0.0, max=1.0),
+        _p('velocity_feedback_limit', _G.velocity_feedback_limit, 'largest stride correction of '
+           'the velocity feedback', 'm', min=0.0, max=0.3),
+        _p('velocity_feedback_max_error', _G.velocity_feedback_max_error, 'a cycle whose mean '
+           'velocity misses the set-point by more than this is a disturbance (a push, a slip) '
+           'and leaves the stride correction as it is', 'm/s', min=0.001, max=1.0),
         _p('contacts_poll_period', 0.02, 'wall s between two reads of the queued contacts ticks; '
            'bounds the delay of a re-plan whose touchdown has no contact event', 's', min=0.001,
            max=1.0),

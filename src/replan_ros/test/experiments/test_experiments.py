@@ -11,7 +11,7 @@ import yaml
 from replan_ros.experiments.claims import bisect_impulse
 from replan_ros.experiments.page import compare, spread, write_page
 from replan_ros.experiments.plan import ExperimentError, load_plan, planned_runs, variant
-from replan_ros.experiments.runs import RunResult, run_key
+from replan_ros.experiments.runs import RunResult, code_fingerprint, run_key
 
 CONFIG = Path(__file__).resolve().parents[4] / 'config'
 BASE = {'name': 'walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0.0, 0.0]}]}
@@ -31,6 +31,37 @@ def test_variant_changes_only_what_it_is_asked_to():
     assert BASE['events'][0]['cmd_vel'] == [0.1, 0.0, 0.0]          # the base is untouched
     assert run_key(doc) == run_key(yaml.safe_load(yaml.safe_dump(doc)))
     assert run_key(doc) != run_key(variant(BASE, seed=4))
+
+
+def test_the_run_key_changes_with_the_code_and_configuration_that_shape_a_run(tmp_path):
+    """The cache serves a run only to the code that made it: a change to the core, a node or
+    a parameter file gives a new fingerprint, and so a new key; the plan and the page do not."""
+    files = {'src/replan_core/replan_core/gait.py': 'A = 1\n',
+             'src/replan_ros/replan_ros/nodes/gait_node.py': 'B = 1\n',
+             'src/replan_ros/replan_ros/experiments/page.py': 'C = 1\n',
+             'src/replan_ros/test/test_x.py': 'D = 1\n',
+             'config/gait.yaml': 'gait: {}\n', 'config/experiments.yaml': 'x: 1\n',
+             'config/robots/hyq.yaml': 'name: hyq\n', 'urdf/hyq.urdf': '<robot/>\n'}
+    for rel, text in files.items():
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text(text)
+    first = code_fingerprint(tmp_path)
+    assert code_fingerprint(tmp_path) == first
+    for rel in ('src/replan_ros/replan_ros/experiments/page.py', 'src/replan_ros/test/test_x.py',
+                'config/experiments.yaml'):
+        (tmp_path / rel).write_text('changed = 2\n')
+        assert code_fingerprint(tmp_path) == first, rel
+    seen = {first}
+    for rel in ('src/replan_core/replan_core/gait.py',
+                'src/replan_ros/replan_ros/nodes/gait_node.py', 'config/gait.yaml',
+                'config/robots/hyq.yaml', 'urdf/hyq.urdf'):
+        (tmp_path / rel).write_text('changed = 2\n')
+        now = code_fingerprint(tmp_path)
+        assert now not in seen, rel
+        seen.add(now)
+    assert run_key(BASE, first) != run_key(BASE, now)
+    assert run_key(BASE, now) == run_key(yaml.safe_load(yaml.safe_dump(BASE)), now)
+    assert code_fingerprint(Path(__file__).resolve().parents[4]) != first   # the repository
 
 
 class ThresholdRunner:

@@ -1,0 +1,124 @@
+"""Velocity feedback in foot placement (speed_feedback.py), with fixed stamps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from replan_core.gait import GaitParams, compute_footholds
+from replan_core.speed_feedback import ReplanSample, SpeedFeedback, mean_body_velocity
+
+STEP = 0.75          # s between re-plans (one step)
+CYCLE = 4 * STEP     # s
+
+
+def _sample(t, xy, yaw=0.0, setpoint=(0.15, 0.0, 0.0)):
+    return ReplanSample(t, np.array(xy, dtype=float), yaw, np.array(setpoint, dtype=float))
+
+
+def test_mean_velocity_of_a_straight_walk_in_any_heading():
+    for yaw in (0.0, 1.0, -2.5):
+        a = _sample(2.0, (1.0, 2.0), yaw)
+        b = _sample(5.0, (1.0 + 0.3 * math.cos(yaw) - 0.06 * math.sin(yaw),
+                          2.0 + 0.3 * math.sin(yaw) + 0.06 * math.cos(yaw)), yaw)
+        np.testing.assert_allclose(mean_body_velocity(a, b), [0.1, 0.02], atol=1e-12)
+
+
+def test_mean_velocity_on_an_arc_is_the_speed_along_it():
+    v, w, t = 0.05, 0.2, 3.0                 # m/s, rad/s, s: 0.6 rad of turn
+    radius = v / w
+    a = _sample(0.0, (0.0, 0.0), 0.0)
+    b = _sample(t, (radius * math.sin(w * t), radius * (1 - math.cos(w * t))), w * t)
+    np.testing.assert_allclose(mean_body_velocity(a, b), [v, 0.0], atol=1e-12)
+    with pytest.raises(ValueError, match='positive length'):
+        mean_body_velocity(b, a)
+
+
+def _walk(feedback, loss, cycles, v=0.15):
+    """A crawl that loses ``loss`` m of every stride; returns the corrections per re-plan."""
+    x, out = 0.0, []
+    for k in range(int(cycles * 4) + 1):
+        c = feedback.update(k * STEP, (x, 0.0), 0.0, (v, 0.0, 0.0))
+        out.append(c.copy())
+        x += (v * CYCLE + c[0] - loss) / 4            # the trunk follows the feet
+    return out
+
+
+def test_a_constant_loss_per_stride_is_compensated():
+    loss = 0.02                                        # m per stride: -4.4 % at 0.15 m/s
+    corrections = _walk(SpeedFeedback(0.5, 0.1, CYCLE, 0.03), loss, cycles=12)
+    assert all(np.array_equal(c, [0.0, 0.0]) for c in corrections[:4])   # a full window first
+    assert corrections[-1][0] == pytest.approx(loss, abs=1e-4)
+    assert abs(corrections[-1][1]) < 1e-12
+
+
+def test_off_at_gain_zero_and_cleared_by_a_zero_setpoint():
+    assert all(not np.any(c) for c in _walk(SpeedFeedback(0.0, 0.1, CYCLE, 0.03), 0.02, cycles=4))
+    fb = SpeedFeedback(0.5, 0.1, CYCLE, 0.03)
+    _walk(fb, 0.02, cycles=4)
+    assert fb.correction[0] > 0
+    assert not np.any(fb.update(100.0, (5.0, 0.0), 0.0, (0.0, 0.0, 0.0)))
+
+
+def test_the_correction_is_limited_and_a_setpoint_change_restarts_the_window():
+    fb = SpeedFeedback(1.0, 0.03, CYCLE, 1.0)
+    corrections = _walk(fb, 0.2, cycles=6)
+    assert max(np.hypot(*c) for c in corrections) == pytest.approx(0.03)
+    kept = fb.correction.copy()
+    # A new set-point: no full window yet, so the correction stays as it is for one cycle.
+    t0 = 100.0
+    for k in range(4):
+        assert np.array_equal(fb.update(t0 + k * STEP, (k * 0.05, 0.0), 0.0, (0.05, 0, 0)), kept)
+
+
+def test_a_push_is_not_integrated():
+    """A 15 cm sideways push during a walk: its windows miss by 0.05 m/s, above max_error,
+    so the correction the walk had is kept, not turned into a walk back."""
+    fb = SpeedFeedback(0.5, 0.1, CYCLE, 0.03)
+    _walk(fb, 0.02, cycles=8)
+    kept = fb.correction.copy()
+    t0, x0 = 8 * CYCLE + STEP, 8 * 0.15 * CYCLE
+    for k in range(5):
+        pushed = 0.15 if k >= 1 else 0.0                 # m, y, from the second re-plan on
+        c = fb.update(t0 + k * STEP, (x0 + k * 0.15 * STEP, pushed), 0.0, (0.15, 0.0, 0.0))
+        if k >= 1:
+            assert abs(c[1] - kept[1]) < 1e-12, (k, c)
+
+
+def test_time_going_back_starts_a_new_window():
+    fb = SpeedFeedback(0.5, 0.1, CYCLE, 0.03)
+    _walk(fb, 0.02, cycles=3)
+    kept = fb.correction.copy()
+    assert np.array_equal(fb.update(0.0, (0.0, 0.0), 0.0, (0.15, 0.0, 0.0)), kept)
+
+
+@pytest.mark.parametrize('bad', [(-0.1, 0.1, 3.0, 0.03), (0.5, math.nan, 3.0, 0.03),
+                                 (0.5, 0.1, 0.0, 0.03), (0.5, 0.1, 3.0, 0.0)])
+def test_bad_settings_are_refused(bad):
+    with pytest.raises(ValueError, match='velocity feedback'):
+        SpeedFeedback(*bad)
+
+
+def test_every_stride_of_a_plan_carries_the_correction_in_the_heading_of_its_touchdown():
+    params = GaitParams(foothold_correction=False)
+    feet = np.array([[0.37, 0.32, 0.02], [0.37, -0.32, 0.02], [-0.37, 0.32, 0.02],
+                     [-0.37, -0.32, 0.02]])
+    base = np.array([0.0, 0.0, 0.6])
+    twist = (0.1, 0.0, 0.1)
+    plain = compute_footholds(twist, feet, base, 0.3, None, 2, 0.0, params)
+    shifted = compute_footholds(twist, feet, base, 0.3, None, 2, 0.0, params,
+                                stride_correction=np.array([0.01, -0.005]))
+    expected: dict[int, np.ndarray] = {}
+    for a, b in zip(plain.steps, shifted.steps, strict=True):
+        c, s = math.cos(b.yaw), math.sin(b.yaw)
+        # The k-th stride of a leg in the plan: k corrections, each turned to its touchdown.
+        expected[a.leg] = expected.get(a.leg, np.zeros(2)) + np.array(
+            [c * 0.01 + s * 0.005, s * 0.01 - c * 0.005])
+        np.testing.assert_allclose(b.target[:2] - a.target[:2], expected[a.leg], atol=1e-12)
+        assert b.target[2] == a.target[2]
+    zero = compute_footholds(twist, feet, base, 0.3, None, 2, 0.0, params,
+                             stride_correction=np.zeros(2))
+    assert all(np.array_equal(a.target, b.target) for a, b in zip(plain.steps, zero.steps,
+                                                                  strict=True))
