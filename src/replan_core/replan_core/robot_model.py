@@ -41,22 +41,32 @@ class RobotModel:
     controller calls ``update`` once per tick and reads the results from ``self.data``.
     """
 
-    def __init__(self, urdf_path: str) -> None:
+    def __init__(self, urdf_path: str, joint_names: tuple[str, ...] = JOINT_NAMES,
+                 foot_frames: tuple[str, ...] = FOOT_FRAMES) -> None:
+        """joint_names: the model's 12 actuated joints in the project's order (``JOINT_NAMES``
+        order: LEGS, then HAA HFE KFE); foot_frames: its 4 foot frames in LEGS order. The
+        defaults are the project's HyQ names; a robot file gives another robot's
+        (``robot_file.RobotSpec.joints`` and ``.feet``)."""
         self.urdf_path = str(urdf_path)
+        if len(joint_names) != 3 * len(LEGS) or len(foot_frames) != len(LEGS):
+            raise ValueError(f'{self.urdf_path}: need {3 * len(LEGS)} joint names and '
+                             f'{len(LEGS)} foot frames, got {len(joint_names)} and '
+                             f'{len(foot_frames)}')
         self.model = pin.buildModelFromUrdf(self.urdf_path, pin.JointModelFreeFlyer())
         self.data = self.model.createData()
         model = self.model
-        missing = [n for n in JOINT_NAMES if not model.existJointName(n)]
-        missing += [f for f in FOOT_FRAMES if not model.existFrame(f)]
+        self._joint_names = tuple(joint_names)
+        missing = [n for n in joint_names if not model.existJointName(n)]
+        missing += [f for f in foot_frames if not model.existFrame(f)]
         if missing:
             raise ValueError(f'{self.urdf_path}: missing joints/frames {missing}')
-        joint_ids = [model.getJointId(n) for n in JOINT_NAMES]
-        # Index of each JOINT_NAMES entry in pinocchio's q and v vectors (all revolute: nq=nv=1).
+        joint_ids = [model.getJointId(n) for n in joint_names]
+        # Index of each joint in pinocchio's q and v vectors (all revolute: nq=nv=1).
         self.q_index = np.array([model.joints[j].idx_q for j in joint_ids], dtype=int)
         self.v_index = np.array([model.joints[j].idx_v for j in joint_ids], dtype=int)
         # v indices of each leg's three joints, (4, 3), leg-major as LEGS.
         self.leg_v_index = self.v_index.reshape(len(LEGS), 3)
-        self.foot_frame_ids = tuple(model.getFrameId(f) for f in FOOT_FRAMES)
+        self.foot_frame_ids = tuple(model.getFrameId(f) for f in foot_frames)
         self._haa_joint_ids = tuple(joint_ids[3 * i] for i in range(len(LEGS)))
         self._total_mass = float(pin.computeTotalMass(model))
         self.effort_limit = np.asarray(model.effortLimit, dtype=float)[self.v_index].copy()
@@ -81,8 +91,9 @@ class RobotModel:
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        """Actuated joint names in the project's order (``types.JOINT_NAMES``)."""
-        return JOINT_NAMES
+        """The model's actuated joint names, in the project's order (``types.JOINT_NAMES``
+        order)."""
+        return self._joint_names
 
     @property
     def hip_offsets(self) -> np.ndarray:

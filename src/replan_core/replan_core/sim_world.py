@@ -109,7 +109,9 @@ class SimWorld:
                  contact_threshold: float = 30.0, debounce_ticks: int = 2,
                  friction: float = 0.8, gui: bool = False, seed: int = 0,
                  actuator: ActuatorParams | None = None,
-                 contact_stiffness: float = 0.0, contact_damping: float = 0.0) -> None:
+                 contact_stiffness: float = 0.0, contact_damping: float = 0.0,
+                 joint_names: tuple[str, ...] = JOINT_NAMES,
+                 foot_frames: tuple[str, ...] = FOOT_FRAMES) -> None:
         """Build the world and spawn the robot at rest, base at x = y = 0, level.
 
         initial_joint_positions: (12,) rad in JOINT_NAMES order (None: HyQ standing pose).
@@ -118,6 +120,9 @@ class SimWorld:
         actuator: delay, lag, friction and limits of the joints (None: ideal actuators).
         contact_stiffness: N/m, of the foot contacts; 0 = PyBullet's rigid contact.
         contact_damping: N s/m, of the foot contacts (only with a contact_stiffness).
+        joint_names, foot_frames: the model's 12 joints (``JOINT_NAMES`` order) and 4 foot
+            links (LEGS order); the defaults are the project's HyQ names, a robot file gives
+            another robot's (``robot_file.RobotSpec``).
         """
         substeps = control_period / physics_dt
         if physics_dt <= 0 or substeps < 1 or abs(substeps - round(substeps)) > 1e-9:
@@ -163,11 +168,15 @@ class SimWorld:
             info = p.getJointInfo(self._robot, i)
             joints[info[1].decode()] = i
             links[info[12].decode()] = i
-        missing = [n for n in (*JOINT_NAMES, *FOOT_FRAMES) if n not in joints and n not in links]
+        if len(joint_names) != len(JOINT_NAMES) or len(foot_frames) != len(FOOT_FRAMES):
+            raise ValueError(f'{urdf_path}: need {len(JOINT_NAMES)} joint names and '
+                             f'{len(FOOT_FRAMES)} foot links')
+        missing = [n for n in joint_names if n not in joints]
+        missing += [n for n in foot_frames if n not in links]
         if missing:
             raise ValueError(f'{urdf_path} lacks {missing}')
-        self._joints = [joints[n] for n in JOINT_NAMES]
-        self._feet = [links[n] for n in FOOT_FRAMES]
+        self._joints = [joints[n] for n in joint_names]
+        self._feet = [links[n] for n in foot_frames]
         self._foot_index = {link: k for k, link in enumerate(self._feet)}
         self._effort_limit = act.torque_limit_scale * np.array(
             [p.getJointInfo(self._robot, j)[10] for j in self._joints])
@@ -543,6 +552,9 @@ class SimWorld:
         feet = np.array([self._p.getLinkState(self._robot, link, computeForwardKinematics=True)[4]
                          for link in self._feet])
         radius = np.array([self._foot_radius(link) for link in self._feet])
+        # Cast with the robot far above: with the feet under the hips (Go1, ANYmal) the rays
+        # would hit the robot's own legs and spawn it centimetres high.
+        self._set_base_pose(np.array([0.0, 0.0, 100.0]), np.array([0.0, 0.0, 0.0, 1.0]))
         ground = self._ground_height(feet[:, :2])
         return float(np.max(ground + radius - feet[:, 2]))
 

@@ -8,9 +8,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from replan_core.robot_file import load_robot_file
 from replan_core.robot_model import RobotModel
 from replan_core.rotations import quaternion_to_matrix
-from replan_core.types import JOINT_NAMES, BaseState, JointState
+from replan_core.types import JOINT_NAMES, LEGS, BaseState, JointState
 
 ROOT = Path(__file__).resolve().parents[3]
 ERD_HYQ = (Path(sys.prefix) / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}'
@@ -139,3 +140,28 @@ def test_update_matches_queries(robot):
     np.testing.assert_allclose(robot.data.vcom[0], vcom, atol=1e-12)
     np.testing.assert_allclose(
         [robot.data.oMf[f].translation for f in robot.foot_frame_ids], feet, atol=1e-12)
+
+
+@pytest.mark.parametrize('name', ['hyq', 'anymal_c', 'go1', 'b1'])
+def test_any_robot_file_gives_a_model_in_the_project_order(name):
+    """The model of each robot file, built with its own joint and foot names: hips and feet
+    come out in LEGS order (front left ahead and to the left, and so on), the standing feet
+    below the hips, and the joint limits in JOINT_NAMES order."""
+    root = Path(__file__).resolve().parents[3]
+    spec = load_robot_file(root / 'config' / 'robots' / f'{name}.yaml', root)
+    robot = RobotModel(str(spec.urdf), spec.joints, spec.feet)
+    assert robot.joint_names == spec.joints
+    hips = robot.hip_offsets
+    signs = {'lf': (1, 1), 'rf': (1, -1), 'lh': (-1, 1), 'rh': (-1, -1)}
+    for leg, (sx, sy) in signs.items():
+        i = LEGS.index(leg)
+        assert np.sign(hips[i, 0]) == sx and np.sign(hips[i, 1]) == sy, (leg, hips[i])
+    base = BaseState(0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), np.zeros(3))
+    joints = JointState(0.0, spec.standing_pose, np.zeros(12), np.zeros(12))
+    feet = robot.foot_positions(base, joints)
+    assert np.all(feet[:, 2] < hips[:, 2] - 0.1), feet
+    np.testing.assert_allclose(feet[:, :2], hips[:, :2], atol=0.2)   # under the hips
+    assert np.all(robot.position_lower < robot.position_upper)
+    if name != 'hyq':
+        with pytest.raises(ValueError, match='missing joints/frames'):
+            RobotModel(str(spec.urdf))       # the project's HyQ names: only HyQ has them

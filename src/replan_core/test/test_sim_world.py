@@ -81,6 +81,26 @@ def test_spawn_standing_feet_touching(world_factory):
     assert not c.touchdown.any() and not c.liftoff.any()
 
 
+@pytest.mark.parametrize('name', ['anymal_c', 'go1', 'b1'])
+def test_any_robot_file_spawns_standing_with_its_feet_touching(name):
+    """Another robot, from its robot file (its own joint and foot names, its standing pose):
+    spawned with the lowest foot sphere on the ground. The spawn's ray casts must miss the
+    robot's own legs (feet under the hips): before, they hit them and Go1 spawned high."""
+    from replan_core.robot_file import load_robot_file
+    root = Path(__file__).resolve().parents[3]
+    spec = load_robot_file(root / 'config' / 'robots' / f'{name}.yaml', root)
+    w = SimWorld(str(spec.urdf), joint_names=spec.joints, foot_frames=spec.feet,
+                 initial_joint_positions=spec.standing_pose)
+    try:
+        c = w.contact_state()
+        radius = np.array([w._foot_radius(link) for link in w._feet])
+        # The foot frames are the sphere centres in these models (robot files: offset 0).
+        assert min(c.foot_position[:, 2] - radius) == pytest.approx(0.0, abs=1e-6)
+        assert w.base_state().position[2] > 0.2
+    finally:
+        w.close()
+
+
 def test_drop_lands_with_touchdown_events(world_factory):
     w = world_factory(initial_base_height=STAND_HEIGHT + 0.15)
     assert not w.contact_state().contact.any()
