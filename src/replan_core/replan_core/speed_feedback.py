@@ -20,10 +20,11 @@ where ``dt_k`` (s) is the time since the previous re-plan. A constant loss of ``
 stride is compensated at ``c = d``; with ``gain`` = g the remaining error shrinks by about
 (1 - g) per cycle. What the integrator must not hold is a disturbance: integral action on
 the velocity is position control, and a robot pushed 10 cm sideways would walk the 10 cm back.
-So only a window the set-point held through counts (a set-point change restarts it, so the
-acceleration to a new speed is not wound in), and a window whose error exceeds ``max_error``
-(m/s: a push, a slip, a stumble; the systematic losses measured are below 0.015 m/s) leaves
-the correction as it is. A stand plan, a new run or a zero set-point clears ``c``.
+So only a window the set-point held through counts, beginning one cycle after the set-point
+changed (the trunk's acceleration to a new speed is not wound in: it would overshoot), and a
+window whose error exceeds ``max_error`` (m/s: a push, a slip, a stumble; the systematic
+losses measured are below 0.015 m/s) leaves the correction as it is. A stand plan, a new run
+or a zero set-point clears ``c``.
 
 ROS-free and clock-free: times are the re-plan stamps (s).
 """
@@ -86,6 +87,7 @@ class SpeedFeedback:
         self.correction = np.zeros(2)            # m, body frame, added to every stride
         self.last_error = np.zeros(2)            # m/s, body frame, of the last update
         self._samples: deque[ReplanSample] = deque()
+        self._settle_until = -math.inf           # s: no window starts before this
 
     def reset(self) -> None:
         """Forget the history and the correction (stand, new run, zero set-point)."""
@@ -101,10 +103,15 @@ class SpeedFeedback:
         if self.gain == 0.0 or not np.any(sample.setpoint):
             self.reset()
             return self.correction
-        if self._samples and not np.array_equal(self._samples[-1].setpoint, sample.setpoint):
-            self._samples.clear()                # a new set-point: a new window, c kept
-        if self._samples and sample.t <= self._samples[-1].t:
-            self._samples.clear()                # time went back: a new run
+        if self._samples and (sample.t <= self._samples[-1].t or not np.array_equal(
+                self._samples[-1].setpoint, sample.setpoint)):
+            self._samples.clear()                # a new set-point (c kept), or a new run
+        if not self._samples:
+            # The trunk accelerates to a new set-point over about one cycle: a window counts
+            # only from then on, or the acceleration would be wound into c (overshoot).
+            self._settle_until = sample.t + self.window
+        if sample.t < self._settle_until:
+            self._samples.clear()                # settling: only the newest can start a window
         self._samples.append(sample)
         # The oldest sample still at least one window back stays as the window's start.
         while len(self._samples) >= 2 and sample.t - self._samples[1].t >= self.window:

@@ -87,6 +87,19 @@ def test_a_push_is_not_integrated():
             assert abs(c[1] - kept[1]) < 1e-12, (k, c)
 
 
+def test_the_acceleration_to_a_new_setpoint_is_not_wound_in():
+    """Walking off at 0.05 m/s, the trunk reaches the speed over one cycle (its first window
+    misses by 0.025 m/s, under max_error), then holds it exactly: nothing to correct, and
+    the correction stays zero, as the first cycle after a set-point change does not count."""
+    fb = SpeedFeedback(0.5, 0.1, CYCLE, 0.03)
+    x, v = 0.0, 0.05
+    for k in range(24):
+        t = k * STEP
+        c = fb.update(t, (x, 0.0), 0.0, (v, 0.0, 0.0))
+        assert np.hypot(*c) < 1e-9, (t, c)
+        x += v * STEP * min(1.0, (t + STEP) / CYCLE)      # ramping up over the first cycle
+
+
 def test_time_going_back_starts_a_new_window():
     fb = SpeedFeedback(0.5, 0.1, CYCLE, 0.03)
     _walk(fb, 0.02, cycles=3)
