@@ -326,7 +326,10 @@ class GaitNode(Node):
         values = {'replans': replanner.replans, 'last_replan_time': t,
                   'setpoint_source': source, 'idle_stance': replanner.standing,
                   'rejected_cmd_vel': self.rejected, 'forced_touchdowns': replanner.forced,
-                  'next_leg': LEGS[replanner.schedule.next_leg]}
+                  'next_leg': LEGS[replanner.schedule.next_leg],
+                  # m, body frame: the velocity feedback's stride correction (docs/gait.md)
+                  'stride_correction_x': float(replanner.speed.correction[0]),
+                  'stride_correction_y': float(replanner.speed.correction[1])}
         message = 'forced touchdowns happened' if replanner.forced else 'ok'
         self.diag_pub.publish(diagnostics.array(
             sec_to_stamp(t), diagnostics.status('gait', level, message, values)))
