@@ -9,7 +9,8 @@ below the set-point (-4 to -8 % measured, more while turning).
 
 What. At every re-plan the base position of that tick (the estimate in the realistic profile,
 never the truth) is kept; the mean velocity over the last crawl cycle is the displacement
-from the re-plan one cycle back to this one, in the body frame of the mean heading, corrected
+from the re-plan closest to one cycle back (the same leg's touchdown: the crawl's sway
+cancels) to this one, in the body frame of the mean heading, corrected
 for the arc when the heading turned (chord to arc of a constant turn). Its error against the
 set-points in force over the same window drives an integrator: the correction ``c`` (body
 frame, m) is added to every stride of the plan,
@@ -113,12 +114,14 @@ class SpeedFeedback:
         if sample.t < self._settle_until:
             self._samples.clear()                # settling: only the newest can start a window
         self._samples.append(sample)
-        # The oldest sample still at least one window back stays as the window's start.
-        while len(self._samples) >= 2 and sample.t - self._samples[1].t >= self.window:
+        while sample.t - self._samples[0].t > 1.5 * self.window:
             self._samples.popleft()
-        start = self._samples[0]
-        if sample.t - start.t < self.window - 1e-9:
+        # The window's start: the re-plan closest to one cycle back, i.e. the same leg's
+        # touchdown, so the crawl's sway and surge cancel (a start a step off the cycle left
+        # them in: the error of one window scattered by +-0.01 m/s, as much as the loss).
+        if sample.t - self._samples[0].t < 0.75 * self.window:
             return self.correction               # not a full window yet
+        start = min(self._samples, key=lambda s: abs(sample.t - s.t - self.window))
         measured = mean_body_velocity(start, sample)
         self.last_error = sample.setpoint[:2] - measured
         if float(np.hypot(*self.last_error)) > self.max_error:

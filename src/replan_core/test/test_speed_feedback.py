@@ -100,6 +100,22 @@ def test_the_acceleration_to_a_new_setpoint_is_not_wound_in():
         x += v * STEP * min(1.0, (t + STEP) / CYCLE)      # ramping up over the first cycle
 
 
+def test_the_crawls_sway_cancels_over_a_window_of_the_same_legs_touchdowns():
+    """Re-plans every 0.74 s (a cycle of four is 2.96 s, just under the 3 s window) while the
+    trunk sways 2 cm sideways and surges 1 cm with the leg phase and walks exactly at the
+    set-point: the window runs from the same leg's touchdown, the sway cancels, and there is
+    nothing to correct. (A window from the re-plan at least 3 s back, five steps, left the sway
+    in it.)"""
+    fb = SpeedFeedback(0.5, 0.1, CYCLE, 0.03)
+    v, step = 0.1, 0.74
+    for k in range(40):
+        t = k * step
+        phase = 2.0 * math.pi * k / 4
+        xy = (v * t + 0.01 * math.cos(phase), 0.02 * math.sin(phase))
+        c = fb.update(t, xy, 0.0, (v, 0.0, 0.0))
+        assert np.hypot(*c) < 1e-9, (t, c)
+
+
 def test_time_going_back_starts_a_new_window():
     fb = SpeedFeedback(0.5, 0.1, CYCLE, 0.03)
     _walk(fb, 0.02, cycles=3)
