@@ -86,14 +86,12 @@ class SpeedFeedback:
         self.limit = limit
         self.window = window
         self.correction = np.zeros(2)            # m, body frame, added to every stride
-        self.last_error = np.zeros(2)            # m/s, body frame, of the last update
         self._samples: deque[ReplanSample] = deque()
         self._settle_until = -math.inf           # s: no window starts before this
 
     def reset(self) -> None:
         """Forget the history and the correction (stand, new run, zero set-point)."""
         self.correction = np.zeros(2)
-        self.last_error = np.zeros(2)
         self._samples.clear()
 
     def update(self, t: float, xy, yaw: float, setpoint) -> np.ndarray:
@@ -123,11 +121,11 @@ class SpeedFeedback:
             return self.correction               # not a full window yet
         start = min(self._samples, key=lambda s: abs(sample.t - s.t - self.window))
         measured = mean_body_velocity(start, sample)
-        self.last_error = sample.setpoint[:2] - measured
-        if float(np.hypot(*self.last_error)) > self.max_error:
+        error = sample.setpoint[:2] - measured         # m/s, body frame
+        if float(np.hypot(*error)) > self.max_error:
             return self.correction               # a disturbance: not integrated
         dt = sample.t - self._samples[-2].t
-        c = self.correction + self.gain * self.last_error * dt
+        c = self.correction + self.gain * error * dt
         norm = float(np.hypot(*c))
         if norm > self.limit:
             c *= self.limit / norm

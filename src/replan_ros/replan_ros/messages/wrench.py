@@ -7,13 +7,9 @@ its hand-written CDR codec beside it (docs/ARCHITECTURE.md, "Packages: the map")
 from __future__ import annotations
 
 import numpy as np
-from geometry_msgs.msg import (
-    WrenchStamped,
-)
+from geometry_msgs.msg import WrenchStamped
 
-from replan_core.types import (
-    WORLD_FRAME,
-)
+from replan_core.types import WORLD_FRAME
 from replan_ros.messages.stamps import ns_to_stamp, stamp_to_ns
 
 

@@ -7,24 +7,16 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from trajectory_msgs.msg import MultiDOFJointTrajectory
+from wire_checks import through_wire
 
-from replan_core.types import (
-    ComPlan,
-)
+from replan_core.types import ComPlan
 from replan_ros.messages.com_plan import (
     com_plan_from_msg,
     com_plan_to_msg,
     decode_com_plan,
     encode_com_plan,
 )
-from replan_ros.messages.stamps import (
-    sec_to_stamp,
-    stamp_to_ns,
-)
-
-
-def _through_wire(msg):
-    return deserialize_message(serialize_message(msg), type(msg))
+from replan_ros.messages.stamps import sec_to_stamp, stamp_to_ns
 
 
 def _plan(rng, n: int, start: float, dt: float) -> ComPlan:
@@ -42,7 +34,7 @@ def test_com_plan_round_trip_and_exact_sampling():
         vel[k + 1] = vel[k] + acc[k] * dt + jerk[k] * dt**2 / 2
         pos[k + 1] = pos[k] + vel[k] * dt + acc[k] * dt**2 / 2 + jerk[k] * dt**3 / 6
     plan = ComPlan(3.0, dt, pos, vel, acc)
-    back = com_plan_from_msg(_through_wire(com_plan_to_msg(plan)))
+    back = com_plan_from_msg(through_wire(com_plan_to_msg(plan)))
     np.testing.assert_allclose(back.position, pos)
     # Half-way through interval 7, integrated analytically from sample 7.
     s = dt / 2

@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2
+from wire_checks import STAMPS, same_bytes_as_rclpy, through_wire
 
-from replan_core.types import (
-    ContactState,
-)
+from replan_core.types import ContactState
 from replan_ros.messages.contacts import (
     _encode_table,
     contact_events_from_msg,
@@ -24,13 +23,7 @@ from replan_ros.messages.contacts import (
     encode_contact_events,
     encode_contacts,
 )
-from replan_ros.messages.stamps import (
-    ns_to_stamp,
-)
-
-
-def _through_wire(msg):
-    return deserialize_message(serialize_message(msg), type(msg))
+from replan_ros.messages.stamps import ns_to_stamp
 
 
 def _some_contacts():
@@ -41,14 +34,6 @@ def _some_contacts():
                         np.array([False, False, True, False]))
 
 
-STAMPS = [0.0, 0.004, 12.348, 1234.567891234]
-
-
-def _same_bytes_as_rclpy(data: bytes, msg, msg_type) -> None:
-    theirs = bytes(serialize_message(msg))
-    assert len(theirs) - 8 <= len(data) <= len(theirs)
-    assert all(ours in (their, 0) for ours, their in zip(data, theirs, strict=False))
-    assert deserialize_message(data, msg_type) == msg
 
 
 def _contacts(t: float, touchdown, liftoff) -> ContactState:
@@ -60,7 +45,7 @@ def _contacts(t: float, touchdown, liftoff) -> ContactState:
 
 def test_contacts_table_round_trip_and_events():
     cs = _some_contacts()
-    msg = _through_wire(contacts_to_msg(cs))
+    msg = through_wire(contacts_to_msg(cs))
     assert isinstance(msg, PointCloud2) and msg.width == 4
     assert [f.name for f in msg.fields][:3] == ['x', 'y', 'z']
     back = contacts_from_msg(msg)
@@ -77,16 +62,16 @@ def test_contacts_table_round_trip_and_events():
 @pytest.mark.parametrize('t', STAMPS)
 def test_contact_tables_are_rclpys(t):
     cs = _contacts(t, [False, True, False, False], [False, False, False, True])
-    _same_bytes_as_rclpy(encode_contacts(cs), contacts_to_msg(cs), PointCloud2)
-    _same_bytes_as_rclpy(encode_contact_events(cs), contact_events_to_msg(cs),
+    same_bytes_as_rclpy(encode_contacts(cs), contacts_to_msg(cs), PointCloud2)
+    same_bytes_as_rclpy(encode_contact_events(cs), contact_events_to_msg(cs),
                          PointCloud2)
     msg = contacts_to_msg(cs)
     msg.header.stamp = ns_to_stamp(123)
-    _same_bytes_as_rclpy(encode_contacts(cs, 123), msg, PointCloud2)
+    same_bytes_as_rclpy(encode_contacts(cs, 123), msg, PointCloud2)
     quiet = _contacts(t, [False] * 4, [False] * 4)
     assert encode_contact_events(quiet) is None
     one = _contacts(t, [True, False, False, False], [False] * 4)
-    _same_bytes_as_rclpy(encode_contact_events(one), contact_events_to_msg(one),
+    same_bytes_as_rclpy(encode_contact_events(one), contact_events_to_msg(one),
                          PointCloud2)
 
 

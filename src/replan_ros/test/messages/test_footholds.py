@@ -4,17 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from rclpy.serialization import deserialize_message, serialize_message
+from wire_checks import through_wire
 
-from replan_core.types import (
-    FootholdPlan,
-    Step,
-)
+from replan_core.types import FootholdPlan, Step
 from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
-
-
-def _through_wire(msg):
-    return deserialize_message(serialize_message(msg), type(msg))
 
 
 def test_footholds_round_trip():
@@ -22,7 +15,7 @@ def test_footholds_round_trip():
     steps = [Step(leg, 10.2 + i, 10.7 + i, feet[leg] + [0.1, 0, 0], 0.1, i % 2 == 0, i == 0,
                   0.05 * i) for i, leg in enumerate([2, 0, 3, 1])]
     plan = FootholdPlan(10.0, feet, 0.0, steps, min_swing_fraction=0.4, max_extension=0.25)
-    back = footholds_from_msg(_through_wire(footholds_to_msg(plan)))
+    back = footholds_from_msg(through_wire(footholds_to_msg(plan)))
     assert (back.min_swing_fraction, back.max_extension) == (0.4, 0.25)
     assert back.start_time == pytest.approx(10.0)
     np.testing.assert_array_equal(back.initial_feet, feet)

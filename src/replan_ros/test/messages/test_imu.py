@@ -6,22 +6,12 @@ import math
 
 import numpy as np
 import pytest
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
+from wire_checks import STAMPS, same_bytes_as_rclpy
 
-from replan_core.types import (
-    ImuReading,
-)
+from replan_core.types import ImuReading
 from replan_ros.messages.imu import encode_imu, imu_from_cdr, imu_from_msg, imu_to_msg
-
-STAMPS = [0.0, 0.004, 12.348, 1234.567891234]
-
-
-def _same_bytes_as_rclpy(data: bytes, msg, msg_type) -> None:
-    theirs = bytes(serialize_message(msg))
-    assert len(theirs) - 8 <= len(data) <= len(theirs)
-    assert all(ours in (their, 0) for ours, their in zip(data, theirs, strict=False))
-    assert deserialize_message(data, msg_type) == msg
 
 
 @pytest.mark.parametrize('t', STAMPS)
@@ -30,7 +20,7 @@ def test_imu_round_trip(t):
     reading = ImuReading(t, rng.normal(size=3), rng.normal(size=3) + np.array([0, 0, 9.81]))
     msg = imu_to_msg(reading, 1e-4, 2e-3)
     data = encode_imu(reading, 1e-4, 2e-3)
-    _same_bytes_as_rclpy(data, msg, Imu)
+    same_bytes_as_rclpy(data, msg, Imu)
     assert msg.orientation_covariance[0] == -1.0 and msg.orientation.w == 1.0
     stamp_ns, decoded = imu_from_cdr(data)
     expected = imu_from_msg(msg)

@@ -7,13 +7,11 @@ import math
 
 import numpy as np
 import pytest
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState as JointStateMsg
+from wire_checks import STAMPS, same_bytes_as_rclpy, through_wire
 
-from replan_core.types import (
-    JOINT_NAMES,
-    JointState,
-)
+from replan_core.types import JOINT_NAMES, JointState
 from replan_ros.messages.joint_state import (
     JOINT_STATES,
     TORQUE_COMMAND,
@@ -26,23 +24,7 @@ from replan_ros.messages.joint_state import (
     torque_cmd_to_msg,
     torque_command_from_cdr,
 )
-from replan_ros.messages.stamps import (
-    ns_to_stamp,
-)
-
-
-def _through_wire(msg):
-    return deserialize_message(serialize_message(msg), type(msg))
-
-
-STAMPS = [0.0, 0.004, 12.348, 1234.567891234]
-
-
-def _same_bytes_as_rclpy(data: bytes, msg, msg_type) -> None:
-    theirs = bytes(serialize_message(msg))
-    assert len(theirs) - 8 <= len(data) <= len(theirs)
-    assert all(ours in (their, 0) for ours, their in zip(data, theirs, strict=False))
-    assert deserialize_message(data, msg_type) == msg
+from replan_ros.messages.stamps import ns_to_stamp
 
 
 def test_joint_state_reorders_by_name_and_rejects_unknown():
@@ -54,7 +36,7 @@ def test_joint_state_reorders_by_name_and_rejects_unknown():
     msg.position = [msg.position[i] for i in order]
     msg.velocity = [msg.velocity[i] for i in order]
     msg.effort = [msg.effort[i] for i in order]
-    back = joint_state_from_msg(_through_wire(msg))
+    back = joint_state_from_msg(through_wire(msg))
     np.testing.assert_allclose(back.position, js.position)
     np.testing.assert_allclose(back.effort, js.effort)
     msg.name[0] = 'elbow_joint'
@@ -64,7 +46,7 @@ def test_joint_state_reorders_by_name_and_rejects_unknown():
 
 def test_torque_command_rejects_nan_and_wrong_count():
     msg = torque_cmd_to_msg(0.004, np.arange(12.0))
-    stamp_ns, tau = torque_cmd_from_msg(_through_wire(msg))
+    stamp_ns, tau = torque_cmd_from_msg(through_wire(msg))
     assert stamp_ns == 4_000_000
     np.testing.assert_array_equal(tau, np.arange(12.0))
     msg.effort[3] = float('nan')
@@ -80,7 +62,7 @@ def test_torque_command_rejects_nan_and_wrong_count():
 def test_joint_states_bytes_are_rclpys(t):
     rng = np.random.default_rng(1)
     js = JointState(t, rng.normal(size=12), rng.normal(size=12), rng.normal(size=12))
-    _same_bytes_as_rclpy(encode_joint_state(js), joint_state_to_msg(js),
+    same_bytes_as_rclpy(encode_joint_state(js), joint_state_to_msg(js),
                          JointStateMsg)
 
 
@@ -143,7 +125,7 @@ def test_torque_command_round_trip(stamp_ns):
     msg = torque_cmd_to_msg(stamp_ns * 1e-9, torques)
     msg.header.stamp = ns_to_stamp(stamp_ns)
     data = encode_torque_command(stamp_ns, torques)
-    _same_bytes_as_rclpy(data, msg, JointStateMsg)
+    same_bytes_as_rclpy(data, msg, JointStateMsg)
     decoded_stamp, decoded = torque_command_from_cdr(data)
     assert decoded_stamp == stamp_ns
     np.testing.assert_array_equal(decoded, torque_cmd_from_msg(msg)[1])

@@ -7,40 +7,19 @@ import numpy as np
 import pytest
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
+from wire_checks import STAMPS, same_bytes_as_rclpy, through_wire
 
 from replan_core import rotations
 from replan_core.rotations import yaw_of
-from replan_core.types import (
-    BaseState,
-    JointState,
-)
-from replan_ros.messages.joint_state import (
-    joint_state_from_msg,
-    joint_state_to_msg,
-)
+from replan_core.types import BaseState, JointState
+from replan_ros.messages.joint_state import joint_state_from_msg, joint_state_to_msg
 from replan_ros.messages.odom import (
     base_state_from_cdr,
     base_state_from_odom,
     encode_odom,
     odom_from_base_state,
 )
-from replan_ros.messages.stamps import (
-    ns_to_stamp,
-)
-
-
-def _through_wire(msg):
-    return deserialize_message(serialize_message(msg), type(msg))
-
-
-STAMPS = [0.0, 0.004, 12.348, 1234.567891234]
-
-
-def _same_bytes_as_rclpy(data: bytes, msg, msg_type) -> None:
-    theirs = bytes(serialize_message(msg))
-    assert len(theirs) - 8 <= len(data) <= len(theirs)
-    assert all(ours in (their, 0) for ours, their in zip(data, theirs, strict=False))
-    assert deserialize_message(data, msg_type) == msg
+from replan_ros.messages.stamps import ns_to_stamp
 
 
 def test_odom_twist_is_in_base_frame_and_round_trips():
@@ -53,7 +32,7 @@ def test_odom_twist_is_in_base_frame_and_round_trips():
     # World velocity along +x seen from a base yawed by 0.7 rad.
     assert msg.twist.twist.linear.x == pytest.approx(0.3 * np.cos(yaw))
     assert msg.twist.twist.linear.y == pytest.approx(-0.3 * np.sin(yaw))
-    back = base_state_from_odom(_through_wire(msg))
+    back = base_state_from_odom(through_wire(msg))
     np.testing.assert_allclose(back.linear_velocity, bs.linear_velocity, atol=1e-12)
     np.testing.assert_allclose(back.angular_velocity, bs.angular_velocity, atol=1e-12)
     assert yaw_of(back.quaternion) == pytest.approx(yaw)
@@ -65,9 +44,9 @@ def test_odom_bytes_are_rclpys(t):
     base = BaseState(t, rng.normal(size=3), np.asarray(rotations.normalized(rng.normal(size=4))),
                      rng.normal(size=3), rng.normal(size=3))
     msg = odom_from_base_state(base)
-    _same_bytes_as_rclpy(encode_odom(base), msg, Odometry)
+    same_bytes_as_rclpy(encode_odom(base), msg, Odometry)
     msg.header.stamp = ns_to_stamp(777)
-    _same_bytes_as_rclpy(encode_odom(base, 777), msg, Odometry)
+    same_bytes_as_rclpy(encode_odom(base, 777), msg, Odometry)
 
 
 @pytest.mark.parametrize('t', STAMPS)

@@ -8,10 +8,7 @@ from nav_msgs.msg import Path
 from rclpy.serialization import deserialize_message, serialize_message
 
 from replan_ros.messages.path import encode_path, path_msg
-from replan_ros.messages.stamps import (
-    sec_to_stamp,
-    stamp_to_ns,
-)
+from replan_ros.messages.stamps import sec_to_stamp, stamp_to_ns
 
 
 @pytest.mark.parametrize('frame_id', ['odom', 'abcdefg', ''])
