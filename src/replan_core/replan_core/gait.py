@@ -91,9 +91,12 @@ class GaitParams:
     # Velocity feedback in foot placement (speed_feedback.py): the stride correction grows by
     # gain * (set-point - mean velocity over the last cycle) * dt at each re-plan (per cycle:
     # the remaining error shrinks by about 1 - gain); 0 = off. limit: m, its largest norm.
-    velocity_feedback_gain: float = 0.0
+    velocity_feedback_gain: float = 0.5
     velocity_feedback_limit: float = 0.10
     velocity_feedback_max_error: float = 0.03    # m/s: a larger error is a disturbance (a push)
+    # Strides laid out for the step period measured over the last cycle (touchdowns come later
+    # than planned; speed_feedback.StepTiming); False: for the planned step period.
+    measured_step_period: bool = True
 
     @property
     def step_period(self) -> float:
@@ -246,7 +249,8 @@ def _clamp_step(prev_xy: np.ndarray, target_xy: np.ndarray, yaw: float,
 def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_position: np.ndarray,
                       base_yaw: float, hips: np.ndarray | None, next_leg: int,
                       start_time: float, params: GaitParams, n: int | None = None,
-                      delay: float = 0.0, stride_correction=None) -> FootholdPlan:
+                      delay: float = 0.0, stride_correction=None,
+                      stride_time_scale: float = 1.0) -> FootholdPlan:
     """compFootholds of Algorithm 1: the next ``n`` steps from the actual state at ``start_time``.
 
     velocity_set_point: (vx, vy, wz), body frame, m/s and rad/s; clamped to the limits.
@@ -259,6 +263,10 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         (the start of a run); 0 for a re-plan at a touchdown.
     stride_correction: (2,) m, body frame, added to every stride (velocity feedback,
         speed_feedback.SpeedFeedback); None: none.
+    stride_time_scale: the measured over the planned step period (speed_feedback.StepTiming):
+        footholds are laid out along the reference as it will be at the actual, later
+        touchdowns (the twist times this scale over the planned times); the plan's times and
+        trunk yaw reference keep the planned timing. 1.0: as planned.
     Footholds keep each foot's actual height (flat terrain).
     """
     params.validate()
@@ -274,7 +282,16 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
     twist = clamp_velocity(velocity_set_point, params)
     correction = (np.zeros(2) if stride_correction is None
                   else np.asarray(stride_correction, dtype=float).reshape(2))
+    if not (math.isfinite(stride_time_scale) and stride_time_scale > 0):
+        raise ValueError(f'stride_time_scale must be finite, > 0, got {stride_time_scale}')
+    # ref: the trunk reference in planned time (the steps' yaw); placed: the same reference
+    # stretched to the step period actually walked, for where the feet go.
     ref = ReferenceTrajectory(start_time, base_xy.copy(), float(base_yaw), twist, float(delay))
+    # The set-point limits bound the stretched strides too: at the top speed the strides stay
+    # those the limits allow (a stretched 0.2 m/s stride stumbled once: measured, docs/gait.md).
+    placed = ReferenceTrajectory(start_time, base_xy.copy(), float(base_yaw),
+                                 clamp_velocity(twist * float(stride_time_scale), params),
+                                 float(delay))
     half_stance = 0.5 * params.stance_duration
 
     plan = FootholdPlan(start_time=start_time, initial_feet=feet.copy(),
@@ -298,21 +315,21 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         shift = _rot(yaw_td) @ correction             # velocity feedback, world frame
         if leg in last_mid:
             # Later footholds of a leg: previous foothold plus one stride of the reference.
-            target = (last_xy[leg] + ref.foot(mid, offset) - ref.foot(last_mid[leg], offset)
+            target = (last_xy[leg] + placed.foot(mid, offset) - placed.foot(last_mid[leg], offset)
                       + shift)
         else:
             # First foothold, uncorrected: the foot's actual position plus one stride.
             prev_mid = mid - params.cycle_duration
-            target = last_xy[leg] + ref.foot(mid, offset) - ref.foot(prev_mid, offset)
+            target = last_xy[leg] + placed.foot(mid, offset) - placed.foot(prev_mid, offset)
             if params.foothold_correction:
                 # Corrected: about the actual hip, moved as the reference hip moves (V.B), when
                 # the two placements differ by more than the threshold (a push). Below it the
                 # foot-relative placement stands: hip-relative placement at every step feeds
                 # the crawl's sway and lag back into the feet, and the walk settles ~20 %
                 # slower than commanded (docs/gait.md).
-                hip_now = ref.foot(start_time, hip_offsets[leg])
-                hip_mid = ref.foot(mid, hip_offsets[leg])
-                _, yaw_mid = ref.pose(mid)
+                hip_now = placed.foot(start_time, hip_offsets[leg])
+                hip_mid = placed.foot(mid, hip_offsets[leg])
+                _, yaw_mid = placed.pose(mid)
                 corrected = hips_xy[leg] + (hip_mid - hip_now) + _rot(yaw_mid) @ stance[leg]
                 if np.linalg.norm(corrected - target) > params.correction_threshold:
                     target = corrected

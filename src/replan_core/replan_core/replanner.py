@@ -26,7 +26,7 @@ from replan_core.gait import (
     stand_plan,
 )
 from replan_core.rotations import yaw_of
-from replan_core.speed_feedback import SpeedFeedback
+from replan_core.speed_feedback import SpeedFeedback, StepTiming
 from replan_core.types import LEGS, BaseState, ContactState, FootholdPlan
 
 DEFAULT_TICK_NS = 4_000_000     # control period until the stamps have shown it (250 Hz)
@@ -98,6 +98,8 @@ class GaitReplanner:
                                    self.params.velocity_feedback_limit,
                                    self.params.cycle_duration,
                                    self.params.velocity_feedback_max_error)
+        # The step period actually walked, for the strides (speed_feedback.StepTiming).
+        self.timing = StepTiming(self.params.step_period, len(self.params.sequence))
 
     @property
     def standing(self) -> bool:
@@ -131,6 +133,7 @@ class GaitReplanner:
             if event.kind != 'touchdown' or is_idle_trigger(self.plan.steps[event.step]):
                 continue                    # a stand plan's trigger moves no leg
             self.schedule.touched_down(event.leg)
+            self.timing.touchdown(event.time)
             if event.reason == 'forced':
                 self.forced += 1
                 self.log('warning', f'{LEGS[event.leg]} touchdown forced at t={event.time:.3f} '
@@ -164,6 +167,7 @@ class GaitReplanner:
         try:
             if stand:
                 self.speed.reset()
+                self.timing.restart()
                 plan = stand_plan(feet, yaw, t, self.schedule.next_leg, self._trigger_time(t))
             else:
                 if was_standing:
@@ -176,7 +180,8 @@ class GaitReplanner:
                          else self.params.four_feet_duration if was_standing else 0.0)
                 plan = compute_footholds(setpoint, feet, base.position, yaw, hips,
                                          self.schedule.next_leg, t, self.params, delay=delay,
-                                         stride_correction=correction)
+                                         stride_correction=correction,
+                                         stride_time_scale=self.stride_time_scale)
         except ValueError as err:
             self.log('error', f'footholds at t={t:.3f} s failed ({err}); keeping the previous '
                               'plan')
@@ -194,6 +199,12 @@ class GaitReplanner:
             self.log('info', f'walking again at t={t:.3f} s ({source} {setpoint.tolist()}), '
                              f'{LEGS[self.schedule.next_leg]} first')
         return plan
+
+    @property
+    def stride_time_scale(self) -> float:
+        """Measured over planned step period for the next plan's strides (1.0 when
+        ``measured_step_period`` is off or nothing is measured yet)."""
+        return self.timing.scale if self.params.measured_step_period else 1.0
 
     def adopt(self, plan: FootholdPlan) -> None:
         """Track ``plan`` from now on: as the controller decodes it from the message."""

@@ -27,7 +27,17 @@ window whose error exceeds ``max_error`` (m/s: a push, a slip, a stumble; the sy
 losses measured are below 0.015 m/s) leaves the correction as it is. A stand plan, a new run
 or a zero set-point clears ``c``.
 
-ROS-free and clock-free: times are the re-plan stamps (s).
+Step timing (``StepTiming``). The larger share of the loss is not short landings but late
+ones: a swing's touchdown is sensed a few ticks after its planned time (the foot meets the
+ground with its reference's velocity near zero, and the contact is debounced), and each
+re-plan times the next steps from the actual touchdown. A stride planned for a 3 s cycle is
+then walked in 3.17 s (0.792 s per step measured on the realistic HyQ): 5 % slow whatever the
+footholds. ``StepTiming`` measures the step period the robot actually walks (the median of the
+intervals between the last cycle's touchdowns) and the foothold planner lays the strides out
+for it (``gait.compute_footholds(stride_time_scale=)``): the footholds are where the reference
+trunk will be at the actual touchdowns, not at the planned ones.
+
+ROS-free and clock-free: times are the touchdown and re-plan stamps (s).
 """
 
 from __future__ import annotations
@@ -131,3 +141,54 @@ class SpeedFeedback:
             c *= self.limit / norm
         self.correction = c
         return self.correction
+
+
+class StepTiming:
+    """The step period the crawl actually walks, from its touchdown ticks (module docstring).
+
+    ``touchdown(t)`` at every real touchdown while walking; ``restart()`` when the walk
+    (re)starts from a stand, so that standing time never counts as a step. ``scale`` is the
+    median of the last ``steps`` touchdown intervals over the planned step period (1.0 until
+    ``steps`` intervals are known), clipped to ``[1 / max_scale, max_scale]``: the median keeps
+    one forced or stumbled touchdown (up to ``max_extension`` late) out of the strides.
+    """
+
+    def __init__(self, step_period: float, steps: int, max_scale: float = 1.25) -> None:
+        """step_period: s, planned touchdown to touchdown; steps: intervals in the median (one
+        crawl cycle); max_scale: the largest stretch (or shrink) of a stride."""
+        if not (math.isfinite(step_period) and step_period > 0):
+            raise ValueError(f'step period must be finite, > 0, got {step_period}')
+        if steps < 1:
+            raise ValueError(f'steps must be >= 1, got {steps}')
+        if not (math.isfinite(max_scale) and max_scale >= 1.0):
+            raise ValueError(f'max_scale must be finite, >= 1, got {max_scale}')
+        self.step_period = step_period
+        self.max_scale = max_scale
+        self._intervals: deque[float] = deque(maxlen=steps)
+        self._last: float | None = None          # s, the previous touchdown of this walk
+
+    def restart(self) -> None:
+        """The walk starts (again) from a stand: the next touchdown opens no interval."""
+        self._last = None
+
+    def touchdown(self, t: float) -> None:
+        """A real step touched down at tick ``t`` (s)."""
+        t = float(t)
+        if self._last is not None and t > self._last:
+            self._intervals.append(t - self._last)
+        self._last = t
+
+    @property
+    def measured_period(self) -> float | None:
+        """s, the median touchdown interval of the last cycle; None until it is full."""
+        if len(self._intervals) < (self._intervals.maxlen or 0):
+            return None
+        return float(np.median(self._intervals))
+
+    @property
+    def scale(self) -> float:
+        """Measured over planned step period, clipped; 1.0 while not measured."""
+        measured = self.measured_period
+        if measured is None:
+            return 1.0
+        return min(max(measured / self.step_period, 1.0 / self.max_scale), self.max_scale)

@@ -65,10 +65,10 @@ class WbcParams:
     weight_moment: float = 10.0     # QP weight of the angular (moment) rows, 1/(N m)^2
     regularization: float = 1e-4    # QP weight of |f|^2: spreads the load, keeps H definite
     haptic_velocity: float = 0.15   # m/s, descent of a haptic swing foot after planned touchdown
-    # m, a swing (haptic or not) aims this far below its foothold: the foot lags its reference
-    # by ~1-2 cm, and a swing that ends exactly at ground level meets the ground late (the
-    # re-plan follows the sensed touchdown, so every step would take longer than planned and
-    # the robot walk slower than commanded). Aiming lower makes contact happen at the planned time.
+    # m, a haptic swing aims this far below its foothold: the foot lags its reference by ~1-2
+    # cm, and a swing that ends exactly at ground level meets the ground late (the re-plan
+    # follows the sensed touchdown, so every step would take longer than planned). A
+    # non-haptic swing aims at the foothold: it may miss the ground (paper V.A).
     touchdown_depth: float = 0.015
     fallback_kp: float = 300.0      # N m/rad, joint PD of the safe stand
     fallback_kd: float = 10.0       # N m s/rad
@@ -210,10 +210,12 @@ class PlanFollower:
             liftoff = self.tracker.liftoff_tick[index]
             start = self._liftoff_position.get(index, step.target)
             target = step.target
-            if step.touchdown_time > step.liftoff_time:
-                # Haptic or not, a real swing aims touchdown_depth below its foothold, so that
-                # haptic off vs on compares the touchdown rule alone (the idle stance's
-                # zero-length trigger step is no swing and keeps its target).
+            if step.haptic and step.touchdown_time > step.liftoff_time:
+                # A haptic swing searches: it aims touchdown_depth below its foothold, so it
+                # meets the ground by the planned time. A non-haptic swing aims at the foothold
+                # itself and stance starts at the planned time wherever the foot is (paper
+                # V.A: the foot may load late or early). The idle stance's zero-length trigger
+                # step is no swing and keeps its target.
                 target = step.target - np.array([0.0, 0.0, self.touchdown_depth])
             if step.haptic:
                 touchdown = liftoff + (step.touchdown_time - step.liftoff_time)

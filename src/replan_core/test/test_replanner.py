@@ -142,6 +142,39 @@ def test_zero_setpoint_for_idle_after_stands_and_a_new_one_walks_off():
     assert logs[-1][1].startswith(f'walking again at t={t:.3f} s (cmd_vel_stamped')
 
 
+def late_touchdowns(replanner, late: float):
+    """Contact flags of a swing leg that comes back ``late`` s after its planned touchdown."""
+    def contact_of(t):
+        flags = [1, 1, 1, 1]
+        step = replanner.plan.steps[0]
+        if step.liftoff_time < t < step.touchdown_time + late:
+            flags[step.leg] = 0
+        return flags
+    return contact_of
+
+
+@pytest.mark.parametrize('measured', [True, False])
+def test_late_touchdowns_stretch_the_strides_after_one_cycle(measured):
+    replanner, _, _ = make(measured_step_period=measured, foothold_correction=False)
+    replanner.tick(contacts(0.0))
+    plan_now(replanner)
+    t, scales = 0.0, []
+    for _ in range(7):
+        t = run_until_pending(replanner, round(t + TICK, 6), late_touchdowns(replanner, 0.04))
+        scales.append(replanner.stride_time_scale)
+        plan = plan_now(replanner)
+    # Steps of 0.75 + 0.04 s (on the tick grid): measured from the fifth touchdown on (four
+    # intervals), never from the start's standing delay.
+    period = replanner.timing.measured_period
+    assert period == pytest.approx(0.79, abs=TICK)
+    expected = period / 0.75 if measured else 1.0
+    assert scales[:4] == [1.0] * 4 and scales[4:] == [pytest.approx(expected)] * 3
+    # The first stride of the last plan is stretched accordingly (0.1 m/s straight walk).
+    step = plan.steps[0]
+    stride = step.target[0] - plan.initial_feet[step.leg, 0]
+    assert stride == pytest.approx(0.1 * 3.0 * expected, abs=1e-9)
+
+
 def test_a_plan_that_cannot_be_computed_keeps_the_previous_one():
     replanner, logs, _ = make()
     replanner.tick(contacts(0.0))

@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from replan_core.gait import GaitParams, compute_footholds
-from replan_core.speed_feedback import ReplanSample, SpeedFeedback, mean_body_velocity
+from replan_core.speed_feedback import (
+    ReplanSample,
+    SpeedFeedback,
+    StepTiming,
+    mean_body_velocity,
+)
 
 STEP = 0.75          # s between re-plans (one step)
 CYCLE = 4 * STEP     # s
@@ -151,3 +156,83 @@ def test_every_stride_of_a_plan_carries_the_correction_in_the_heading_of_its_tou
                              stride_correction=np.zeros(2))
     assert all(np.array_equal(a.target, b.target) for a, b in zip(plain.steps, zero.steps,
                                                                   strict=True))
+
+
+# ------------------------------------------------------------------------------ step timing
+def test_step_timing_is_the_median_interval_of_the_last_cycle():
+    timing = StepTiming(STEP, 4)
+    for t in (1.75, 2.55, 3.34):          # two intervals: not a cycle yet
+        timing.touchdown(t)
+    assert timing.measured_period is None and timing.scale == 1.0
+    for t in (4.14, 4.93):
+        timing.touchdown(t)
+    # intervals 0.80, 0.79, 0.80, 0.79: median 0.795
+    assert timing.measured_period == pytest.approx(0.795, abs=1e-12)
+    assert timing.scale == pytest.approx(0.795 / STEP, abs=1e-12)
+    # One forced touchdown (0.3 s late) leaves the median where it was (0.79, 0.80, 0.79, 1.09).
+    timing.touchdown(4.93 + 1.09)
+    assert timing.measured_period == pytest.approx(0.795, abs=1e-12)
+
+
+def test_step_timing_skips_the_stand_and_is_clipped():
+    timing = StepTiming(STEP, 2, max_scale=1.25)
+    for t in (1.0, 1.8, 2.6):
+        timing.touchdown(t)
+    assert timing.measured_period == pytest.approx(0.8)
+    timing.restart()                       # stood for 10 s
+    timing.touchdown(12.6)
+    assert timing.measured_period == pytest.approx(0.8)     # no 10 s interval
+    for t in (13.8, 15.0):                 # 1.2 s per step: stretched at most 1.25 times
+        timing.touchdown(t)
+    assert timing.scale == 1.25
+    timing.touchdown(15.0)                 # a repeated tick opens no interval
+    assert timing.measured_period == pytest.approx(1.2)
+
+
+@pytest.mark.parametrize('bad', [(0.0, 4), (math.nan, 4), (0.75, 0), (0.75, 4, 0.9)])
+def test_bad_step_timing_settings_are_refused(bad):
+    with pytest.raises(ValueError):
+        StepTiming(*bad)
+
+
+def test_strides_are_laid_out_for_the_measured_step_period():
+    """With the step period stretched by s, every stride is s times the planned one (straight)
+    and the feet turn as the trunk will have turned at the later touchdowns (turning); the
+    plan's times and yaw references stay as planned."""
+    params = GaitParams(foothold_correction=False)
+    feet = np.array([[0.37, 0.32, 0.02], [0.37, -0.32, 0.02], [-0.37, 0.32, 0.02],
+                     [-0.37, -0.32, 0.02]])
+    base = np.array([0.0, 0.0, 0.6])
+    scale = 1.056
+    for twist in ((0.1, 0.02, 0.0), (0.1, 0.0, 0.15)):
+        plain = compute_footholds(twist, feet, base, 0.3, None, 2, 0.0, params)
+        fast = compute_footholds(np.array(twist) * scale, feet, base, 0.3, None, 2, 0.0,
+                                 params)
+        placed = compute_footholds(twist, feet, base, 0.3, None, 2, 0.0, params,
+                                   stride_time_scale=scale)
+        for a, b, c in zip(plain.steps, fast.steps, placed.steps, strict=True):
+            # Footholds as for a twist s times faster; times and yaw as planned.
+            np.testing.assert_allclose(c.target, b.target, atol=1e-12)
+            assert (c.liftoff_time, c.touchdown_time, c.yaw) == (
+                a.liftoff_time, a.touchdown_time, a.yaw)
+        if twist[2] == 0.0:
+            first = {s.leg: s for s in reversed(placed.steps)}
+            for leg, step in first.items():
+                stride = step.target[:2] - feet[leg, :2]
+                c, s = math.cos(0.3), math.sin(0.3)     # body to world at yaw 0.3 rad
+                expected = np.array([[c, -s], [s, c]]) @ np.array(twist[:2]) * 3.0 * scale
+                np.testing.assert_allclose(stride, expected, atol=1e-12)
+    same = compute_footholds((0.1, 0.0, 0.1), feet, base, 0.3, None, 2, 0.0, params,
+                             stride_time_scale=1.0)
+    assert all(np.array_equal(a.target, b.target) for a, b in zip(
+        compute_footholds((0.1, 0.0, 0.1), feet, base, 0.3, None, 2, 0.0, params).steps,
+        same.steps, strict=True))
+    # At the set-point limit (0.2 m/s) the strides are the limits' own: not stretched further.
+    top = compute_footholds((0.2, 0.0, 0.0), feet, base, 0.3, None, 2, 0.0, params)
+    top_placed = compute_footholds((0.2, 0.0, 0.0), feet, base, 0.3, None, 2, 0.0, params,
+                                   stride_time_scale=scale)
+    assert all(np.array_equal(a.target, b.target) for a, b in zip(top.steps, top_placed.steps,
+                                                                  strict=True))
+    with pytest.raises(ValueError, match='stride_time_scale'):
+        compute_footholds((0.1, 0.0, 0.0), feet, base, 0.3, None, 2, 0.0, params,
+                          stride_time_scale=0.0)

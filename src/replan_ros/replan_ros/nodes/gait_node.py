@@ -329,7 +329,11 @@ class GaitNode(Node):
                   'next_leg': LEGS[replanner.schedule.next_leg],
                   # m, body frame: the velocity feedback's stride correction (docs/gait.md)
                   'stride_correction_x': float(replanner.speed.correction[0]),
-                  'stride_correction_y': float(replanner.speed.correction[1])}
+                  'stride_correction_y': float(replanner.speed.correction[1]),
+                  # s: the step period measured over the last cycle (0: not yet), and the
+                  # stretch of the strides it gives (docs/gait.md, "Step timing")
+                  'measured_step_period': replanner.timing.measured_period or 0.0,
+                  'stride_time_scale': replanner.stride_time_scale}
         message = 'forced touchdowns happened' if replanner.forced else 'ok'
         self.diag_pub.publish(diagnostics.array(
             sec_to_stamp(t), diagnostics.status('gait', level, message, values)))

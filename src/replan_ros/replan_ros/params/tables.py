@@ -98,6 +98,10 @@ def _gait_table() -> tuple[ParamSpec, ...]:
         _p('velocity_feedback_max_error', _G.velocity_feedback_max_error, 'a cycle whose mean '
            'velocity misses the set-point by more than this is a disturbance (a push, a slip) '
            'and leaves the stride correction as it is', 'm/s', min=0.001, max=1.0),
+        _p('measured_step_period', _G.measured_step_period, 'lay the strides out for the step '
+           'period measured over the last cycle (the median touchdown interval: touchdowns come '
+           'later than planned, and a stride planned for the planned period is walked slower); '
+           'false: for the planned period (docs/gait.md, "Step timing")'),
         _p('contacts_poll_period', 0.02, 'wall s between two reads of the queued contacts ticks; '
            'bounds the delay of a re-plan whose touchdown has no contact event', 's', min=0.001,
            max=1.0),
@@ -238,7 +242,7 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
         _p('haptic_velocity', _W.haptic_velocity,
            'descent of a haptic swing foot after its planned touchdown', 'm/s', min=0.0, max=2.0),
         _p('touchdown_depth', _W.touchdown_depth,
-           'a swing (haptic or not) aims this far below its foothold',
+           'a haptic swing aims this far below its foothold (a non-haptic one at it)',
            'm', min=0.0, max=0.1),
         _gain(_W, 'com_kp', 'CoM PD stiffness x y z', '1/s^2'),
         _gain(_W, 'com_kd', 'CoM PD damping x y z', '1/s'),
