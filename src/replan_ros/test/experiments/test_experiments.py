@@ -142,6 +142,7 @@ def test_page_from_results(tmp_path):
                    for h in (True, False) for s in range(3)],
         'qp_timing': {'working_set': {'median_ms': 2.0, 'mean_ms': 2.1, 'std_ms': 0.3,
                                       'p99_ms': 3.0, 'replans': 200}},
+        'settings': {'touchdown_depth_m': 0.015, 'haptic_search_m': 0.06},
     }
     meta = {'command': 'scripts/experiments.sh', 'machine': 'test', 'revision': 'abc',
             'date': 'today', 'wall_time_min': 1.0, 'runs': 16, 'failures': ['x: exit 1']}
@@ -152,6 +153,13 @@ def test_page_from_results(tmp_path):
     assert 'window 2 worse than 1 (model errors grow) | holds, p = ' in text
     assert '| haptic | flat: off vs on | touchdown pitch peak (deg) | 3.10 vs 1.10 | 6 |' in text
     assert 'faster than the paper (28x)' in text
+    # What each haptic setting does, from the settings; the flat-ground verdict from the runs,
+    # not waved away in prose.
+    assert ('Haptic on: the swing aims 1.5 cm below the foothold and, past the planned '
+            'touchdown, searches down to 6 cm below it') in text
+    assert 'Haptic off: the swing aims at the foothold itself' in text
+    assert '"off disturbs the pitch": holds, p = ' in text
+    assert 'hypothesis here' in text
     assert '`x: exit 1`' in text
     assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
     assert (tmp_path / 'results_plots' / 'haptic_pitch.png').is_file()
