@@ -2,8 +2,10 @@
 
 Every figure on the page comes from the runs' metrics (``experiments.py`` collects them); the
 verdicts are computed, never typed: a comparison "holds" when the difference has the paper's
-sign and Welch's t-test puts it beyond the spread of the runs (p < 0.05), "does not hold" when it
-is beyond the spread with the other sign, and "not resolved" otherwise.
+sign and a t-test puts it beyond the spread of the runs (p < 0.05), "does not hold" when it
+is beyond the spread with the other sign, and "not resolved" otherwise. Where the runs pair
+(the same seed and set-point in both settings) the test is the paired one over the
+differences (``compare_paired``, "n pairs" on the page); otherwise Welch's.
 """
 
 from __future__ import annotations
@@ -62,6 +64,38 @@ def compare(a: list[float], b: list[float], a_better: str) -> tuple[str, float |
     if p >= P_VALUE:
         return 'not resolved (within the spread)', p
     return ('holds' if better else 'does not hold (the opposite)'), p
+
+
+def compare_paired(a_rows: list[dict], b_rows: list[dict], key: str, by: tuple[str, ...],
+                   a_better: str) -> tuple[str, float | None]:
+    """``compare`` of metric ``key`` where the runs pair (the same seed and set-point, ``by``):
+    the paired t-test over the differences when every run of ``a_rows`` has exactly one
+    partner in ``b_rows`` and both have the metric; else Welch's test, said so."""
+    def index(rows):
+        out: dict[tuple, float] = {}
+        for r in rows:
+            if r.get(key) is not None:
+                out[tuple(r.get(k) for k in by)] = float(r[key])
+        return out
+
+    a, b = index(a_rows), index(b_rows)
+    if len(a) != len(a_rows) or set(a) != set(b) or len(b) != len(b_rows) or len(a) < 2:
+        verdict, p = compare(values(a_rows, key), values(b_rows, key), a_better)
+        return verdict + (' (unpaired)' if p is not None else ''), p
+    pairs = sorted(a)
+    diff = np.array([a[k] - b[k] for k in pairs])
+    if np.all(diff == 0):
+        return 'not resolved (equal in every pair)', 1.0
+    from scipy.stats import ttest_rel
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)
+        p = float(ttest_rel([a[k] for k in pairs], [b[k] for k in pairs]).pvalue)
+    if not np.isfinite(p):                    # every difference the same, not zero
+        p = 0.0
+    better = diff.mean() < 0 if a_better == 'lower' else diff.mean() > 0
+    if p >= P_VALUE:
+        return f'not resolved (within the spread, {len(pairs)} pairs)', p
+    return ('holds' if better else 'does not hold (the opposite)') + f' ({len(pairs)} pairs)', p
 
 
 def _p(p: float | None) -> str:
@@ -330,9 +364,11 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
                 ('linear_error_mps', 'velocity error (m/s)', 4, 1.0),
                 ('cop_margin_p5_m', 'CoP margin p5 (cm)', 2, 100.0),
                 ('cop_zmp_deviation_rms_m', 'CoP minus planned ZMP, RMS (cm)', 2, 100.0)):
-            one = values([r for r in sel if r['window'] == 1], key)
-            other = values([r for r in sel if r['window'] == w], key)
-            verdict, p = compare(one, other, 'higher' if key == 'cop_margin_p5_m' else 'lower')
+            one_rows = [r for r in sel if r['window'] == 1]
+            other_rows = [r for r in sel if r['window'] == w]
+            one, other = values(one_rows, key), values(other_rows, key)
+            verdict, p = compare_paired(one_rows, other_rows, key, ('seed', 'setpoint'),
+                                        'higher' if key == 'cop_margin_p5_m' else 'lower')
             page.row('replan window', f'1 vs {w}{suffix}', label,
                      f'{np.mean(one) * scale:.{digits}f} vs {np.mean(other) * scale:.{digits}f}'
                      if one and other else '-', len(one) + len(other), claim, verdict + _p(p))
@@ -393,10 +429,9 @@ def _haptic(page: Page, rows: list[dict], results, world: str = 'realistic') -> 
                      'touchdown timing error, median |.| (ms)',
                      spread(values(runs, 'touchdown_timing_median_abs_s'), 1, 1000.0),
                      len(runs), '', '')
-        verdict, p = compare(values(off, 'pitch_peak_mean_deg'),
-                             values(on, 'pitch_peak_mean_deg'), 'higher')
+        verdict, p = compare_paired(off, on, 'pitch_peak_mean_deg', ('seed',), 'higher')
         big_off, big_on = values(off, 'pitch_peak_max_deg'), values(on, 'pitch_peak_max_deg')
-        verdict_max, p_max = compare(big_off, big_on, 'higher')
+        verdict_max, p_max = compare_paired(off, on, 'pitch_peak_max_deg', ('seed',), 'higher')
         page.row('haptic', f'{terrain.replace("_", " ")}: off vs on{suffix}',
                  'largest touchdown pitch peak (deg)',
                  f'{np.mean(big_off):.2f} vs {np.mean(big_on):.2f}' if big_off and big_on
@@ -441,7 +476,12 @@ def _velocity_term(page: Page, rows: list[dict], _all) -> None:
                  f'{sum(r["fell"] for r in runs)} falls')
     err_on = [abs(1 - x) for x in ratio[True]]
     err_off = [abs(1 - x) for x in ratio[False]]
-    verdict, p = compare(err_on, err_off, 'lower')
+    def speed_error(on: bool) -> list[dict]:
+        return [dict(r, speed_error=abs(1 - r['achieved'][0] / r['commanded'][0]))
+                for r in rows if r['velocity_term'] == on and r.get('ok')
+                and r.get('achieved') and r['commanded'][0]]
+    verdict, p = compare_paired(speed_error(True), speed_error(False), 'speed_error',
+                                ('seed', 'setpoint'), 'lower')
     page.row('velocity term', 'on vs off', '|1 - achieved / commanded|',
              f'{np.mean(err_on):.3f} vs {np.mean(err_off):.3f}' if err_on and err_off else '-',
              len(err_on) + len(err_off), 'the velocity term tracks the set-point',
@@ -587,16 +627,20 @@ def _findings(page: Page, name: str, data, results: dict) -> None:
                for w in err}
         parts = ', '.join(f'{np.mean(v) * 1000:.1f} mm/s at window {w}' for w, v in err.items()
                           if v)
-        verdict, p = compare(err.get(1, []), err.get(2, []), 'lower')
+        def window(w: int) -> list[dict]:
+            return [r for r in sel if r['window'] == w]
+        verdict, p = compare_paired(window(1), window(2), 'linear_error_mps',
+                                    ('seed', 'setpoint'), 'lower')
         text = f'Replan window: velocity error {parts}; 1 vs 2: {verdict}{_p(p)}.'
-        if verdict == 'holds':
+        if verdict.startswith('holds'):
             text += (' The paper\'s explanation, which these runs do not isolate (a hypothesis '
                      'here): between re-plans the robot follows a plan made from an older state, '
                      'and the model\'s errors act for 2 or 3 steps instead of 1.')
         margin = {w: values([r for r in sel if r['window'] == w], 'cop_margin_p5_m')
                   for w in err}
         for w in [w for w in margin if w != 1]:
-            verdict, p = compare(margin.get(1, []), margin[w], 'higher')
+            verdict, p = compare_paired(window(1), window(w), 'cop_margin_p5_m',
+                                        ('seed', 'setpoint'), 'higher')
             if margin.get(1) and margin[w]:
                 text += (f' CoP margin p5 at window 1 vs {w}: {np.mean(margin[1]) * 100:.2f} vs '
                          f'{np.mean(margin[w]) * 100:.2f} cm, {verdict}{_p(p)}.')
@@ -613,7 +657,10 @@ def _findings(page: Page, name: str, data, results: dict) -> None:
                           'pitch_peak_mean_deg')
         text = 'Haptic touchdown:'
         if flat_on and flat_off:
-            verdict, p = compare(flat_off, flat_on, 'higher')
+            verdict, p = compare_paired(
+                [r for r in sel if r['terrain'] == 'flat' and not r['haptic']],
+                [r for r in sel if r['terrain'] == 'flat' and r['haptic']],
+                'pitch_peak_mean_deg', ('seed',), 'higher')
             text += (f' on flat ground the touchdown pitch peaks are {np.mean(flat_on):.2f} deg '
                      f'(on) and {np.mean(flat_off):.2f} deg (off); "off disturbs the pitch": '
                      f'{verdict}{_p(p)}.')

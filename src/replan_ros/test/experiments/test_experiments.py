@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from replan_ros.experiments.claims import bisect_impulse
-from replan_ros.experiments.page import compare, spread, write_page
+from replan_ros.experiments.page import compare, compare_paired, spread, write_page
 from replan_ros.experiments.plan import ExperimentError, load_plan, planned_runs, variant
 from replan_ros.experiments.runs import RunResult, code_fingerprint, run_key
 
@@ -91,6 +91,23 @@ def test_bisection_brackets_the_largest_impulse_survived(limit, survived, fallen
     assert out['survived_ns'] <= limit and (fallen is None or out['fallen_ns'] > limit)
 
 
+def test_paired_comparison_sees_a_consistent_difference_the_spread_hides():
+    # Seeds differ a lot, each pair a little, always the same way: paired holds, Welch cannot.
+    a = [_row(seed=s, setpoint=0.1, m=0.1 * s + 0.010 + 0.001 * (s % 2)) for s in range(5)]
+    b = [_row(seed=s, setpoint=0.1, m=0.1 * s + 0.020) for s in range(5)]
+    assert compare([r['m'] for r in a], [r['m'] for r in b], 'lower')[0].startswith(
+        'not resolved')
+    verdict, p = compare_paired(a, b, 'm', ('seed', 'setpoint'), 'lower')
+    assert verdict == 'holds (5 pairs)' and p < 1e-4
+    assert compare_paired(b, a, 'm', ('seed', 'setpoint'), 'lower')[0].startswith(
+        'does not hold')
+    # A run without its partner: Welch's test, and the page says so.
+    verdict, _ = compare_paired(a[:4], b, 'm', ('seed', 'setpoint'), 'lower')
+    assert verdict.endswith('(unpaired)')
+    assert compare_paired(a, a, 'm', ('seed',), 'lower')[0] == \
+        'not resolved (equal in every pair)'
+
+
 def test_compare_needs_the_difference_beyond_the_spread():
     low = [0.010, 0.011, 0.009, 0.010, 0.012]
     high = [0.020, 0.021, 0.019, 0.022, 0.020]
@@ -150,15 +167,16 @@ def test_page_from_results(tmp_path):
     write_page(page, results, meta)
     text = page.read_text()
     assert '| replan window | 1 vs 2 | velocity error (m/s) | 0.0120 vs 0.0220 | 10 |' in text
-    assert 'window 2 worse than 1 (model errors grow) | holds, p = ' in text
+    assert 'window 2 worse than 1 (model errors grow) | holds (5 pairs), p = ' in text
     assert '| haptic | flat: off vs on | touchdown pitch peak (deg) | 3.10 vs 1.10 | 6 |' in text
+    assert 'haptic off disturbs the pitch | holds (3 pairs), p = ' in text
     assert 'faster than the paper (28x)' in text
     # What each haptic setting does, from the settings; the flat-ground verdict from the runs,
     # not waved away in prose.
     assert ('Haptic on: the swing aims 1.5 cm below the foothold and, past the planned '
             'touchdown, searches down to 6 cm below it') in text
     assert 'Haptic off: the swing aims at the foothold itself' in text
-    assert '"off disturbs the pitch": holds, p = ' in text
+    assert '"off disturbs the pitch": holds (3 pairs), p = ' in text
     assert 'hypothesis here' in text
     assert '`x: exit 1`' in text
     assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
