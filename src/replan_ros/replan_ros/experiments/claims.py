@@ -214,18 +214,29 @@ def _terrain_end(terrain: dict) -> float | None:
 
 
 def velocity_term(ctx: Context, cfg: dict) -> list[dict]:
+    """Straight walks at each set-point with the MPC's velocity term on and off (the steady
+    speed), and with ``step_scenario`` the same set-point step in both settings (how fast a
+    new set-point is reached: the paper's "faster motion"), paired by seed."""
     runner = ctx.runner
     base = runner.scenario(cfg['scenario'])
+    step = runner.scenario(cfg['step_scenario']) if cfg.get('step_scenario') else None
     jobs = []
     for on in (True, False):
+        params = None if on else {'mpc': {'velocity_weight': 0.0}}
         for seed in cfg['seeds']:
             for v in cfg['setpoints']:
-                def make(on=on, seed=seed, v=v):
+                def make(on=on, seed=seed, v=v, params=params):
                     doc = variant(base, seed=seed, setpoint=(v, 0.0, 0.0),
-                                  duration=cfg.get('duration'),
-                                  params=None if on else {'mpc': {'velocity_weight': 0.0}})
+                                  duration=cfg.get('duration'), params=params)
                     return _summary(runner.run(doc), velocity_term=on, seed=seed, setpoint=v)
                 jobs.append(make)
+            if step is not None:
+                def make_step(on=on, seed=seed, params=params):
+                    result = runner.run(variant(step, seed=seed, params=params))
+                    return _summary(result, velocity_term=on, seed=seed, setpoint='step',
+                                    step_period_s=(result.metrics.get('step_period_s')
+                                                   or {}).get('median'))
+                jobs.append(make_step)
     return _parallel(jobs)
 
 

@@ -17,7 +17,7 @@ PLAN_KEYS = {
                      'duration'},
     'replan_window': {'scenario', 'windows', 'seeds', 'setpoints', 'duration'},
     'haptic': {'scenario', 'seeds', 'duration', 'durations', 'terrains'},
-    'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration'},
+    'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration', 'step_scenario'},
     'qp_timing': {'replans', 'formulations'},
     'fastest_crawl': {'scenario', 'setpoints', 'velocity_clamp', 'seed'},
     'ideal_world': {'replan_window', 'haptic', 'velocity_changes'},
@@ -79,7 +79,7 @@ def planned_runs(plan: dict, selected: list[str]) -> int:
         elif name == 'haptic':
             n += 2 * len(cfg['terrains']) * len(cfg['seeds'])
         elif name == 'velocity_term':
-            n += 2 * len(cfg['seeds']) * len(cfg['setpoints'])
+            n += 2 * len(cfg['seeds']) * (len(cfg['setpoints']) + bool(cfg.get('step_scenario')))
         elif name == 'fastest_crawl':
             n += len(cfg['setpoints'])
         elif name == 'ideal_world':

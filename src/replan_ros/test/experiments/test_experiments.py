@@ -160,6 +160,12 @@ def test_page_from_results(tmp_path):
         'qp_timing': {'working_set': {'median_ms': 2.0, 'mean_ms': 2.1, 'std_ms': 0.3,
                                       'p99_ms': 3.0, 'replans': 200}},
         'settings': {'touchdown_depth_m': 0.015, 'haptic_search_m': 0.06},
+        'velocity_term': (
+            [_row(velocity_term=on, seed=s, setpoint=0.15, achieved=[0.15 - 0.001 * s, 0, 0],
+                  commanded=[0.15, 0, 0]) for on in (True, False) for s in range(3)]
+            + [_row(velocity_term=on, seed=s, setpoint='step', step_period_s=0.79,
+                    rise_time_s=(1.0 if on else 1.5) + 0.3 * s, achieved=[0.2, 0, 0],
+                    commanded=[0.2, 0, 0]) for on in (True, False) for s in range(3)]),
     }
     meta = {'command': 'scripts/experiments.sh', 'machine': 'test', 'revision': 'abc',
             'date': 'today', 'wall_time_min': 1.0, 'runs': 16, 'failures': ['x: exit 1']}
@@ -178,6 +184,13 @@ def test_page_from_results(tmp_path):
     assert 'Haptic off: the swing aims at the foothold itself' in text
     assert '"off disturbs the pitch": holds (3 pairs), p = ' in text
     assert 'hypothesis here' in text
+    # The velocity term: the steady speed from the straight walks alone, "faster motion" from
+    # the rise time after the set-point step, paired by seed.
+    assert '| velocity term | on vs off | |1 - achieved / commanded| | 0.007 vs 0.007 | 6 |' \
+        in text
+    assert ('| velocity term | set-point step: on vs off | seconds until 90 % of the achieved '
+            'change | 1.30 vs 1.80 | 6 | the velocity term gives faster motion | holds (3 pairs)'
+            ) in text
     assert '`x: exit 1`' in text
     assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
     assert (tmp_path / 'results_plots' / 'haptic_pitch.png').is_file()
