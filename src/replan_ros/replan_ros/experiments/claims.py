@@ -143,6 +143,35 @@ def lateral_push(ctx: Context, cfg: dict) -> dict:
             'robot_mass_kg': _robot_mass(ctx.runner)}
 
 
+def sustained_push(ctx: Context, cfg: dict) -> list[dict]:
+    """A lateral force held for ``push_duration`` s while walking, per setting (foothold
+    correction off, literal, thresholded), force and seed: whether the robot falls, and what
+    the push does to its support over the steps that follow (``push_effects``, from the run's
+    bag, which these runs keep). Paired by seed and force across the settings."""
+    from replan_ros.experiments.push_effects import cached_push_effects
+    runner = ctx.runner
+    base = runner.scenario(cfg['scenario'])
+    direction = np.asarray(cfg.get('direction', [0.0, 1.0]), dtype=float)
+    direction = direction / np.linalg.norm(direction)
+    start, length = float(cfg['push_start']), float(cfg['push_duration'])
+    horizon = float(cfg.get('horizon', 6.0))
+    jobs = []
+    for name, setting in cfg['settings'].items():
+        for force in cfg['forces']:
+            for seed in cfg['seeds']:
+                def make(name=name, setting=setting, force=float(force), seed=seed):
+                    push = (start, (force * direction[0], force * direction[1], 0.0), length)
+                    doc = variant(base, params=setting, seed=seed, push=push,
+                                  duration=cfg.get('duration'))
+                    result = runner.run(doc, bag=True)
+                    effects = (cached_push_effects(result.folder, start, length, horizon)
+                               if result.ok and not result.fell else None)
+                    return _summary(result, setting=name, force_n=force, seed=seed,
+                                    **(effects or {}))
+                jobs.append(make)
+    return _parallel(jobs)
+
+
 def _robot_mass(runner: Runner) -> float | None:
     """Mass of the simulated realistic robot (kg): the model's URDF plus the profile's
     payload; None if either cannot be read."""
@@ -308,6 +337,7 @@ def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
         'replan_window': lambda: replan_window(ctx, plan['replan_window']),
         'haptic': lambda: haptic(ctx, plan['haptic']),
         'velocity_term': lambda: velocity_term(ctx, plan['velocity_term']),
+        'sustained_push': lambda: sustained_push(ctx, plan['sustained_push']),
         'fastest_crawl': lambda: fastest_crawl(ctx, plan['fastest_crawl']),
         'ideal_world': lambda: ideal_world(ctx, plan['ideal_world'], plan),
     }

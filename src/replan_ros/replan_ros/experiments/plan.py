@@ -18,6 +18,8 @@ PLAN_KEYS = {
     'replan_window': {'scenario', 'windows', 'seeds', 'setpoints', 'duration'},
     'haptic': {'scenario', 'seeds', 'duration', 'durations', 'terrains'},
     'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration', 'step_scenario'},
+    'sustained_push': {'scenario', 'push_start', 'push_duration', 'forces', 'direction',
+                       'horizon', 'duration', 'seeds', 'settings'},
     'qp_timing': {'replans', 'formulations'},
     'fastest_crawl': {'scenario', 'setpoints', 'velocity_clamp', 'seed'},
     'ideal_world': {'replan_window', 'haptic', 'velocity_changes'},
@@ -80,6 +82,8 @@ def planned_runs(plan: dict, selected: list[str]) -> int:
             n += 2 * len(cfg['terrains']) * len(cfg['seeds'])
         elif name == 'velocity_term':
             n += 2 * len(cfg['seeds']) * (len(cfg['setpoints']) + bool(cfg.get('step_scenario')))
+        elif name == 'sustained_push':
+            n += len(cfg['settings']) * len(cfg['seeds']) * len(cfg['forces'])
         elif name == 'fastest_crawl':
             n += len(cfg['setpoints'])
         elif name == 'ideal_world':

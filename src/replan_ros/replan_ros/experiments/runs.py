@@ -34,7 +34,7 @@ _SHAPING = ('src/replan_core/replan_core/**/*.py', 'src/replan_ros/replan_ros/**
 _NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
                 'replan_ros/experiments/claims.py', 'replan_ros/experiments/plan.py',
                 'replan_ros/experiments/runner.py', 'replan_ros/experiments/runs.py',
-                'replan_ros/benchmarks/')
+                'replan_ros/experiments/push_effects.py', 'replan_ros/benchmarks/')
 
 
 def code_fingerprint(root: Path) -> str:
@@ -133,8 +133,10 @@ class Runner:
         except (OSError, yaml.YAMLError) as err:
             raise ExperimentError(f'cannot read scenario {path}: {err}') from err
 
-    def run(self, doc: dict) -> RunResult:
-        """The run of scenario ``doc``: made now, or read if made before or under way."""
+    def run(self, doc: dict, bag: bool = False) -> RunResult:
+        """The run of scenario ``doc``: made now, or read if made before or under way.
+        ``bag``: keep its bag (in its folder's ``bag/``); a run made before without one is
+        made again."""
         key = run_key(doc, self.code)
         with self.lock:
             entry = self.results.get(key)
@@ -151,7 +153,7 @@ class Runner:
             return self.results[key]
         event = self.results[key]
         try:
-            result = self._make(key, doc)
+            result = self._make(key, doc, bag)
         except (OSError, subprocess.SubprocessError, ValueError) as err:
             self.failures.append(f'{key}: {err}')
             result = RunResult(key, doc, {}, self.out_dir / 'runs' / key)
@@ -174,13 +176,14 @@ class Runner:
             finally:
                 fcntl.flock(handle, fcntl.LOCK_UN)
 
-    def _make(self, key: str, doc: dict) -> RunResult:
+    def _make(self, key: str, doc: dict, bag: bool = False) -> RunResult:
         folder = self.out_dir / 'runs' / key
         text = yaml.safe_dump(doc, sort_keys=False)
         metrics_file = folder / 'metrics.json'
         if (not self.fresh and metrics_file.exists()
                 and (folder / 'input.yaml').exists()
-                and (folder / 'input.yaml').read_text() == text):
+                and (folder / 'input.yaml').read_text() == text
+                and (not bag or (folder / 'bag').is_dir())):
             result = RunResult(key, doc, json.loads(metrics_file.read_text()), folder)
             if result.ok:
                 if self.progress:
@@ -203,7 +206,8 @@ class Runner:
                 code = subprocess.run(
                     [sys.executable, '-m', 'replan_ros.experiments.scenario',
                      str(folder / 'input.yaml'),
-                     '--out', str(folder), '--quiet', '--no-plots', '--no-bag'],
+                     '--out', str(folder), '--quiet', '--no-plots',
+                     *([] if bag else ['--no-bag'])],
                     env=env, stdout=output, stderr=subprocess.STDOUT, timeout=3600).returncode
         finally:
             with self.free:

@@ -160,6 +160,11 @@ def test_page_from_results(tmp_path):
         'qp_timing': {'working_set': {'median_ms': 2.0, 'mean_ms': 2.1, 'std_ms': 0.3,
                                       'p99_ms': 3.0, 'replans': 200}},
         'settings': {'touchdown_depth_m': 0.015, 'haptic_search_m': 0.06},
+        'sustained_push': [
+            _row(setting=name, force_n=60.0, seed=s, trunk_shift_max_m=0.10,
+                 capture_margin_p5_m=(0.02 if name == 'correction_off' else 0.03) + 0.001 * s,
+                 capture_margin_min_m=0.0, foot_offset_change_m=0.05)
+            for name in ('correction_off', 'correction_thresholded') for s in range(5)],
         'velocity_term': (
             [_row(velocity_term=on, seed=s, setpoint=0.15, achieved=[0.15 - 0.001 * s, 0, 0],
                   commanded=[0.15, 0, 0]) for on in (True, False) for s in range(3)]
@@ -184,6 +189,9 @@ def test_page_from_results(tmp_path):
     assert 'Haptic off: the swing aims at the foothold itself' in text
     assert '"off disturbs the pitch": holds (3 pairs), p = ' in text
     assert 'hypothesis here' in text
+    assert ('| sustained push | correction thresholded vs off, 60 N | capture point in the '
+            'support, 5th percentile (cm) | 3.2 vs 2.2 | 10 | foothold correction keeps the '
+            'support from degenerating | holds (5 pairs)') in text
     # The velocity term: the steady speed from the straight walks alone, "faster motion" from
     # the rise time after the set-point step, paired by seed.
     assert '| velocity term | on vs off | |1 - achieved / commanded| | 0.007 vs 0.007 | 6 |' \
@@ -206,10 +214,10 @@ class RecordingRunner:
     def scenario(self, name: str) -> dict:
         return yaml.safe_load((CONFIG / 'scenarios' / f'{name}.yaml').read_text())
 
-    def run(self, doc: dict) -> RunResult:
+    def run(self, doc: dict, bag: bool = False) -> RunResult:
         self.docs.append(doc)
         return RunResult('k', doc, {'sim_time_s': doc['duration'], 'fell': False,
-                                    'pushes': [{}]}, Path())
+                                    'pushes': [{}]}, Path('/nonexistent'))
 
 
 @pytest.mark.parametrize('quick', [False, True])
