@@ -232,3 +232,27 @@ def test_every_run_of_the_plan_passes_the_scenario_checks(quick):
     assert len(runner.docs) >= (3 if quick else 100)
     for doc in {run_key(d): d for d in runner.docs}.values():
         check_scenario(parse_scenario(yaml.safe_dump(doc), doc['name']), CONFIG)
+
+
+def test_censored_push_phases_are_left_out_of_the_sign_test(tmp_path):
+    """A phase where no probe fell in either setting has two lower bounds: not 'equal'."""
+    cfg = {'push_duration': 0.25, 'phases': 4, 'cycle': 3.0, 'first_push': 4.5,
+           'after_push': 3.5, 'first_impulse': 30.0, 'max_impulse': 90.0, 'probes': 3}
+
+    def phase(survived, fallen):
+        return {'survived_ns': survived, 'fallen_ns': fallen,
+                'first': {'fell': False, 'velocity_change_mps': 0.3,
+                          'support_inradius_min_m': 0.1, 'support_inradius_before_m': 0.1}}
+    table = {'correction_off': [phase(75.0, None), phase(75.0, None), phase(45.0, 60.0),
+                                phase(30.0, 45.0)],
+             'correction_thresholded': [phase(75.0, None), phase(75.0, None),
+                                        phase(75.0, None), phase(60.0, 75.0)]}
+    page = tmp_path / 'results.md'
+    write_page(page, {'lateral_push': {'config': cfg, 'settings': table,
+                                       'robot_mass_kg': 92.0}},
+               {'command': 'x', 'machine': 't', 'revision': 'r', 'date': 'd',
+                'wall_time_min': 1.0, 'runs': 8, 'failures': []})
+    text = page.read_text()
+    assert ('not resolved (better at 2, worse at 0, equal at 0 phases; a difference is one '
+            'bisection step, 11 N s, or more); 2 phases censored (no probe fell in either '
+            'setting: left out)') in text
