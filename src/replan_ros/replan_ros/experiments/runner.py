@@ -1,6 +1,7 @@
 """The paper's experiments on the realistic robot, many runs per claim, and the results page.
 
-    scripts/experiments.sh [--quick] [--jobs N] [--only NAME ...] [--out DIR] [--page FILE]
+    scripts/experiments.sh [--quick] [--jobs N | --ray ADDRESS] [--only NAME ...] [--out DIR]
+                           [--page FILE]
 
 Runs the experiments of ``config/experiments.yaml`` (``full``, or ``quick`` with --quick) as
 scenario runs (``replan_ros.experiments.scenario``, one process graph each, on its own
@@ -11,6 +12,20 @@ spread and number of runs, the paper's claim and whether the runs support it.
 A run's folder is named after a hash of its scenario document, so a run already made with the
 same document (an interrupted call, or two experiments sharing a run) is read, not made again
 (``--fresh`` makes every run again). Lock-step makes a run the same however many run at once.
+
+With ``--ray ADDRESS`` every run to be made is a Ray task on a cluster (``auto``,
+``HOST:PORT`` or ``ray://HOST:10001``, as ray.init takes it; ``local`` starts a private one
+here with --jobs graph slots, default one per core). Start the cluster first, on each node
+from a checkout at this revision, set up with ``scripts/setup.sh --with-ray`` and after
+``source scripts/env.sh``:
+
+    ray start --head --port=6379 --resources='{"graph_slot": 2}'      # the first node
+    ray start --address=HEAD:6379 --resources='{"graph_slot": 2}'     # every other node
+
+``graph_slot`` is how many process graphs a node runs at once (about one per 2 cores); each
+takes its own ROS_DOMAIN_ID of that node from --domain-base up. The runs' folders come back
+here; the cache, the progress line and the page are the same as with --jobs. A node that runs
+other code than this checkout is refused. More: docs/cluster.md.
 """
 
 from __future__ import annotations
@@ -19,7 +34,6 @@ import argparse
 import json
 import os
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -27,7 +41,13 @@ from pathlib import Path
 from replan_ros.experiments.claims import run_all
 from replan_ros.experiments.page import write_page
 from replan_ros.experiments.plan import EXPERIMENTS, ExperimentError, load_plan, planned_runs
-from replan_ros.experiments.runs import DEFAULT_DOMAIN_BASE, Progress, Runner, RunResult
+from replan_ros.experiments.runs import (
+    DEFAULT_DOMAIN_BASE,
+    Progress,
+    Runner,
+    RunResult,
+    git_revision,
+)
 
 
 def machine_description() -> str:
@@ -42,16 +62,16 @@ def machine_description() -> str:
     return f'{os.cpu_count()} cores, {cpu}, {platform.system()} {platform.release()}'
 
 
-def git_revision(root: Path) -> str:
-    try:
-        rev = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=root,
-                             capture_output=True, text=True, timeout=10).stdout.strip()
-        dirty = subprocess.run(['git', 'status', '--porcelain', '--untracked-files=no'],
-                               cwd=root, capture_output=True, text=True,
-                               timeout=10).stdout.strip()
-        return (rev + (' (with uncommitted changes)' if dirty else '')) if rev else 'unknown'
-    except (OSError, subprocess.SubprocessError):
-        return 'unknown'
+def make_runner(args: argparse.Namespace, out: Path, config_dir: Path, jobs: int,
+                progress: Progress) -> Runner:
+    """The local runner (``--jobs``), or the Ray one (``--ray``), imported only then: Ray is
+    an optional dependency."""
+    common = dict(domain_base=args.domain_base, fresh=args.fresh, progress=progress,
+                  lock_file=args.lock)
+    if not args.ray:
+        return Runner(out, config_dir, jobs=jobs, **common)
+    from replan_ros.experiments.ray_runs import RayRunner
+    return RayRunner(out, config_dir, address=args.ray, slots=jobs, **common)
 
 
 def main(argv=None) -> int:
@@ -60,8 +80,14 @@ def main(argv=None) -> int:
     parser.add_argument('--quick', action='store_true',
                         help='one short run of each kind (a few minutes): checks the page is '
                              'produced; the page goes to DIR/results.md')
-    parser.add_argument('--jobs', type=int, default=1,
-                        help='runs at once, each on its own ROS_DOMAIN_ID (default 1)')
+    parser.add_argument('--jobs', type=int,
+                        help='runs at once, each on its own ROS_DOMAIN_ID (default 1; with '
+                             '--ray local: the private cluster\'s graph slots, default one '
+                             'per core)')
+    parser.add_argument('--ray', metavar='ADDRESS',
+                        help='make the runs as tasks on the Ray cluster at ADDRESS (auto, '
+                             'HOST:PORT, ray://HOST:10001) or on a private one (local); needs '
+                             'scripts/setup.sh --with-ray')
     parser.add_argument('--only', nargs='+', default=[], metavar='NAME',
                         help=f'only these experiments ({", ".join(EXPERIMENTS)})')
     parser.add_argument('--out', type=Path,
@@ -83,9 +109,13 @@ def main(argv=None) -> int:
                              'machine with other graph runs that take it')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
     args = parser.parse_args(argv)
-    if args.jobs < 1 or args.jobs > 8:
+    if args.ray and args.ray != 'local' and args.jobs is not None:
+        parser.error('--jobs goes with --ray local only: a cluster\'s nodes say their '
+                     'graph slots (ray start --resources)')
+    jobs = args.jobs or ((os.cpu_count() or 1) if args.ray == 'local' else 1)
+    if jobs < 1 or jobs > 8:
         parser.error('--jobs must be within 1..8')
-    if not 0 <= args.domain_base <= 232 - args.jobs:
+    if not 0 <= args.domain_base <= 232 - jobs:
         parser.error('--domain-base must keep every job within ROS_DOMAIN_ID 0..232')
     root = Path(os.environ.get('REPLAN_ROOT', '.')).resolve()
     config_dir = Path(os.environ.get('REPLAN_CONFIG', root / 'config'))
@@ -99,19 +129,30 @@ def main(argv=None) -> int:
     page = args.page or (out / 'results.md' if args.quick else root / 'docs' / 'results.md')
     out.mkdir(parents=True, exist_ok=True)
     total = planned_runs(plan, selected)
-    print(f'[experiments] {", ".join(selected)}: up to {total} runs, {args.jobs} at a time, '
-          f'in {out}; page {page}')
     progress = Progress(total, quiet=args.quiet)
-    runner = Runner(out, config_dir, jobs=args.jobs, domain_base=args.domain_base,
-                    fresh=args.fresh, progress=progress, lock_file=args.lock)
     started = time.monotonic()
+    try:
+        runner = make_runner(args, out, config_dir, jobs, progress)
+    except ExperimentError as err:
+        print(f'experiments: {err}', file=sys.stderr)
+        return 2
+    where = (f'on the Ray cluster {args.ray}, {runner.slots} graph slots'
+             if args.ray else f'{jobs} at a time')
+    print(f'[experiments] {", ".join(selected)}: up to {total} runs, {where}, '
+          f'in {out}; page {page}')
     try:
         results = run_all(plan, selected, runner)
     except ExperimentError as err:
         progress.close()
         print(f'experiments: {err}', file=sys.stderr)
         return 2
+    finally:
+        if args.ray:
+            runner.close()
     progress.close()
+    if getattr(runner, 'refused', None):
+        print(f'experiments: {runner.refused}', file=sys.stderr)
+        return 2
     wall = time.monotonic() - started
     command = 'scripts/experiments.sh ' + ' '.join(argv if argv is not None else sys.argv[1:])
     made = sum(1 for r in runner.results.values()

@@ -34,7 +34,8 @@ _SHAPING = ('src/replan_core/replan_core/**/*.py', 'src/replan_ros/replan_ros/**
 _NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
                 'replan_ros/experiments/claims.py', 'replan_ros/experiments/plan.py',
                 'replan_ros/experiments/runner.py', 'replan_ros/experiments/runs.py',
-                'replan_ros/experiments/push_effects.py', 'replan_ros/benchmarks/')
+                'replan_ros/experiments/push_effects.py', 'replan_ros/experiments/ray_runs.py',
+                'replan_ros/benchmarks/')
 
 
 def code_fingerprint(root: Path) -> str:
@@ -49,6 +50,19 @@ def code_fingerprint(root: Path) -> str:
             continue
         digest.update(rel.encode() + b'\0' + path.read_bytes() + b'\0')
     return digest.hexdigest()[:12]
+
+
+def git_revision(root: Path) -> str:
+    """The checkout's short revision, marked when tracked files differ from it."""
+    try:
+        rev = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=root,
+                             capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(['git', 'status', '--porcelain', '--untracked-files=no'],
+                               cwd=root, capture_output=True, text=True,
+                               timeout=10).stdout.strip()
+        return (rev + (' (with uncommitted changes)' if dirty else '')) if rev else 'unknown'
+    except (OSError, subprocess.SubprocessError):
+        return 'unknown'
 
 
 def run_key(doc: dict, code: str = '') -> str:
@@ -193,6 +207,24 @@ class Runner:
             shutil.rmtree(folder)
         folder.mkdir(parents=True)
         (folder / 'input.yaml').write_text(text)
+        code = self._execute(folder, bag)
+        metrics = json.loads(metrics_file.read_text()) if metrics_file.exists() else {}
+        result = RunResult(key, doc, metrics, folder)
+        if not result.ok:
+            log = folder / 'output.log'
+            tail = (log.read_text()[-400:].strip().splitlines() if log.exists() else [])
+            self.failures.append(f'{key}: exit {code}: {tail[-1] if tail else "no output"}')
+        return result
+
+    @staticmethod
+    def scenario_options(bag: bool) -> list[str]:
+        """The options of each scenario run: no plots; no bag unless asked."""
+        return ['--quiet', '--no-plots'] + ([] if bag else ['--no-bag'])
+
+    def _execute(self, folder: Path, bag: bool) -> int:
+        """Make the run of ``folder/input.yaml`` on this machine, on a free ROS_DOMAIN_ID;
+        its output (metrics.json, output.log, the bag if ``bag``) in ``folder``; returns the
+        exit code."""
         with self.free:
             while not self.slots:
                 self.free.wait()
@@ -203,11 +235,10 @@ class Runner:
             env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
             env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
             with open(folder / 'output.log', 'w') as output, self.machine_lock():
-                code = subprocess.run(
+                return subprocess.run(
                     [sys.executable, '-m', 'replan_ros.experiments.scenario',
-                     str(folder / 'input.yaml'),
-                     '--out', str(folder), '--quiet', '--no-plots',
-                     *([] if bag else ['--no-bag'])],
+                     str(folder / 'input.yaml'), '--out', str(folder),
+                     *self.scenario_options(bag)],
                     env=env, stdout=output, stderr=subprocess.STDOUT, timeout=3600).returncode
         finally:
             with self.free:
@@ -215,9 +246,3 @@ class Runner:
                 self.free.notify()
             if self.progress:
                 self.progress.update(finished=1)
-        metrics = json.loads(metrics_file.read_text()) if metrics_file.exists() else {}
-        result = RunResult(key, doc, metrics, folder)
-        if not result.ok:
-            tail = (folder / 'output.log').read_text()[-400:].strip().splitlines()
-            self.failures.append(f'{key}: exit {code}: {tail[-1] if tail else "no output"}')
-        return result
