@@ -1,17 +1,20 @@
 #!/usr/bin/env bash
 # Idempotent set-up: .venv with python3.11, the pinned requirements, colcon build.
 # A second run with nothing changed takes a few seconds.
-# Usage: scripts/setup.sh [--deps-only]
+# Usage: scripts/setup.sh [--deps-only] [--with-ray]
 #   --deps-only   only the .venv and requirements.txt, no colcon build: it needs no more than
 #                 requirements.txt and this script (docker/Dockerfile's cached wheels layer)
+#   --with-ray    also requirements-ray.txt: Ray, for experiments.sh --ray (docs/cluster.md)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,6p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'; }
 deps_only=false
+with_ray=false
 while [ $# -gt 0 ]; do
     case "$1" in
         -h|--help) usage; exit 0 ;;
         --deps-only) deps_only=true; shift ;;
+        --with-ray) with_ray=true; shift ;;
         *) echo "setup.sh: unknown argument $1" >&2; usage >&2; exit 2 ;;
     esac
 done
@@ -45,6 +48,17 @@ if [ "$(cat "$STAMP_DIR/requirements" 2>/dev/null)" != "$req_hash" ]; then
     echo "$req_hash" > "$STAMP_DIR/requirements"
 else
     say "requirements up to date"
+fi
+# Optional: Ray, only when asked; a later set-up without the flag leaves it installed.
+if $with_ray; then
+    ray_hash=$(hash_of requirements-ray.txt)
+    if [ "$(cat "$STAMP_DIR/requirements-ray" 2>/dev/null)" != "$ray_hash" ]; then
+        say "installing requirements-ray.txt"
+        .venv/bin/python -m pip install --quiet --disable-pip-version-check -r requirements-ray.txt
+        echo "$ray_hash" > "$STAMP_DIR/requirements-ray"
+    else
+        say "requirements-ray up to date"
+    fi
 fi
 if $deps_only; then
     say "dependencies ready (--deps-only: no colcon build)"

@@ -19,7 +19,7 @@ while [ $# -gt 0 ]; do
     esac
 done
 start=$(date +%s)
-./scripts/setup.sh
+./scripts/setup.sh --with-ray      # Ray: test/test_ray.py runs the experiments on a cluster
 echo "test: setup took $(( $(date +%s) - start )) s"
 # shellcheck disable=SC1091
 source scripts/env.sh

@@ -59,7 +59,7 @@ def test_requirements_before_sources_and_wheels_before_build():
     steps = instructions()
     copy_requirements = index_of(lambda k, a: k == 'COPY' and 'requirements.txt' in a.split())
     copy_setup = index_of(lambda k, a: k == 'COPY' and 'scripts/setup.sh' in a.split())
-    deps = index_of(lambda k, a: k == 'RUN' and a == './scripts/setup.sh --deps-only')
+    deps = index_of(lambda k, a: k == 'RUN' and a.startswith('./scripts/setup.sh --deps-only'))
     sources = index_of(lambda k, a: k == 'COPY' and a.split()[-2:] == ['.', '.'])
     build = index_of(lambda k, a: k == 'RUN' and a == './scripts/setup.sh')
     assert copy_requirements < deps and copy_setup < deps < sources < build, steps
@@ -67,7 +67,19 @@ def test_requirements_before_sources_and_wheels_before_build():
     for keyword, args in steps[:deps]:
         if keyword == 'COPY':
             sources_copied = [a for a in args.split() if not a.startswith('--')][:-1]
-            assert set(sources_copied) <= {'requirements.txt', 'scripts/setup.sh'}, args
+            assert set(sources_copied) <= {'requirements.txt', 'requirements-ray.txt',
+                                           'scripts/setup.sh'}, args
+
+
+def test_the_image_has_what_the_test_suite_sets_up():
+    """scripts/test.sh sets up with Ray (test/test_ray.py): the image installs it too, so
+    `docker run IMAGE ./scripts/test.sh` installs nothing, and the image can be a Ray node."""
+    test_sh = (REPO_ROOT / 'scripts' / 'test.sh').read_text()
+    wanted = set(re.search(r'^\./scripts/setup\.sh(.*)$', test_sh, re.MULTILINE)
+                 .group(1).split('#')[0].split())
+    flags = {flag for keyword, args in instructions() if keyword == 'RUN'
+             and args.startswith('./scripts/setup.sh') for flag in args.split()[1:]}
+    assert wanted <= flags, (wanted, flags)
 
 
 def test_deps_only_needs_nothing_but_the_requirements():
