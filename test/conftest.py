@@ -7,6 +7,8 @@
 - ``probe``: a test-side rclpy node on the session domain (``probe.node``, ``spin_until``,
   ``collect``, ``subscribe``, ``wait_for_topics``).
 - ``reserve_domain``: reserve one more domain inside a test (for isolation tests).
+- ``quick_experiments``: ``scripts/experiments.sh --quick`` made once per session with the
+  local runner (test_experiments.py checks it, test_ray.py compares the Ray runs with it).
 """
 
 from __future__ import annotations
@@ -17,10 +19,13 @@ import pytest
 from harness import (
     CONFIG_DIR,
     DomainReservation,
+    ExperimentsCall,
     Launcher,
     Probe,
     descends_from,
     domain_processes,
+    experiments,
+    graph_env,
     reap_leftovers,
 )
 
@@ -121,3 +126,12 @@ def probe(ros_domain):
     test_probe = Probe(ros_domain)
     yield test_probe
     test_probe.close()
+
+
+@pytest.fixture(scope='session')
+def quick_experiments(ros_domain, tmp_path_factory) -> ExperimentsCall:
+    """The quick plan, one run at a time on the session domain (as CI runs it), made once:
+    it takes minutes, and two test modules need it."""
+    out = tmp_path_factory.mktemp('quick') / 'experiments'
+    return experiments(['--quick', '--domain-base', str(ros_domain), '--quiet'], out,
+                       graph_env(ros_domain))

@@ -15,6 +15,7 @@ import socket
 import subprocess
 import time
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 import rclpy
@@ -141,6 +142,31 @@ def reap_leftovers(domain_id: int, before: set[int], grace: float = 10.0,
 
 
 _DIE_WITH_PARENT = ('setpriv', '--pdeathsig', 'TERM') if shutil.which('setpriv') else ()
+
+
+@dataclass
+class ExperimentsCall:
+    """One call of scripts/experiments.sh and what it wrote, read at once: a later call on the
+    same folder rewrites the page and results.json."""
+
+    out: Path
+    done: subprocess.CompletedProcess
+    page: str
+    results: str
+
+    @property
+    def output(self) -> str:
+        return self.done.stdout + self.done.stderr
+
+
+def experiments(args: list[str], out: Path, env: dict[str, str], *, timeout: float = 900.0,
+                wrap: Callable[[list[str]], list[str]] = lambda cmd: cmd) -> ExperimentsCall:
+    """scripts/experiments.sh ARGS --out OUT (``wrap``: e.g. in a namespace of its own)."""
+    cmd = wrap([str(REPO_ROOT / 'scripts' / 'experiments.sh'), *args, '--out', str(out)])
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
+    page, results = out / 'results.md', out / 'results.json'
+    return ExperimentsCall(out, done, page.read_text() if page.exists() else '',
+                           results.read_text() if results.exists() else '')
 
 
 class NodeProcess:
