@@ -22,7 +22,7 @@ from a checkout at this revision, set up with ``scripts/setup.sh --with-ray`` an
     ray start --head --port=6379 --resources='{"graph_slot": 2}'      # the first node
     ray start --address=HEAD:6379 --resources='{"graph_slot": 2}'     # every other node
 
-``graph_slot`` is how many process graphs a node runs at once (about one per 2 cores); each
+``graph_slot`` is how many process graphs a node runs at once (about one per core); each
 takes its own ROS_DOMAIN_ID of that node from --domain-base up. The runs' folders come back
 here; the cache, the progress line and the page are the same as with --jobs. A node that runs
 other code than this checkout is refused. More: docs/cluster.md.
