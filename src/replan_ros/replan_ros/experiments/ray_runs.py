@@ -78,10 +78,11 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _work_folder() -> Path:
-    """A fresh folder for one run on this node. Folders of runs whose worker was killed
-    (no clean-up ran) are removed here: their name starts with that worker's pid."""
-    base = Path(tempfile.gettempdir()) / 'replan-ray-runs'
+def work_folder(base: Path | None = None) -> Path:
+    """A fresh folder for one run on this node, in ``base`` (default /tmp/replan-ray-runs).
+    Folders of runs whose worker was killed (no clean-up ran) are removed here: their name
+    starts with that worker's pid."""
+    base = base or Path(tempfile.gettempdir()) / 'replan-ray-runs'
     base.mkdir(exist_ok=True)
     for old in base.iterdir():
         pid = old.name.split('-')[0]
@@ -91,12 +92,13 @@ def _work_folder() -> Path:
 
 
 @contextlib.contextmanager
-def domain_slot(base: int):
+def domain_slot(base: int, folder: Path | None = None):
     """A ROS_DOMAIN_ID of this machine's pool (``base`` .. ``base + DOMAIN_POOL - 1``, within
-    232) that no other task holds: the first whose lock file is free. Yields (domain, fd): the
-    caller lets the scenario process inherit fd, so that a graph orphaned by a killed worker
-    keeps its domain until it is gone."""
-    folder = Path(tempfile.gettempdir()) / 'replan-ray-domains'
+    232) that no other task holds: the first whose lock file in ``folder`` (default
+    /tmp/replan-ray-domains) is free. Yields (domain, fd): the caller lets the scenario process
+    inherit fd, so that a graph orphaned by a killed worker keeps its domain until it is
+    gone."""
+    folder = folder or Path(tempfile.gettempdir()) / 'replan-ray-domains'
     folder.mkdir(exist_ok=True)
     domains = range(base, min(base + DOMAIN_POOL, 233))
     while True:
@@ -129,7 +131,7 @@ def _unblock_signals() -> None:
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
 
 
-def _read_back(folder: Path, bag: bool) -> dict[str, bytes]:
+def read_back(folder: Path, bag: bool) -> dict[str, bytes]:
     """The run folder's files (relative path -> bytes), without the bag unless ``bag``."""
     files = {}
     for path in sorted(folder.rglob('*')):
@@ -148,7 +150,7 @@ def make_run(input_yaml: str, code: str, revision: str, options: list[str],
     refused = mismatch(node, code, revision)
     if refused:
         return {'refused': refused}
-    folder = _work_folder()
+    folder = work_folder()
     try:
         (folder / 'input.yaml').write_text(input_yaml)
         # The graph ends with the worker: a worker killed by the test or the OOM killer must
@@ -164,7 +166,7 @@ def make_run(input_yaml: str, code: str, revision: str, options: list[str],
                 env=env, stdout=output, stderr=subprocess.STDOUT, pass_fds=(fd,),
                 preexec_fn=_unblock_signals, timeout=RUN_TIMEOUT_S).returncode
         return {'exit': exit_code, 'folder': str(folder), 'host': node['host'],
-                'files': _read_back(folder, '--no-bag' not in options)}
+                'files': read_back(folder, '--no-bag' not in options)}
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
