@@ -210,7 +210,7 @@ class RayRunner(Runner):
         self.task = self.ray.remote(make_run).options(
             num_cpus=0, resources={GRAPH_SLOT: 1}, max_retries=MAX_RETRIES,
             retry_exceptions=False)
-        self.slots = self._check_nodes()
+        self.graph_slots = self._check_nodes()
 
     def _check_nodes(self) -> int:
         """Graph slots of the cluster, after checking that each node that offers some runs

@@ -136,7 +136,7 @@ def main(argv=None) -> int:
     except ExperimentError as err:
         print(f'experiments: {err}', file=sys.stderr)
         return 2
-    where = (f'on the Ray cluster {args.ray}, {runner.slots} graph slots'
+    where = (f'on the Ray cluster {args.ray}, {runner.graph_slots} graph slots'
              if args.ray else f'{jobs} at a time')
     print(f'[experiments] {", ".join(selected)}: up to {total} runs, {where}, '
           f'in {out}; page {page}')
