@@ -10,97 +10,19 @@ differences (``compare_paired``, "n pairs" on the page); otherwise Welch's.
 
 from __future__ import annotations
 
-import math
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-P_VALUE = 0.05
-
-
-# -- statistics ------------------------------------------------------------------------------
-
-
-def values(rows: list[dict], key: str, **where) -> list[float]:
-    """``key`` of the rows matching ``where`` (runs that completed), None left out."""
-    out = []
-    for row in rows:
-        if not row.get('ok', True) or any(row.get(k) != v for k, v in where.items()):
-            continue
-        value = row.get(key)
-        if value is not None and not (isinstance(value, float) and math.isnan(value)):
-            out.append(float(value))
-    return out
-
-
-def spread(xs: list[float], digits: int = 3, scale: float = 1.0) -> str:
-    """'mean +- std (min to max)' of ``xs`` times ``scale``; '-' if empty."""
-    if not xs:
-        return '-'
-    a = np.asarray(xs, dtype=float) * scale
-    fmt = f'{{:.{digits}f}}'
-    if len(a) == 1:
-        return fmt.format(a[0])
-    return (f'{fmt.format(a.mean())} ± {fmt.format(a.std(ddof=1))} '
-            f'({fmt.format(a.min())} to {fmt.format(a.max())})')
-
-
-def compare(a: list[float], b: list[float], a_better: str) -> tuple[str, float | None]:
-    """Is ``a`` better than ``b`` beyond the spread? ``a_better``: 'lower' or 'higher'.
-    Returns the verdict and Welch's p-value."""
-    if len(a) < 2 or len(b) < 2:
-        return 'not resolved (too few runs)', None
-    from scipy.stats import ttest_ind
-    if np.std(a) == 0 and np.std(b) == 0:
-        if np.mean(a) == np.mean(b):
-            return 'not resolved (equal)', 1.0
-        p = 0.0
-    else:
-        with warnings.catch_warnings():      # nearly equal samples: the p-value says so
-            warnings.simplefilter('ignore', RuntimeWarning)
-            p = float(ttest_ind(a, b, equal_var=False).pvalue)
-    better = np.mean(a) < np.mean(b) if a_better == 'lower' else np.mean(a) > np.mean(b)
-    if p >= P_VALUE:
-        return 'not resolved (within the spread)', p
-    return ('holds' if better else 'does not hold (the opposite)'), p
-
-
-def compare_paired(a_rows: list[dict], b_rows: list[dict], key: str, by: tuple[str, ...],
-                   a_better: str) -> tuple[str, float | None]:
-    """``compare`` of metric ``key`` where the runs pair (the same seed and set-point, ``by``):
-    the paired t-test over the differences when every run of ``a_rows`` has exactly one
-    partner in ``b_rows`` and both have the metric; else Welch's test, said so."""
-    def index(rows):
-        out: dict[tuple, float] = {}
-        for r in rows:
-            if r.get(key) is not None:
-                out[tuple(r.get(k) for k in by)] = float(r[key])
-        return out
-
-    a, b = index(a_rows), index(b_rows)
-    if len(a) != len(a_rows) or set(a) != set(b) or len(b) != len(b_rows) or len(a) < 2:
-        verdict, p = compare(values(a_rows, key), values(b_rows, key), a_better)
-        return verdict + (' (unpaired)' if p is not None else ''), p
-    pairs = sorted(a)
-    diff = np.array([a[k] - b[k] for k in pairs])
-    if np.all(diff == 0):
-        return 'not resolved (equal in every pair)', 1.0
-    from scipy.stats import ttest_rel
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore', RuntimeWarning)
-        p = float(ttest_rel([a[k] for k in pairs], [b[k] for k in pairs]).pvalue)
-    if not np.isfinite(p):                    # every difference the same, not zero
-        p = 0.0
-    better = diff.mean() < 0 if a_better == 'lower' else diff.mean() > 0
-    if p >= P_VALUE:
-        return f'not resolved (within the spread, {len(pairs)} pairs)', p
-    return ('holds' if better else 'does not hold (the opposite)') + f' ({len(pairs)} pairs)', p
-
-
-def _p(p: float | None) -> str:
-    return '' if p is None else f', p = {p:.2g}'
-
+from replan_ros.experiments.findings import findings
+from replan_ros.experiments.stats import (
+    P_VALUE,
+    _p,
+    _sign_test,
+    compare_paired,
+    spread,
+    values,
+)
 
 # -- the page --------------------------------------------------------------------------------
 
@@ -149,7 +71,7 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
                          ('ideal_world', _ideal_world)):
         if name in results:
             writer(page, results[name], results)
-            _findings(page, name, results[name], results)
+            findings(page, name, results[name], results)
     head = [
         '# Results: the paper\'s claims on the realistic robot',
         '',
@@ -160,7 +82,8 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         f'code fingerprint {meta.get("code", "?")}: a change to the core, the nodes or the '
         'configuration makes every run again). Do not edit '
         'by hand: every number, verdict and plot below comes from the runs '
-        '(`replan_ros/experiments/`: `claims.py` the experiments, `page.py` this page; the '
+        '(`replan_ros/experiments/`: `claims.py` the experiments, `page.py` this page, '
+        '`stats.py` its statistics, `findings.py` its findings; the '
         'plan is '
         '`config/experiments.yaml`).',
         '',
@@ -174,8 +97,10 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         '`docs/realism.md`) unless the setting says *ideal*. Metrics come from the simulator\'s '
         'truth (`/ground_truth/*`), not from what the robot estimated. "Spread" is the standard '
         'deviation over the runs, with the smallest and largest value. A comparison **holds** '
-        'when the difference has the paper\'s sign and Welch\'s t-test puts it beyond the '
-        f'spread of the runs (p < {P_VALUE}); **not resolved** when the runs cannot tell the '
+        'when the difference has the paper\'s sign and a t-test puts it beyond the spread of '
+        'the runs: the paired one where the runs pair (the same seed and set-point in both '
+        f'settings, "n pairs"), else Welch\'s (p < {P_VALUE}); **not resolved** when the runs '
+        'cannot tell the '
         'settings apart.',
         '',
         '| Experiment | Setting | Metric | Mean ± spread (min to max) | Runs | Paper\'s claim '
@@ -313,21 +238,6 @@ def _lateral_push(page: Page, data: dict, _all) -> None:
         link = page.plot('push_impulse.png', lambda plt: _plot_push(plt, table))
         lines += ['', f'![largest impulse survived per phase]({link})']
     page.section('\n'.join(lines))
-
-
-def _sign_test(diff, resolution: float) -> str:
-    """Paired comparison over the phases: a phase counts as better or worse only if the two
-    settings differ; the verdict needs the sign test (two-sided, p < P_VALUE) over those."""
-    from scipy.stats import binomtest
-    better, worse = int(np.sum(np.asarray(diff) > 0)), int(np.sum(np.asarray(diff) < 0))
-    counts = f'better at {better}, worse at {worse}, equal at {len(diff) - better - worse} phases'
-    if better + worse == 0:
-        return f'not resolved ({counts})'
-    p = float(binomtest(better, better + worse).pvalue)
-    if p >= P_VALUE:
-        return (f'not resolved ({counts}; a difference is one bisection step, '
-                f'{resolution:.0f} N s, or more)')
-    return ('holds' if better > worse else 'does not hold') + f' ({counts}, p = {p:.2g})'
 
 
 def _plot_push(plt, table: dict):
@@ -637,166 +547,3 @@ def _ideal_world(page: Page, data: dict, results: dict) -> None:
         _haptic(page, data['haptic'], results, world='ideal')
     if 'velocity_changes' in data:
         _velocity_changes(page, data['velocity_changes'], results)
-
-
-# -- findings --------------------------------------------------------------------------------
-
-
-def _findings(page: Page, name: str, data, results: dict) -> None:
-    settings = results.get('settings') or {}
-    if name == 'velocity_changes':
-        for scenario in dict.fromkeys(r['scenario'] for r in data):
-            sel = [r for r in data if r['scenario'] == scenario and r['world'] == 'realistic']
-            if not sel:
-                continue
-            rise, settle = values(sel, 'rise_steps'), values(sel, 'settle_steps')
-            ratio = [np.hypot(*r['achieved'][:2]) / np.hypot(*r['commanded'][:2])
-                     for r in sel if r.get('achieved') and any(r['commanded'][:2])]
-            label = scenario.removeprefix('exp_').replace('_', ' ')
-            page.finding(
-                f'Velocity change, {label}: the change itself is made in '
-                f'{np.mean(rise):.1f} touchdowns on average (90 % of the way, {len(rise)} of '
-                f'{len(sel)} runs)' if rise else f'Velocity change, {label}: no rise measured')
-            if ratio:
-                page.findings[-1] += (
-                    f'; {len(settle)} of {len(sel)} runs get within 10 % of the set-point, '
-                    f'after {np.mean(settle):.1f} touchdowns on average' if settle else
-                    '; no run gets within 10 % of the set-point')
-                page.findings[-1] += (
-                    f'; the realistic robot walks at {np.mean(ratio) * 100:.0f} % of its '
-                    'set-point after the change (mean over the runs).')
-    elif name == 'lateral_push':
-        cfg, table = data['config'], data['settings']
-        mass = data.get('robot_mass_kg')
-        first = float(cfg['first_impulse'])
-        dv = [p['first']['velocity_change_mps'] for ph in table.values() for p in ph
-              if p.get('first') and p['first'].get('velocity_change_mps') is not None]
-        off = [p['survived_ns'] for p in table.get('correction_off', [])]
-        text = (f'Lateral pushes: every setting survived at least '
-                f'{min(min(p["survived_ns"] for p in ph) for ph in table.values()):.0f} N s at '
-                f'every phase, {min(off):.0f} N s without foothold correction.'
-                if off else 'Lateral pushes:')
-        if dv and mass:
-            text += (f' A {first:.0f} N s push leaves the base {np.mean(dv):.3f} m/s along it '
-                     f'(mean over phases and settings) where a free body of {mass:.0f} kg would '
-                     f'gain {first / mass:.3f} m/s: the stance legs take most of the impulse at '
-                     'once, through the controller\'s CoM feedback and the feet\'s friction, '
-                     'so the hips move little and the footholds the gait computes about them '
-                     f'differ little from the ones about the feet (the thresholded rule acts '
-                     f'only beyond {settings.get("correction_threshold_m", 0.1) * 100:.0f} cm).')
-        res = float(cfg['max_impulse']) / 2 ** int(cfg['probes'])
-        shown = False
-        for setting in ('correction_thresholded', 'correction_literal'):
-            if setting in table and off and len(table[setting]) == len(off):
-                diff = np.subtract([p['survived_ns'] for p in table[setting]], off)
-                verdict = _sign_test(diff, res)
-                text += f' {setting.replace("_", " ").capitalize()} vs off: {verdict}.'
-                shown = shown or verdict.startswith('holds')
-        if off and not shown:
-            text += (' So these runs do not show the paper\'s benefit of the correction; a '
-                     'hypothesis they do not test: it needs pushes that move the hips further '
-                     'than this stiff controller lets them.')
-        page.finding(text)
-    elif name == 'replan_window':
-        sel = [r for r in data if r.get('world', 'realistic') == 'realistic']
-        err = {w: values([r for r in sel if r['window'] == w], 'linear_error_mps')
-               for w in sorted({r['window'] for r in sel})}
-        dev = {w: values([r for r in sel if r['window'] == w], 'cop_zmp_deviation_rms_m')
-               for w in err}
-        parts = ', '.join(f'{np.mean(v) * 1000:.1f} mm/s at window {w}' for w, v in err.items()
-                          if v)
-        def window(w: int) -> list[dict]:
-            return [r for r in sel if r['window'] == w]
-        verdict, p = compare_paired(window(1), window(2), 'linear_error_mps',
-                                    ('seed', 'setpoint'), 'lower')
-        text = f'Replan window: velocity error {parts}; 1 vs 2: {verdict}{_p(p)}.'
-        if verdict.startswith('holds'):
-            text += (' The paper\'s explanation, which these runs do not isolate (a hypothesis '
-                     'here): between re-plans the robot follows a plan made from an older state, '
-                     'and the model\'s errors act for 2 or 3 steps instead of 1.')
-        margin = {w: values([r for r in sel if r['window'] == w], 'cop_margin_p5_m')
-                  for w in err}
-        for w in [w for w in margin if w != 1]:
-            verdict, p = compare_paired(window(1), window(w), 'cop_margin_p5_m',
-                                        ('seed', 'setpoint'), 'higher')
-            if margin.get(1) and margin[w]:
-                text += (f' CoP margin p5 at window 1 vs {w}: {np.mean(margin[1]) * 100:.2f} vs '
-                         f'{np.mean(margin[w]) * 100:.2f} cm, {verdict}{_p(p)}.')
-        if all(dev.values()):
-            text += (' The measured centre of pressure strays from the planned ZMP by '
-                     + ', '.join(f'{np.mean(v) * 100:.2f} cm' for v in dev.values())
-                     + ' RMS per window.')
-        page.finding(text)
-    elif name == 'haptic':
-        sel = [r for r in data if r.get('world', 'realistic') == 'realistic']
-        flat_on = values([r for r in sel if r['terrain'] == 'flat' and r['haptic']],
-                         'pitch_peak_mean_deg')
-        flat_off = values([r for r in sel if r['terrain'] == 'flat' and not r['haptic']],
-                          'pitch_peak_mean_deg')
-        text = 'Haptic touchdown:'
-        if flat_on and flat_off:
-            verdict, p = compare_paired(
-                [r for r in sel if r['terrain'] == 'flat' and not r['haptic']],
-                [r for r in sel if r['terrain'] == 'flat' and r['haptic']],
-                'pitch_peak_mean_deg', ('seed',), 'higher')
-            text += (f' on flat ground the touchdown pitch peaks are {np.mean(flat_on):.2f} deg '
-                     f'(on) and {np.mean(flat_off):.2f} deg (off); "off disturbs the pitch": '
-                     f'{verdict}{_p(p)}.')
-        for terrain in ('step_down_10cm', 'step_down_5cm', 'rough_4cm'):
-            on = values([r for r in sel if r['terrain'] == terrain and r['haptic']],
-                        'pitch_peak_max_deg')
-            off = values([r for r in sel if r['terrain'] == terrain and not r['haptic']],
-                         'pitch_peak_max_deg')
-            if on and off:
-                text += (f' {terrain.replace("_", " ").capitalize()}: the largest touchdown '
-                         f'pitch peak is {np.mean(off):.2f} deg with haptic off and '
-                         f'{np.mean(on):.2f} deg with it on.')
-        ideal = [r for r in (results.get('ideal_world') or {}).get('haptic', [])
-                 if r['terrain'] == 'step_down_10cm' and r['haptic'] and r['fell']]
-        if ideal and settings.get('haptic_search_m'):
-            text += (f' In the ideal world the haptic robot fell at the 10 cm step: a haptic '
-                     f'swing looks for the ground down to {settings["haptic_search_m"] * 100:.0f}'
-                     f' cm below its foothold (touchdown_depth '
-                     f'{settings["touchdown_depth_m"] * 100:.1f} cm plus haptic_velocity '
-                     f'{settings["haptic_velocity_mps"]:.2f} m/s for max_extension '
-                     f'{settings["max_extension_s"]:.1f} s) and is then forced into stance in '
-                     'the air.')
-            crossed = [r.get('crossed') for r in sel
-                       if r['terrain'] == 'step_down_10cm' and r['haptic']]
-            if crossed and all(crossed):
-                text += (' That the realistic robot crossed the same step is then not a margin '
-                         'to rely on.')
-        page.finding(text)
-    elif name == 'velocity_term':
-        steady = [r for r in data if r.get('setpoint') != 'step']
-        on = [r['achieved'][0] / r['commanded'][0] for r in steady
-              if r['velocity_term'] and r.get('achieved') and r['commanded'][0]]
-        off = [r['achieved'][0] / r['commanded'][0] for r in steady
-               if not r['velocity_term'] and r.get('achieved') and r['commanded'][0]]
-        if on and off:
-            better = 'closer to' if abs(1 - np.mean(on)) < abs(1 - np.mean(off)) else \
-                'further from'
-            page.finding(
-                f'Velocity term: with it the robot walks at {np.mean(on) * 100:.1f} % of the '
-                f'set-point, without it at {np.mean(off) * 100:.1f} %: the term brings the '
-                f'speed {better} the set-point. Both settings take their speed from the '
-                f'same footholds (the gait\'s strides and the velocity feedback), so this '
-                f'steady-state figure does not test the paper\'s "faster motion"; the rise '
-                f'time after a set-point step (table) does.')
-    elif name == 'qp_timing':
-        bench = data.get('working_set') or {}
-        graph = []
-        for key in ('replan_window', 'velocity_term', 'haptic', 'velocity_changes'):
-            graph += [r for r in results.get(key) or []
-                      if r.get('world', 'realistic') == 'realistic']
-        med = values(graph, 'mpc_solve_ms_median')
-        if bench.get('mean_ms') and med:
-            page.finding(
-                f'QP timing: at the paper\'s size the re-planner solves in '
-                f'{bench["mean_ms"]:.1f} ms on average alone, {58.0 / bench["mean_ms"]:.0f} '
-                f'times faster than the paper\'s 58 ms (a working-set dual QP that warm-starts '
-                f'from the last plan instead of the full QP; the dense QP as the paper posed it '
-                f'takes {(data.get("dense") or {}).get("mean_ms", float("nan")):.0f} ms here). '
-                f'Inside the graph the per-run median is {np.median(med):.1f} ms: the other '
-                'nodes (and here, other work on the machine) share the 2 cores. The realistic '
-                'profile applies the paper\'s 58 ms as planning latency regardless.')

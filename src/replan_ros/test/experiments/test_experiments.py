@@ -9,9 +9,10 @@ import pytest
 import yaml
 
 from replan_ros.experiments.claims import bisect_impulse
-from replan_ros.experiments.page import compare, compare_paired, spread, write_page
+from replan_ros.experiments.page import write_page
 from replan_ros.experiments.plan import ExperimentError, load_plan, planned_runs, variant
 from replan_ros.experiments.runs import RunResult, code_fingerprint, run_key
+from replan_ros.experiments.stats import compare, compare_paired, spread
 
 CONFIG = Path(__file__).resolve().parents[4] / 'config'
 BASE = {'name': 'walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0.0, 0.0]}]}

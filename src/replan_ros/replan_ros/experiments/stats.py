@@ -1,0 +1,109 @@
+"""Statistics of the results page: spreads and the verdicts of comparisons, computed from
+the runs, never typed (docs: ``page.py``)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+P_VALUE = 0.05
+
+
+# -- statistics ------------------------------------------------------------------------------
+
+
+def values(rows: list[dict], key: str, **where) -> list[float]:
+    """``key`` of the rows matching ``where`` (runs that completed), None left out."""
+    out = []
+    for row in rows:
+        if not row.get('ok', True) or any(row.get(k) != v for k, v in where.items()):
+            continue
+        value = row.get(key)
+        if value is not None and not (isinstance(value, float) and math.isnan(value)):
+            out.append(float(value))
+    return out
+
+
+def spread(xs: list[float], digits: int = 3, scale: float = 1.0) -> str:
+    """'mean +- std (min to max)' of ``xs`` times ``scale``; '-' if empty."""
+    if not xs:
+        return '-'
+    a = np.asarray(xs, dtype=float) * scale
+    fmt = f'{{:.{digits}f}}'
+    if len(a) == 1:
+        return fmt.format(a[0])
+    return (f'{fmt.format(a.mean())} ± {fmt.format(a.std(ddof=1))} '
+            f'({fmt.format(a.min())} to {fmt.format(a.max())})')
+
+
+def compare(a: list[float], b: list[float], a_better: str) -> tuple[str, float | None]:
+    """Is ``a`` better than ``b`` beyond the spread? ``a_better``: 'lower' or 'higher'.
+    Returns the verdict and Welch's p-value."""
+    if len(a) < 2 or len(b) < 2:
+        return 'not resolved (too few runs)', None
+    from scipy.stats import ttest_ind
+    if np.std(a) == 0 and np.std(b) == 0:
+        if np.mean(a) == np.mean(b):
+            return 'not resolved (equal)', 1.0
+        p = 0.0
+    else:
+        with warnings.catch_warnings():      # nearly equal samples: the p-value says so
+            warnings.simplefilter('ignore', RuntimeWarning)
+            p = float(ttest_ind(a, b, equal_var=False).pvalue)
+    better = np.mean(a) < np.mean(b) if a_better == 'lower' else np.mean(a) > np.mean(b)
+    if p >= P_VALUE:
+        return 'not resolved (within the spread)', p
+    return ('holds' if better else 'does not hold (the opposite)'), p
+
+
+def compare_paired(a_rows: list[dict], b_rows: list[dict], key: str, by: tuple[str, ...],
+                   a_better: str) -> tuple[str, float | None]:
+    """``compare`` of metric ``key`` where the runs pair (the same seed and set-point, ``by``):
+    the paired t-test over the differences when every run of ``a_rows`` has exactly one
+    partner in ``b_rows`` and both have the metric; else Welch's test, said so."""
+    def index(rows):
+        out: dict[tuple, float] = {}
+        for r in rows:
+            if r.get(key) is not None:
+                out[tuple(r.get(k) for k in by)] = float(r[key])
+        return out
+
+    a, b = index(a_rows), index(b_rows)
+    if len(a) != len(a_rows) or set(a) != set(b) or len(b) != len(b_rows) or len(a) < 2:
+        verdict, p = compare(values(a_rows, key), values(b_rows, key), a_better)
+        return verdict + (' (unpaired)' if p is not None else ''), p
+    pairs = sorted(a)
+    diff = np.array([a[k] - b[k] for k in pairs])
+    if np.all(diff == 0):
+        return 'not resolved (equal in every pair)', 1.0
+    from scipy.stats import ttest_rel
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)
+        p = float(ttest_rel([a[k] for k in pairs], [b[k] for k in pairs]).pvalue)
+    if not np.isfinite(p):                    # every difference the same, not zero
+        p = 0.0
+    better = diff.mean() < 0 if a_better == 'lower' else diff.mean() > 0
+    if p >= P_VALUE:
+        return f'not resolved (within the spread, {len(pairs)} pairs)', p
+    return ('holds' if better else 'does not hold (the opposite)') + f' ({len(pairs)} pairs)', p
+
+
+def _p(p: float | None) -> str:
+    return '' if p is None else f', p = {p:.2g}'
+
+
+def _sign_test(diff, resolution: float) -> str:
+    """Paired comparison over the phases: a phase counts as better or worse only if the two
+    settings differ; the verdict needs the sign test (two-sided, p < P_VALUE) over those."""
+    from scipy.stats import binomtest
+    better, worse = int(np.sum(np.asarray(diff) > 0)), int(np.sum(np.asarray(diff) < 0))
+    counts = f'better at {better}, worse at {worse}, equal at {len(diff) - better - worse} phases'
+    if better + worse == 0:
+        return f'not resolved ({counts})'
+    p = float(binomtest(better, better + worse).pvalue)
+    if p >= P_VALUE:
+        return (f'not resolved ({counts}; a difference is one bisection step, '
+                f'{resolution:.0f} N s, or more)')
+    return ('holds' if better > worse else 'does not hold') + f' ({counts}, p = {p:.2g})'
