@@ -61,8 +61,9 @@ def compare(a: list[float], b: list[float], a_better: str) -> tuple[str, float |
 def compare_paired(a_rows: list[dict], b_rows: list[dict], key: str, by: tuple[str, ...],
                    a_better: str) -> tuple[str, float | None]:
     """``compare`` of metric ``key`` where the runs pair (the same seed and set-point, ``by``):
-    the paired t-test over the differences when every run of ``a_rows`` has exactly one
-    partner in ``b_rows`` and both have the metric; else Welch's test, said so."""
+    the paired t-test over the differences of the pairs where both runs have the metric (a
+    run without it, e.g. one that fell, is left out and the verdict says how many were);
+    Welch's test, said so, when fewer than two pairs remain."""
     def index(rows):
         out: dict[tuple, float] = {}
         for r in rows:
@@ -71,13 +72,16 @@ def compare_paired(a_rows: list[dict], b_rows: list[dict], key: str, by: tuple[s
         return out
 
     a, b = index(a_rows), index(b_rows)
-    if len(a) != len(a_rows) or set(a) != set(b) or len(b) != len(b_rows) or len(a) < 2:
+    pairs = sorted(set(a) & set(b))
+    if len(pairs) < 2:
         verdict, p = compare(values(a_rows, key), values(b_rows, key), a_better)
         return verdict + (' (unpaired)' if p is not None else ''), p
-    pairs = sorted(a)
+    left_out = len(a_rows) + len(b_rows) - 2 * len(pairs)
+    note = f'{len(pairs)} pairs' + (f'; {left_out} runs without the measure left out'
+                                    if left_out else '')
     diff = np.array([a[k] - b[k] for k in pairs])
     if np.all(diff == 0):
-        return 'not resolved (equal in every pair)', 1.0
+        return f'not resolved (equal in every pair, {note})', 1.0
     from scipy.stats import ttest_rel
     with warnings.catch_warnings():
         warnings.simplefilter('ignore', RuntimeWarning)
@@ -86,8 +90,8 @@ def compare_paired(a_rows: list[dict], b_rows: list[dict], key: str, by: tuple[s
         p = 0.0
     better = diff.mean() < 0 if a_better == 'lower' else diff.mean() > 0
     if p >= P_VALUE:
-        return f'not resolved (within the spread, {len(pairs)} pairs)', p
-    return ('holds' if better else 'does not hold (the opposite)') + f' ({len(pairs)} pairs)', p
+        return f'not resolved (within the spread, {note})', p
+    return ('holds' if better else 'does not hold (the opposite)') + f' ({note})', p
 
 
 def _p(p: float | None) -> str:

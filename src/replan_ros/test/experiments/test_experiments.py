@@ -102,11 +102,15 @@ def test_paired_comparison_sees_a_consistent_difference_the_spread_hides():
     assert verdict == 'holds (5 pairs)' and p < 1e-4
     assert compare_paired(b, a, 'm', ('seed', 'setpoint'), 'lower')[0].startswith(
         'does not hold')
-    # A run without its partner: Welch's test, and the page says so.
+    # A run without its partner (or without the measure: a fall) is left out, and said so;
+    # fewer than two pairs: Welch's test, and the page says so.
     verdict, _ = compare_paired(a[:4], b, 'm', ('seed', 'setpoint'), 'lower')
+    assert verdict == 'holds (4 pairs; 1 runs without the measure left out)'
+    other_seeds = [dict(r, seed=r['seed'] + 10) for r in a]
+    verdict, _ = compare_paired(other_seeds, b, 'm', ('seed', 'setpoint'), 'lower')
     assert verdict.endswith('(unpaired)')
     assert compare_paired(a, a, 'm', ('seed',), 'lower')[0] == \
-        'not resolved (equal in every pair)'
+        'not resolved (equal in every pair, 5 pairs)'
 
 
 def test_compare_needs_the_difference_beyond_the_spread():
