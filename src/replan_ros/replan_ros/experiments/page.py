@@ -18,8 +18,8 @@ from replan_ros.experiments.findings import findings
 from replan_ros.experiments.stats import (
     P_VALUE,
     _p,
-    _sign_test,
     compare_paired,
+    push_sign_test,
     spread,
     values,
 )
@@ -223,17 +223,9 @@ def _lateral_push(page: Page, data: dict, _all) -> None:
         for name, survived in mins.items():
             if name == 'correction_off' or len(survived) != len(mins['correction_off']):
                 continue
-            # A phase where no probe fell in either setting is censored: both figures are
-            # lower bounds, their difference unknown (not zero), so it is left out of the test.
-            censored = [k for k, phase in enumerate(table[name])
-                        if phase['fallen_ns'] is None
-                        and table['correction_off'][k]['fallen_ns'] is None]
-            diff = np.delete(np.subtract(survived, mins['correction_off']), censored)
-            verdict = _sign_test(diff, res) + (
-                f'; {len(censored)} phases censored (no probe fell in either setting: '
-                'left out)' if censored else '')
+            diff, verdict = push_sign_test(table, name, res)
             page.row('lateral push', f'{name.replace("_", " ")} vs off',
-                     'impulse survived, on minus off, per phase (N s)', spread(list(diff), 1),
+                     'impulse survived, on minus off, per phase (N s)', spread(diff, 1),
                      len(diff), 'foothold correction helps against pushes', verdict)
         link = page.plot('push_impulse.png', lambda plt: _plot_push(plt, table))
         lines += ['', f'![largest impulse survived per phase]({link})']

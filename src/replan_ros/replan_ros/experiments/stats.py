@@ -111,3 +111,19 @@ def _sign_test(diff, resolution: float) -> str:
         return (f'not resolved ({counts}; a difference is one bisection step, '
                 f'{resolution:.0f} N s, or more)')
     return ('holds' if better > worse else 'does not hold') + f' ({counts}, p = {p:.2g})'
+
+
+def push_sign_test(table: dict, name: str, resolution: float) -> tuple[list[float], str]:
+    """Setting ``name`` against ``correction_off`` over the phases of the impulse-push table:
+    the per-phase differences of the impulse survived and the sign test's verdict. A phase
+    where no probe fell in either setting is censored (both figures are lower bounds, their
+    difference unknown, not zero): left out, and the verdict says how many were."""
+    on, off = table[name], table['correction_off']
+    censored = [k for k in range(len(on))
+                if on[k]['fallen_ns'] is None and off[k]['fallen_ns'] is None]
+    diff = [on[k]['survived_ns'] - off[k]['survived_ns'] for k in range(len(on))
+            if k not in censored]
+    verdict = _sign_test(diff, resolution) + (
+        f'; {len(censored)} phases censored (no probe fell in either setting: left out)'
+        if censored else '')
+    return diff, verdict
