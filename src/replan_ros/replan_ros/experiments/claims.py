@@ -16,6 +16,7 @@ import numpy as np
 import yaml
 
 from replan_ros.experiments.plan import node_settings, variant
+from replan_ros.experiments.push_effects import cached_push_effects
 from replan_ros.experiments.runs import Runner, RunResult
 
 
@@ -148,7 +149,6 @@ def sustained_push(ctx: Context, cfg: dict) -> list[dict]:
     correction off, literal, thresholded), force and seed: whether the robot falls, and what
     the push does to its support over the steps that follow (``push_effects``, from the run's
     bag, which these runs keep). Paired by seed and force across the settings."""
-    from replan_ros.experiments.push_effects import cached_push_effects
     runner = ctx.runner
     base = runner.scenario(cfg['scenario'])
     direction = np.asarray(cfg.get('direction', [0.0, 1.0]), dtype=float)

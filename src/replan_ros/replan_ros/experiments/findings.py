@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from replan_ros.experiments.stats import _p, compare_paired, push_sign_test, values
+from replan_ros.experiments.stats import compare_paired, p_text, push_sign_test, values
 
 
 def findings(page, name: str, data, results: dict) -> None:
@@ -77,7 +77,7 @@ def findings(page, name: str, data, results: dict) -> None:
             return [r for r in sel if r['window'] == w]
         verdict, p = compare_paired(window(1), window(2), 'linear_error_mps',
                                     ('seed', 'setpoint'), 'lower')
-        text = f'Replan window: velocity error {parts}; 1 vs 2: {verdict}{_p(p)}.'
+        text = f'Replan window: velocity error {parts}; 1 vs 2: {verdict}{p_text(p)}.'
         if verdict.startswith('holds'):
             text += (' The paper\'s explanation, which these runs do not isolate (a hypothesis '
                      'here): between re-plans the robot follows a plan made from an older state, '
@@ -89,7 +89,7 @@ def findings(page, name: str, data, results: dict) -> None:
                                         ('seed', 'setpoint'), 'higher')
             if margin.get(1) and margin[w]:
                 text += (f' CoP margin p5 at window 1 vs {w}: {np.mean(margin[1]) * 100:.2f} vs '
-                         f'{np.mean(margin[w]) * 100:.2f} cm, {verdict}{_p(p)}.')
+                         f'{np.mean(margin[w]) * 100:.2f} cm, {verdict}{p_text(p)}.')
         if all(dev.values()):
             text += (' The measured centre of pressure strays from the planned ZMP by '
                      + ', '.join(f'{np.mean(v) * 100:.2f} cm' for v in dev.values())
@@ -109,7 +109,7 @@ def findings(page, name: str, data, results: dict) -> None:
                 'pitch_peak_mean_deg', ('seed',), 'higher')
             text += (f' on flat ground the touchdown pitch peaks are {np.mean(flat_on):.2f} deg '
                      f'(on) and {np.mean(flat_off):.2f} deg (off); "off disturbs the pitch": '
-                     f'{verdict}{_p(p)}.')
+                     f'{verdict}{p_text(p)}.')
         for terrain in ('step_down_10cm', 'step_down_5cm', 'rough_4cm'):
             on = values([r for r in sel if r['terrain'] == terrain and r['haptic']],
                         'pitch_peak_max_deg')

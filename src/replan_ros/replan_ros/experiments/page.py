@@ -17,8 +17,8 @@ import numpy as np
 from replan_ros.experiments.findings import findings
 from replan_ros.experiments.stats import (
     P_VALUE,
-    _p,
     compare_paired,
+    p_text,
     push_sign_test,
     spread,
     values,
@@ -280,7 +280,7 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
                                         'higher' if key == 'cop_margin_p5_m' else 'lower')
             page.row('replan window', f'1 vs {w}{suffix}', label,
                      f'{np.mean(one) * scale:.{digits}f} vs {np.mean(other) * scale:.{digits}f}'
-                     if one and other else '-', len(one) + len(other), claim, verdict + _p(p))
+                     if one and other else '-', len(one) + len(other), claim, verdict + p_text(p))
     if world == 'realistic' and len(windows) > 1:
         link = page.plot('replan_window.png', lambda plt: _plot_windows(plt, sel, windows))
         lines.append(f'![velocity error and CoP margin per replan window]({link})')
@@ -345,13 +345,13 @@ def _haptic(page: Page, rows: list[dict], results, world: str = 'realistic') -> 
                  'largest touchdown pitch peak (deg)',
                  f'{np.mean(big_off):.2f} vs {np.mean(big_on):.2f}' if big_off and big_on
                  else '-', len(on) + len(off), 'haptic off disturbs the pitch',
-                 verdict_max + _p(p_max))
+                 verdict_max + p_text(p_max))
         page.row('haptic', f'{terrain.replace("_", " ")}: off vs on{suffix}',
                  'touchdown pitch peak (deg)',
                  f'{np.mean(values(off, "pitch_peak_mean_deg")):.2f} vs '
                  f'{np.mean(values(on, "pitch_peak_mean_deg")):.2f}'
                  if values(off, 'pitch_peak_mean_deg') and values(on, 'pitch_peak_mean_deg')
-                 else '-', len(on) + len(off), 'haptic off disturbs the pitch', verdict + _p(p))
+                 else '-', len(on) + len(off), 'haptic off disturbs the pitch', verdict + p_text(p))
     if world == 'realistic' and sel:
         link = page.plot('haptic_pitch.png', lambda plt: _plot_haptic(plt, sel))
         lines.append(f'![touchdown pitch peaks, haptic on and off]({link})')
@@ -377,27 +377,23 @@ def _plot_haptic(plt, rows):
 def _velocity_term(page: Page, rows: list[dict], _all) -> None:
     steady = [r for r in rows if r.get('setpoint') != 'step']
     steps = [r for r in rows if r.get('setpoint') == 'step']
-    ratio = {}
+    # The speed of each straight walk against its set-point, once per run.
+    measured = {on: [dict(r, speed_ratio=r['achieved'][0] / r['commanded'][0],
+                          speed_error=abs(1 - r['achieved'][0] / r['commanded'][0]))
+                     for r in steady if r['velocity_term'] == on and r.get('ok')
+                     and r.get('achieved') and r['commanded'][0]] for on in (True, False)}
     for on in (True, False):
         runs = [r for r in steady if r['velocity_term'] == on]
-        ratio[on] = [r['achieved'][0] / r['commanded'][0] for r in runs
-                     if r.get('ok') and r.get('achieved') and r['commanded'][0]]
         page.row('velocity term', 'on (weight 300)' if on else 'off (weight 0)',
-                 'achieved / commanded speed', spread(ratio[on], 3), len(runs), '',
-                 f'{sum(r["fell"] for r in runs)} falls')
-    err_on = [abs(1 - x) for x in ratio[True]]
-    err_off = [abs(1 - x) for x in ratio[False]]
-
-    def speed_error(on: bool) -> list[dict]:
-        return [dict(r, speed_error=abs(1 - r['achieved'][0] / r['commanded'][0]))
-                for r in steady if r['velocity_term'] == on and r.get('ok')
-                and r.get('achieved') and r['commanded'][0]]
-    verdict, p = compare_paired(speed_error(True), speed_error(False), 'speed_error',
+                 'achieved / commanded speed', spread(values(measured[on], 'speed_ratio'), 3),
+                 len(runs), '', f'{sum(r["fell"] for r in runs)} falls')
+    err_on, err_off = (values(measured[on], 'speed_error') for on in (True, False))
+    verdict, p = compare_paired(measured[True], measured[False], 'speed_error',
                                 ('seed', 'setpoint'), 'lower')
     page.row('velocity term', 'on vs off', '|1 - achieved / commanded|',
              f'{np.mean(err_on):.3f} vs {np.mean(err_off):.3f}' if err_on and err_off else '-',
              len(err_on) + len(err_off), 'the velocity term tracks the set-point',
-             verdict + _p(p))
+             verdict + p_text(p))
     text = ('## Velocity-tracking term\n\nThe same runs with the MPC\'s velocity weight at its '
             'default and at 0 (eq. 6 without the optional term): straight walks (the steady '
             'speed)')
@@ -417,7 +413,7 @@ def _velocity_term(page: Page, rows: list[dict], _all) -> None:
                  'seconds until 90 % of the achieved change',
                  f'{np.mean(rise_on):.2f} vs {np.mean(rise_off):.2f}' if rise_on and rise_off
                  else '-', len(on) + len(off), 'the velocity term gives faster motion',
-                 verdict + _p(p))
+                 verdict + p_text(p))
         text += (' and the set-point step of the velocity-change experiment (how promptly a '
                  'new set-point is reached, the paper\'s "faster motion"), paired by seed')
     page.section(text + '.')
@@ -463,7 +459,7 @@ def _sustained_push(page: Page, rows: list[dict], results) -> None:
             page.row('sustained push', f'{name.replace("_", " ")} vs off, {force:.0f} N',
                      'capture point in the support, 5th percentile (cm)',
                      f'{np.mean(a) * 100:.1f} vs {np.mean(b) * 100:.1f}' if a and b else '-',
-                     len(on) + len(off), claim, verdict + _p(p))
+                     len(on) + len(off), claim, verdict + p_text(p))
             falls_on, falls_off = sum(r['fell'] for r in on), sum(r['fell'] for r in off)
             if falls_on or falls_off:
                 lines.append(f'- {force:.0f} N: falls {falls_on} of {len(on)} with '

@@ -20,6 +20,7 @@ The bag is read once; nothing here shapes a run, so the run cache does not depen
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -34,22 +35,14 @@ _TOPICS = ('/ground_truth/odom', '/ground_truth/contacts')
 
 
 def _read(bag: Path):
-    from replan_ros.experiments.analysis import read_messages
-    from replan_ros.messages.contacts import contacts_from_msg
+    """Base and contact states of the truth by stamp, read as the run's own analysis reads
+    them (one per stamp)."""
+    from replan_ros.experiments.analysis import _first_per_stamp, _true_contacts, read_messages
     from replan_ros.messages.odom import base_state_from_odom
     data = read_messages(bag, _TOPICS)
-    base = {}
-    for _, msg in data.get('/ground_truth/odom', []):
-        state = base_state_from_odom(msg)
-        base.setdefault(state.stamp, state)
-    contacts = {}
-    for _, msg in data.get('/ground_truth/contacts', []):
-        try:
-            state = contacts_from_msg(msg)
-        except ValueError:
-            continue
-        contacts.setdefault(state.stamp, state)
-    return base, contacts
+    base = {state.stamp: state for state in _first_per_stamp(
+        base_state_from_odom(msg) for _, msg in data.get('/ground_truth/odom', []))}
+    return base, _true_contacts(data)
 
 
 def push_effects(bag: Path, push_start: float, push_duration: float, horizon: float = 6.0,
@@ -116,7 +109,6 @@ def cached_push_effects(folder: Path, push_start: float, push_duration: float,
                         horizon: float = 6.0) -> dict | None:
     """``push_effects`` of the run in ``folder`` (its bag in ``folder/bag``), kept in
     ``folder/push_effects.json`` for the same push and horizon; None without a bag."""
-    import json
     key = {'push_start': push_start, 'push_duration': push_duration, 'horizon': horizon}
     cache = folder / 'push_effects.json'
     if cache.exists():

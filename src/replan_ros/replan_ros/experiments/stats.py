@@ -94,11 +94,11 @@ def compare_paired(a_rows: list[dict], b_rows: list[dict], key: str, by: tuple[s
     return ('holds' if better else 'does not hold (the opposite)') + f' ({note})', p
 
 
-def _p(p: float | None) -> str:
+def p_text(p: float | None) -> str:
     return '' if p is None else f', p = {p:.2g}'
 
 
-def _sign_test(diff, resolution: float) -> str:
+def sign_test(diff, resolution: float) -> str:
     """Paired comparison over the phases: a phase counts as better or worse only if the two
     settings differ; the verdict needs the sign test (two-sided, p < P_VALUE) over those."""
     from scipy.stats import binomtest
@@ -123,7 +123,7 @@ def push_sign_test(table: dict, name: str, resolution: float) -> tuple[list[floa
                 if on[k]['fallen_ns'] is None and off[k]['fallen_ns'] is None]
     diff = [on[k]['survived_ns'] - off[k]['survived_ns'] for k in range(len(on))
             if k not in censored]
-    verdict = _sign_test(diff, resolution) + (
+    verdict = sign_test(diff, resolution) + (
         f'; {len(censored)} phases censored (no probe fell in either setting: left out)'
         if censored else '')
     return diff, verdict
