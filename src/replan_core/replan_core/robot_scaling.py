@@ -4,7 +4,8 @@ the rules of ``config/robots/scaling.yaml`` (docs/robot_files.md, "Scaling rules
 value(R) = value(reference) * scale(R) / scale(reference), each scale measured on the models
 (``robot_file.RobotFacts``): ``weight`` m g, ``length`` the leg length l, ``time`` sqrt(l / g),
 ``speed`` sqrt(g l), ``rate`` sqrt(g / l), ``joint_inertia`` the smallest joint inertia. Values
-``measured`` on the model (CoM height, feet about the hips) are set, not scaled.
+``measured`` on the model (CoM height, feet about the hips, foot frame height) are set, not
+scaled.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ SCALES = {
 }
 MEASURED = {
     'com_height': lambda f: float(f.com_height),
+    'foot_height': lambda f: float(f.foot_height),
     'feet_about_hips': lambda f: [float(v) for v in np.asarray(f.feet_about_hips).ravel()],
 }
 

@@ -15,6 +15,7 @@ from replan_core.robot_file import (
     RobotFileError,
     load_robot_file,
     robot_facts,
+    robot_file_path,
     robot_spec,
     srdf_standing_pose,
 )
@@ -69,6 +70,8 @@ def _doc(name='go1'):
      'is fixed, not revolute'),
     (lambda d: d['legs'].pop('lh'), 'legs', 'needs exactly the legs lf, rf, lh, rh'),
     (lambda d: d.__setitem__('root_link', 'trunkk'), 'root_link', "no link 'trunkk'"),
+    (lambda d: d.__setitem__('root_link', 'trunk'), 'root_link',
+     "'trunk' is not the root link of go1.urdf (base)"),
     (lambda d: d.__setitem__('colour', 'red'), 'colour', 'unknown key'),
     (lambda d: d['model'].__setitem__('source', 'internet'), 'model.source', "'internet'"),
     (lambda d: d['model'].__setitem__('urdf', 'go1_description/urdf/go2.urdf'), 'model.urdf',
@@ -87,6 +90,15 @@ def test_a_wrong_robot_file_stops_with_one_line_naming_file_and_key(change, key,
     message = str(error.value)
     assert message.startswith(f'robot file my_go1.yaml: {key}: ') and problem in message
     assert '\n' not in message
+
+
+def test_a_robot_is_a_name_of_config_robots_or_a_file():
+    assert robot_file_path('go1', ROOT / 'config') == ROBOTS / 'go1.yaml'
+    assert robot_file_path('/x/my_go1.yaml', ROOT / 'config') == Path('/x/my_go1.yaml')
+    for wrong in ('go2', 'scaling'):
+        with pytest.raises(RobotFileError, match=re.escape(
+                f"unknown robot '{wrong}' (known: anymal_c, b1, go1, hyq; or a robot file")):
+            robot_file_path(wrong, ROOT / 'config')
 
 
 def test_an_unreadable_robot_file_is_one_line_too(tmp_path):
