@@ -141,6 +141,22 @@ def test_each_rule_scales_by_its_physics(facts):
     assert out['mpc']['com_height'] == pytest.approx(0.255, abs=0.005)
 
 
+def test_torques_stiffness_damping_and_lists_scale_too(facts):
+    hyq, go1 = facts['hyq'], facts['go1']
+    rules = {'rules': {'torque': ['wbc.stand_up_kp'], 'stiffness': ['wbc.swing_kp'],
+                       'damping': ['wbc.swing_kd'], 'length': ['sim.payload_offset']}}
+    values = {'wbc': {'stand_up_kp': 400.0, 'swing_kp': [1500.0] * 3, 'swing_kd': [50.0] * 3},
+              'sim': {'payload_offset': [0.1, 0.05, 0.05]}}
+    out = derived_parameters(go1, hyq, values, rules)
+    mass, legs = go1.mass / hyq.mass, go1.leg_length / hyq.leg_length
+    assert out['wbc']['stand_up_kp'] == pytest.approx(400.0 * mass * legs)
+    assert out['wbc']['swing_kp'] == pytest.approx([1500.0 * mass / legs] * 3)
+    assert out['wbc']['swing_kd'] == pytest.approx([50.0 * mass / math.sqrt(legs)] * 3)
+    assert out['sim']['payload_offset'] == pytest.approx([0.1 * legs, 0.05 * legs, 0.05 * legs])
+    # The reference gets its lists back exactly.
+    assert derived_parameters(hyq, hyq, values, rules, measure=False) == values
+
+
 def test_derived_joint_damping_stays_below_what_250_hz_can_apply(facts):
     rules = yaml.safe_load((ROBOTS / 'scaling.yaml').read_text())
     assert rules['reference'] == 'hyq'
