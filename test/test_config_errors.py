@@ -111,6 +111,15 @@ def test_node_started_alone_with_a_bad_value_exits_non_zero(launcher):
         in gait.log()
 
 
+@pytest.mark.parametrize('node', ['sim', 'wbc'])
+def test_node_started_alone_with_an_unknown_robot_exits_non_zero(node, launcher):
+    process = launcher.start(f'{node}_node', params_file=CONFIG_DIR / f'{node}.yaml',
+                             params={'robot_file': 'go2'})
+    process.process.wait(30)
+    assert process.process.returncode == 2
+    assert "config error: unknown robot 'go2' (known: anymal_c, b1, go1, hyq" in process.log()
+
+
 def test_node_started_alone_with_a_misspelt_key_exits_non_zero(launcher, tmp_path):
     bad = tmp_path / 'bad.yaml'
     bad.write_text('mpc:\n  ros__parameters:\n    horizn: 6.0\n')
