@@ -160,8 +160,19 @@ def _payload_joint(offset: np.ndarray, base_link: str) -> ET.Element:
 
 
 def _absolute_file_references(robot: ET.Element, directory: Path) -> None:
-    """Make relative mesh file names absolute: the copy lives in another directory."""
+    """Make relative mesh file names absolute: the copy lives in another directory. So are
+    ``package://PKG/...`` names whose package is a folder above the original (as in
+    example-robot-data's share tree, where PyBullet finds them from the original's place but
+    not from the copy's: a perturbed Go1 did not load)."""
     for element in robot.iter():
         name = element.get('filename')
-        if name and '://' not in name and not os.path.isabs(name):
+        if not name:
+            continue
+        if name.startswith('package://'):
+            package, _, rest = name[len('package://'):].partition('/')
+            for ancestor in (directory, *directory.parents):
+                if (ancestor / package / rest).is_file():
+                    element.set('filename', str(ancestor / package / rest))
+                    break
+        elif '://' not in name and not os.path.isabs(name):
             element.set('filename', str(directory / name))
