@@ -137,7 +137,7 @@ def test_another_robots_trunk_is_its_root_and_the_links_fixed_to_it(tmp_path):
         perturbed_urdf(str(spec.urdf), payload_mass=1.0, out_dir=str(tmp_path))
     # Its meshes (package://example-robot-data/...) are found from the copy's place too:
     # PyBullet refused the copy before.
-    meshes = [e.get('filename') for e in ET.parse(path).getroot().iter() if e.get('filename')]
+    meshes = [e.get('filename') for e in ET.parse(path).getroot().iter('mesh')]
     assert meshes and all(Path(m).is_file() for m in meshes)
     world = SimWorld(path, joint_names=spec.joints, foot_frames=spec.feet,
                      initial_joint_positions=spec.standing_pose)
