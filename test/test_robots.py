@@ -13,8 +13,9 @@ from __future__ import annotations
 import pytest
 from test_walk import run_scenario, segment
 
-# robot -> (set-point m/s, relative tolerance on the achieved forward speed)
-WALKS = {'go1': (0.05, 0.10)}
+# robot -> (set-point m/s, relative tolerance on the achieved forward speed). ANYmal C is not
+# here: it walks in the ideal world but falls on the realistic profile (docs/robot_files.md).
+WALKS = {'go1': (0.05, 0.10), 'b1': (0.10, 0.10)}
 
 
 @pytest.mark.parametrize('robot', sorted(WALKS))
