@@ -10,13 +10,17 @@
 # Prints one JSON line: real-time factors (sim s per wall s, from the first tick; median, min,
 # max and every run) per profile, the realistic/ideal ratio of each round, peak memory, MPC
 # solve times, distance.
-#   Usage: scripts/bench_graph.sh [--runs N] [OUT_DIR]
+#   Usage: scripts/bench_graph.sh [--runs N] [--robot NAME|FILE] [OUT_DIR]
+#   --robot: the robot of every run (default hyq; config/robots/, docs/robot_files.md); the
+#            forward scenario keeps its 0.15 m/s set-point.
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 runs=3
+robot=hyq
 while [ $# -gt 0 ]; do
     case "$1" in
         -h|--help) usage; exit 0 ;;
         --runs) runs="$2"; shift 2 ;;
+        --robot) robot="$2"; shift 2 ;;
         -*) echo "bench_graph.sh: unknown option $1" >&2; usage >&2; exit 2 ;;
         *) break ;;
     esac
@@ -26,10 +30,10 @@ out="${1:-$(mktemp -d)/bench_graph}"
 mkdir -p "$out"
 for k in $(seq 1 "$runs"); do
     for profile in ideal realistic; do
-        "$ROOT/scripts/launch.sh" --profile "$profile" --duration 20 \
+        "$ROOT/scripts/launch.sh" --profile "$profile" --robot "$robot" --duration 20 \
             --run-dir "$out/graph_${profile}_$k" > "$out/graph_${profile}_$k.log" 2>&1
         "$ROOT/scripts/scenario.sh" "$ROOT/config/scenarios/forward.yaml" --profile "$profile" \
-            --out "$out/forward_${profile}_$k" >/dev/null
+            --robot "$robot" --out "$out/forward_${profile}_$k" >/dev/null
     done
 done
 python - "$out" "$runs" <<'PY'

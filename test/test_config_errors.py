@@ -50,6 +50,41 @@ def test_launcher_refuses_a_bad_parameter_file(case, ros_domain, tmp_path):
     assert wall < 15.0
 
 
+def _wrong_go1(tmp_path):
+    """Go1's robot file with a misspelt joint: its names no longer match its URDF."""
+    text = (CONFIG_DIR / 'robots' / 'go1.yaml').read_text()
+    bad = tmp_path / 'my_go1.yaml'
+    bad.write_text(text.replace('[FL_hip_joint,', '[FL_hip_jont,'))
+    return bad, f"robot file {bad}: legs.lf.joints[0]: no joint 'FL_hip_jont' in go1.urdf"
+
+
+@pytest.mark.parametrize('tool', ['launch', 'scenario'])
+@pytest.mark.parametrize('case', ['unknown_name', 'wrong_joint_name'])
+def test_a_wrong_robot_is_refused_in_one_line(tool, case, ros_domain, tmp_path):
+    """``--robot go2`` (no such robot file) or a robot file whose names do not match its URDF:
+    one line, exit 2, nothing started (issue 30)."""
+    if case == 'unknown_name':
+        robot, expected = 'go2', ("unknown robot 'go2' (known: anymal_c, b1, go1, hyq; or a "
+                                  'robot file, docs/robot_files.md)')
+    else:
+        path, expected = _wrong_go1(tmp_path)
+        robot = str(path)
+    out = tmp_path / 'run'
+    if tool == 'launch':
+        module, args = 'replan_ros.launch.launch_graph', ['--robot', robot, '--duration', '1',
+                                                           '--run-dir', str(out)]
+    else:
+        scenario = tmp_path / 'walk.yaml'
+        scenario.write_text(f'duration: 2\nrobot: {robot}\n')
+        module, args = 'replan_ros.experiments.scenario', [str(scenario), '--out', str(out)]
+    result, wall = _run_tool(module, args, ros_domain, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    lines = (result.stdout + result.stderr).strip().splitlines()
+    assert lines == [f'config error: {expected}'], lines
+    assert not out.exists(), 'no run folder, no logs: nothing was started'
+    assert wall < 15.0
+
+
 def test_scenario_refuses_terrain_set_in_two_places(ros_domain, tmp_path):
     scenario = tmp_path / 'step.yaml'
     scenario.write_text('duration: 2\nparams:\n  sim: {terrain: step_down}\n'
@@ -74,6 +109,15 @@ def test_node_started_alone_with_a_bad_value_exits_non_zero(launcher):
     assert gait.process.returncode == 2
     assert 'config error: command line (-p): gait.replan_window = 0 is out of range [1, 8]' \
         in gait.log()
+
+
+@pytest.mark.parametrize('node', ['sim', 'wbc'])
+def test_node_started_alone_with_an_unknown_robot_exits_non_zero(node, launcher):
+    process = launcher.start(f'{node}_node', params_file=CONFIG_DIR / f'{node}.yaml',
+                             params={'robot_file': 'go2'})
+    process.process.wait(30)
+    assert process.process.returncode == 2
+    assert "config error: unknown robot 'go2' (known: anymal_c, b1, go1, hyq" in process.log()
 
 
 def test_node_started_alone_with_a_misspelt_key_exits_non_zero(launcher, tmp_path):

@@ -35,16 +35,18 @@ class LinkFrames:
     (calling pinocchio per link from Python cost 0.33 ms per state, 10x more).
     """
 
-    def __init__(self, urdf_path: str) -> None:
+    def __init__(self, urdf_path: str, joint_names: tuple[str, ...] = JOINT_NAMES) -> None:
+        """joint_names: the model's 12 actuated joints in ``JOINT_NAMES`` order (a robot
+        file's; the default is the project's HyQ)."""
         # Fixed base: the root link sits at the identity, so every transform below is relative
         # and the base pose enters only through ``base_transform``.
         model = pin.buildModelFromUrdf(str(urdf_path))
         data = model.createData()
-        missing = [n for n in JOINT_NAMES if not model.existJointName(n)]
+        missing = [n for n in joint_names if not model.existJointName(n)]
         if missing:
             raise ValueError(f'{urdf_path}: missing joints {missing}')
         pin.framesForwardKinematics(model, data, pin.neutral(model))
-        q_of_joint = {model.getJointId(n): i for i, n in enumerate(JOINT_NAMES)}
+        q_of_joint = {model.getJointId(n): i for i, n in enumerate(joint_names)}
         names, translations, rotations, movable, index, axes = [], [], [], [], [], []
         # (parent link, child link) of each URDF joint: a link's BODY frame has the joint's
         # frame as parent, whose parent is the parent link's BODY frame.
@@ -76,11 +78,19 @@ class LinkFrames:
         self._angle_index = np.array(index, dtype=int)
         self._axes = np.array(axes)                    # (m, 3) unit axes, child frame
         self.root_link = next(f.name for f in model.frames if f.type == pin.FrameType.BODY)
+        if self.root_link != BASE_FRAME:
+            # The topics' base frame is the project's (odom -> base_link): the model's root
+            # hangs below it at the identity, so a viewer finds every link.
+            self._names = ((BASE_FRAME, self.root_link), *self._names)
+            self._translations = np.vstack([np.zeros(3), self._translations])
+            self._origins = np.vstack([[0.0, 0.0, 0.0, 1.0], self._origins])
+            self._movable = self._movable + 1
 
     @property
     def links(self) -> tuple[str, ...]:
-        """Every link name, the root first."""
-        return (self.root_link, *(child for _, child in self._names))
+        """Every link name, the root first (the project's base frame above another root)."""
+        return (self._names[0][0] if self.root_link != BASE_FRAME else self.root_link,
+                *(child for _, child in self._names))
 
     def link_transforms(self, joint_positions: np.ndarray) -> list[Transform]:
         """Child link in parent link for every URDF joint; ``joint_positions`` (rad) in

@@ -76,13 +76,14 @@ def _model_path(label: str, key: str, source: str, relative: str, project_root: 
     return path
 
 
-def _urdf_names(urdf: Path) -> tuple[set[str], set[str], dict[str, str]]:
-    """Links, joints and each joint's type of a URDF (its top-level elements: a
-    ``<transmission>`` names joints too)."""
+def _urdf_names(urdf: Path) -> tuple[set[str], set[str], dict[str, str], set[str]]:
+    """Links, joints, each joint's type and the root links (no joint's child) of a URDF (its
+    top-level elements: a ``<transmission>`` names joints too)."""
     root = ET.parse(urdf).getroot()
     links = {link.get('name') for link in root.findall('link')}
     types = {joint.get('name'): joint.get('type') for joint in root.findall('joint')}
-    return links, set(types), types
+    children = {child.get('link') for child in root.findall('joint/child')}
+    return links, set(types), types, links - children
 
 
 def srdf_standing_pose(srdf: Path, joints: tuple[str, ...], state: str = 'standing'
@@ -119,9 +120,13 @@ def robot_spec(doc: dict, label: str, project_root: Path) -> RobotSpec:
     urdf = _model_path(label, 'model.urdf', source, str(model['urdf']), project_root)
     srdf = (_model_path(label, 'model.srdf', source, str(model['srdf']), project_root)
             if model.get('srdf') else None)
-    links, joint_names, joint_types = _urdf_names(urdf)
+    links, joint_names, joint_types, roots = _urdf_names(urdf)
     if doc['root_link'] not in links:
         raise _fail(label, 'root_link', f'no link {doc["root_link"]!r} in {urdf.name}')
+    if doc['root_link'] not in roots:
+        # PyBullet and pinocchio float the URDF's root link: the base the nodes report.
+        raise _fail(label, 'root_link', f'{doc["root_link"]!r} is not the root link of '
+                                        f'{urdf.name} ({", ".join(sorted(roots))})')
     legs = doc['legs']
     if not isinstance(legs, dict) or sorted(legs) != sorted(LEGS):
         raise _fail(label, 'legs', f'needs exactly the legs {", ".join(LEGS)}')
@@ -176,6 +181,20 @@ def robot_spec(doc: dict, label: str, project_root: Path) -> RobotSpec:
                      str(doc['actuator']), parameters)
 
 
+def robot_file_path(robot: str, config_dir: str | Path) -> Path:
+    """The robot file of ``robot``: a name of ``<config_dir>/robots/`` (``go1``) or a path to a
+    YAML file; RobotFileError (one line, with the known names) for an unknown name."""
+    if robot.endswith(('.yaml', '.yml')) or '/' in robot:
+        return Path(robot)
+    folder = Path(config_dir) / 'robots'
+    path = folder / f'{robot}.yaml'
+    if robot == 'scaling' or not path.is_file():
+        known = sorted(p.stem for p in folder.glob('*.yaml') if p.stem != 'scaling')
+        raise RobotFileError(f'unknown robot {robot!r} (known: {", ".join(known)}; or a robot '
+                             'file, docs/robot_files.md)')
+    return path
+
+
 def load_robot_file(path: str | Path, project_root: str | Path) -> RobotSpec:
     """Read and check the robot file at ``path`` (models of the project resolved against
     ``project_root``); RobotFileError with one line naming the file and key."""
@@ -196,6 +215,7 @@ class RobotFacts:
     leg_length: float           # m, hip flexion axis to foot (thigh + shank), mean of 4 legs
     standing_height: float      # m, base origin above the ground under the feet's spheres
     com_height: float           # m, CoM above that ground
+    foot_height: float          # m, foot frame origins above that ground (mean of 4 feet)
     min_joint_inertia: float    # kg m^2, smallest diagonal entry of the joint-space inertia
     feet_about_hips: np.ndarray  # (4, 2) m, each foot about its hip (haa axis), base frame xy
 
@@ -231,5 +251,6 @@ def robot_facts(spec: RobotSpec) -> RobotFacts:
                       leg_length=float(leg.mean()),
                       standing_height=float(q[2] - ground),
                       com_height=float(com[2] - ground),
+                      foot_height=float(feet[:, 2].mean() - ground),
                       min_joint_inertia=float(min(inertia[r, r] for r in joint_rows)),
                       feet_about_hips=feet[:, :2] - abductions[:, :2])

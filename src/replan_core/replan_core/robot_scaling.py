@@ -3,8 +3,11 @@ the rules of ``config/robots/scaling.yaml`` (docs/robot_files.md, "Scaling rules
 
 value(R) = value(reference) * scale(R) / scale(reference), each scale measured on the models
 (``robot_file.RobotFacts``): ``weight`` m g, ``length`` the leg length l, ``time`` sqrt(l / g),
-``speed`` sqrt(g l), ``rate`` sqrt(g / l), ``joint_inertia`` the smallest joint inertia. Values
-``measured`` on the model (CoM height, feet about the hips) are set, not scaled.
+``speed`` sqrt(g l), ``rate`` sqrt(g / l), ``torque`` m g l, ``stiffness`` m g / l, ``damping``
+m sqrt(g / l), ``joint_inertia`` the smallest joint inertia; a list parameter scales each
+value. Values
+``measured`` on the model (CoM height, feet about the hips, foot frame height) are set, not
+scaled.
 """
 
 from __future__ import annotations
@@ -24,10 +27,14 @@ SCALES = {
     'time': lambda f: math.sqrt(f.leg_length / G),           # s
     'speed': lambda f: math.sqrt(G * f.leg_length),          # m/s
     'rate': lambda f: math.sqrt(G / f.leg_length),           # 1/s
+    'torque': lambda f: f.mass * G * f.leg_length,           # N m
+    'stiffness': lambda f: f.mass * G / f.leg_length,        # N/m
+    'damping': lambda f: f.mass * math.sqrt(G / f.leg_length),   # N s/m
     'joint_inertia': lambda f: f.min_joint_inertia,          # kg m^2
 }
 MEASURED = {
     'com_height': lambda f: float(f.com_height),
+    'foot_height': lambda f: float(f.foot_height),
     'feet_about_hips': lambda f: [float(v) for v in np.asarray(f.feet_about_hips).ravel()],
 }
 
@@ -57,7 +64,10 @@ def derived_parameters(facts: RobotFacts, reference: RobotFacts,
             node, name = _split(key)
             if name not in reference_values.get(node, {}):
                 raise ValueError(f'{key}: the reference has no such parameter')
-            out.setdefault(node, {})[name] = float(reference_values[node][name]) * ratio
+            value = reference_values[node][name]
+            out.setdefault(node, {})[name] = (
+                [float(v) * ratio for v in value] if isinstance(value, (list, tuple))
+                else float(value) * ratio)
     for key, what in (rules.get('measured', {}) if measure else {}).items():
         if what not in MEASURED:
             raise ValueError(f'{key}: unknown measurement {what!r} (known: '

@@ -29,15 +29,17 @@ _INERTIA_KEYS = ('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz')
 def perturbed_urdf(urdf_path: str, *, payload_mass: float = 0.0,
                    payload_offset: np.ndarray | tuple[float, float, float] = (0.0, 0.0, 0.0),
                    leg_mass_error: float = 0.0, seed: int = 0,
-                   out_dir: str | None = None) -> str:
+                   out_dir: str | None = None, base_link: str = BASE_FRAME) -> str:
     """Write a perturbed copy of ``urdf_path`` and return its path.
 
     payload_mass: kg, on a link ``payload`` fixed to base_link at ``payload_offset`` (3,) m,
         base_link frame, with the inertia of a uniform 0.1 m cube.
-    leg_mass_error: every link with mass other than base_link (legs) has its mass and inertia
+    leg_mass_error: every link with mass other than the trunk (base_link and the links fixed
+        to it: Unitree's ``trunk`` under ``base``, ANYmal's shells) has its mass and inertia
         scaled by (1 + e), e uniform in [-leg_mass_error, +leg_mass_error], drawn per link in
         file order from ``seed`` (a random error per link, as calibration leaves them; a
         fixed sign would only scale the legs). Centres of mass do not move.
+    base_link: the model's root link (the trunk; a robot file's ``root_link``).
     out_dir: where to write (None: ``<tmp>/replan_urdf``). The name holds a hash of the
         content, so equal arguments give the same file and concurrent writers agree.
 
@@ -60,18 +62,19 @@ def perturbed_urdf(urdf_path: str, *, payload_mass: float = 0.0,
     robot = tree.getroot()
     _absolute_file_references(robot, source.parent)
     if leg_mass_error > 0.0:
+        trunk = _rigidly_fixed(robot, base_link)
         legs = [link for link in robot.iter('link')
-                if link.get('name') != BASE_FRAME and link.find('inertial/mass') is not None]
+                if link.get('name') not in trunk and link.find('inertial/mass') is not None]
         rng = np.random.default_rng(np.random.SeedSequence([int(seed), _MASS_STREAM]))
         errors = rng.uniform(-leg_mass_error, leg_mass_error, len(legs))
         for link, e in zip(legs, errors, strict=True):
             _scale_inertial(link.find('inertial'), 1.0 + float(e))
     if payload_mass > 0.0:
-        if robot.find(f"link[@name='{BASE_FRAME}']") is None:
-            raise ValueError(f'{urdf_path} has no link {BASE_FRAME}')
+        if robot.find(f"link[@name='{base_link}']") is None:
+            raise ValueError(f'{urdf_path} has no link {base_link}')
         if robot.find(f"link[@name='{PAYLOAD_LINK}']") is not None:
             raise ValueError(f'{urdf_path} already has a link {PAYLOAD_LINK}')
-        new = (_payload_link(payload_mass), _payload_joint(offset))
+        new = (_payload_link(payload_mass), _payload_joint(offset, base_link))
         for element in new:
             ET.indent(element, space='  ', level=1)
             if len(robot):
@@ -134,17 +137,42 @@ def _payload_link(mass: float) -> ET.Element:
     return link
 
 
-def _payload_joint(offset: np.ndarray) -> ET.Element:
+def _rigidly_fixed(robot: ET.Element, link: str) -> set[str]:
+    """``link`` and every link joined to it through fixed joints only."""
+    fixed = [(j.find('parent').get('link'), j.find('child').get('link'))
+             for j in robot.findall('joint') if j.get('type') == 'fixed']
+    group, grew = {link}, True
+    while grew:
+        grew = False
+        for parent, child in fixed:
+            if parent in group and child not in group:
+                group.add(child)
+                grew = True
+    return group
+
+
+def _payload_joint(offset: np.ndarray, base_link: str) -> ET.Element:
     joint = ET.Element('joint', name=PAYLOAD_JOINT, type='fixed')
     ET.SubElement(joint, 'origin', xyz=' '.join(repr(float(c)) for c in offset), rpy='0 0 0')
-    ET.SubElement(joint, 'parent', link=BASE_FRAME)
+    ET.SubElement(joint, 'parent', link=base_link)
     ET.SubElement(joint, 'child', link=PAYLOAD_LINK)
     return joint
 
 
 def _absolute_file_references(robot: ET.Element, directory: Path) -> None:
-    """Make relative mesh file names absolute: the copy lives in another directory."""
+    """Make relative mesh file names absolute: the copy lives in another directory. So are
+    ``package://PKG/...`` names whose package is a folder above the original (as in
+    example-robot-data's share tree, where PyBullet finds them from the original's place but
+    not from the copy's: a perturbed Go1 did not load)."""
     for element in robot.iter():
         name = element.get('filename')
-        if name and '://' not in name and not os.path.isabs(name):
+        if not name:
+            continue
+        if name.startswith('package://'):
+            package, _, rest = name[len('package://'):].partition('/')
+            for ancestor in (directory, *directory.parents):
+                if (ancestor / package / rest).is_file():
+                    element.set('filename', str(ancestor / package / rest))
+                    break
+        elif '://' not in name and not os.path.isabs(name):
             element.set('filename', str(directory / name))

@@ -111,7 +111,8 @@ class SimWorld:
                  actuator: ActuatorParams | None = None,
                  contact_stiffness: float = 0.0, contact_damping: float = 0.0,
                  joint_names: tuple[str, ...] = JOINT_NAMES,
-                 foot_frames: tuple[str, ...] = FOOT_FRAMES) -> None:
+                 foot_frames: tuple[str, ...] = FOOT_FRAMES,
+                 foot_offset: np.ndarray | None = None) -> None:
         """Build the world and spawn the robot at rest, base at x = y = 0, level.
 
         initial_joint_positions: (12,) rad in JOINT_NAMES order (None: HyQ standing pose).
@@ -123,6 +124,9 @@ class SimWorld:
         joint_names, foot_frames: the model's 12 joints (``JOINT_NAMES`` order) and 4 foot
             links (LEGS order); the defaults are the project's HyQ names, a robot file gives
             another robot's (``robot_file.RobotSpec``).
+        foot_offset: (3,) m, the centre of each foot's contact sphere in its foot frame (a
+            robot file's ``foot_contact.offset``; ANYmal's sphere sits 2.25 cm above its foot
+            frame); None: at the foot frame.
         """
         substeps = control_period / physics_dt
         if physics_dt <= 0 or substeps < 1 or abs(substeps - round(substeps)) > 1e-9:
@@ -177,6 +181,8 @@ class SimWorld:
             raise ValueError(f'{urdf_path} lacks {missing}')
         self._joints = [joints[n] for n in joint_names]
         self._feet = [links[n] for n in foot_frames]
+        self._foot_offset = (np.asarray(foot_offset, dtype=float).reshape(3)
+                             if foot_offset is not None and np.any(foot_offset) else None)
         self._foot_index = {link: k for k, link in enumerate(self._feet)}
         self._effort_limit = act.torque_limit_scale * np.array(
             [p.getJointInfo(self._robot, j)[10] for j in self._joints])
@@ -549,8 +555,12 @@ class SimWorld:
     def _touching_height(self) -> float:
         """Base height (m) putting the lowest foot sphere on the terrain below it, base level."""
         self._set_base_pose(np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
-        feet = np.array([self._p.getLinkState(self._robot, link, computeForwardKinematics=True)[4]
-                         for link in self._feet])
+        states = [self._p.getLinkState(self._robot, link, computeForwardKinematics=True)
+                  for link in self._feet]
+        feet = np.array([state[4] for state in states])
+        if self._foot_offset is not None:       # the sphere's centre, not the foot frame
+            feet += np.array([rotations.quaternion_to_matrix(np.array(state[5]))
+                              @ self._foot_offset for state in states])
         radius = np.array([self._foot_radius(link) for link in self._feet])
         # Cast with the robot far above: with the feet under the hips (Go1, ANYmal) the rays
         # would hit the robot's own legs and spawn it centimetres high.

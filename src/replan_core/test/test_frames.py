@@ -75,3 +75,32 @@ def test_compose_and_base_transform():
     assert b.rotation == (0.0, 0.0, 0.0, 1.0)
     translation, _ = compose(a, b)
     np.testing.assert_allclose(translation, [1.0, 1.0, 0.0], atol=1e-12)
+
+
+def test_another_robots_tree_hangs_below_the_project_base_frame():
+    """A robot file's model (Go1: root ``base``, Unitree joint names): its joints in the
+    project's order, its root below ``base_link`` (the frame odom names) at the identity."""
+    from replan_core.robot_file import load_robot_file
+
+    spec = load_robot_file(ROOT / 'config' / 'robots' / 'go1.yaml', ROOT)
+    go1 = LinkFrames(str(spec.urdf), spec.joints)
+    got = go1.link_transforms(spec.standing_pose)
+    assert (got[0].parent, got[0].child) == ('base_link', 'base')
+    assert got[0].translation == (0.0, 0.0, 0.0) and got[0].rotation == (0.0, 0.0, 0.0, 1.0)
+    assert go1.links[:2] == ('base_link', 'base') and go1.root_link == 'base'
+    model = RobotModel(str(spec.urdf), spec.joints, spec.feet)
+    base = BaseState(0.0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), np.zeros(3))
+    joints = JointState(0.0, spec.standing_pose, np.zeros(12), np.zeros(12))
+    feet = model.foot_positions(base, joints)
+    poses = {t.child: t for t in got}
+    for k, foot in enumerate(spec.feet):
+        chain, link = [], foot
+        while link in poses:
+            chain.append(poses[link])
+            link = poses[link].parent
+        assert link == 'base_link'
+        translation, rotation = np.zeros(3), np.eye(3)
+        for step in reversed(chain):
+            translation = translation + rotation @ np.asarray(step.translation)
+            rotation = rotation @ quaternion_to_matrix(np.asarray(step.rotation))
+        np.testing.assert_allclose(translation, feet[k], atol=1e-9, err_msg=foot)

@@ -15,6 +15,7 @@ from replan_core.robot_file import (
     RobotFileError,
     load_robot_file,
     robot_facts,
+    robot_file_path,
     robot_spec,
     srdf_standing_pose,
 )
@@ -69,6 +70,8 @@ def _doc(name='go1'):
      'is fixed, not revolute'),
     (lambda d: d['legs'].pop('lh'), 'legs', 'needs exactly the legs lf, rf, lh, rh'),
     (lambda d: d.__setitem__('root_link', 'trunkk'), 'root_link', "no link 'trunkk'"),
+    (lambda d: d.__setitem__('root_link', 'trunk'), 'root_link',
+     "'trunk' is not the root link of go1.urdf (base)"),
     (lambda d: d.__setitem__('colour', 'red'), 'colour', 'unknown key'),
     (lambda d: d['model'].__setitem__('source', 'internet'), 'model.source', "'internet'"),
     (lambda d: d['model'].__setitem__('urdf', 'go1_description/urdf/go2.urdf'), 'model.urdf',
@@ -87,6 +90,15 @@ def test_a_wrong_robot_file_stops_with_one_line_naming_file_and_key(change, key,
     message = str(error.value)
     assert message.startswith(f'robot file my_go1.yaml: {key}: ') and problem in message
     assert '\n' not in message
+
+
+def test_a_robot_is_a_name_of_config_robots_or_a_file():
+    assert robot_file_path('go1', ROOT / 'config') == ROBOTS / 'go1.yaml'
+    assert robot_file_path('/x/my_go1.yaml', ROOT / 'config') == Path('/x/my_go1.yaml')
+    for wrong in ('go2', 'scaling'):
+        with pytest.raises(RobotFileError, match=re.escape(
+                f"unknown robot '{wrong}' (known: anymal_c, b1, go1, hyq; or a robot file")):
+            robot_file_path(wrong, ROOT / 'config')
 
 
 def test_an_unreadable_robot_file_is_one_line_too(tmp_path):
@@ -127,6 +139,22 @@ def test_each_rule_scales_by_its_physics(facts):
     assert out['gait']['max_angular_z'] == pytest.approx(0.25 / math.sqrt(legs))
     assert out['mpc']['com_height'] == pytest.approx(go1.com_height)
     assert out['mpc']['com_height'] == pytest.approx(0.255, abs=0.005)
+
+
+def test_torques_stiffness_damping_and_lists_scale_too(facts):
+    hyq, go1 = facts['hyq'], facts['go1']
+    rules = {'rules': {'torque': ['wbc.stand_up_kp'], 'stiffness': ['wbc.swing_kp'],
+                       'damping': ['wbc.swing_kd'], 'length': ['sim.payload_offset']}}
+    values = {'wbc': {'stand_up_kp': 400.0, 'swing_kp': [1500.0] * 3, 'swing_kd': [50.0] * 3},
+              'sim': {'payload_offset': [0.1, 0.05, 0.05]}}
+    out = derived_parameters(go1, hyq, values, rules)
+    mass, legs = go1.mass / hyq.mass, go1.leg_length / hyq.leg_length
+    assert out['wbc']['stand_up_kp'] == pytest.approx(400.0 * mass * legs)
+    assert out['wbc']['swing_kp'] == pytest.approx([1500.0 * mass / legs] * 3)
+    assert out['wbc']['swing_kd'] == pytest.approx([50.0 * mass / math.sqrt(legs)] * 3)
+    assert out['sim']['payload_offset'] == pytest.approx([0.1 * legs, 0.05 * legs, 0.05 * legs])
+    # The reference gets its lists back exactly.
+    assert derived_parameters(hyq, hyq, values, rules, measure=False) == values
 
 
 def test_derived_joint_damping_stays_below_what_250_hz_can_apply(facts):

@@ -114,3 +114,31 @@ def test_bad_arguments(tmp_path):
     with pytest.raises(ValueError):
         perturbed_urdf(URDF, payload_mass=1.0, payload_offset=(0.0, np.nan, 0.0),
                        out_dir=str(tmp_path))
+
+
+def test_another_robots_trunk_is_its_root_and_the_links_fixed_to_it(tmp_path):
+    """Go1: the payload hangs on its root ``base``; the trunk (``trunk``, rotors, sensors,
+    fixed to ``base``) keeps its masses, only the legs' are off."""
+    from replan_core.robot_file import load_robot_file
+
+    root = Path(__file__).resolve().parents[3]
+    spec = load_robot_file(root / 'config' / 'robots' / 'go1.yaml', root)
+    path = perturbed_urdf(str(spec.urdf), payload_mass=0.75, payload_offset=OFFSET,
+                          leg_mass_error=0.1, seed=0, out_dir=str(tmp_path), base_link='base')
+    nominal, variant = inertials(str(spec.urdf)), inertials(path)
+    joint = next(j for j in ET.parse(path).getroot().findall('joint')
+                 if j.find('child').get('link') == PAYLOAD_LINK)
+    assert joint.find('parent').get('link') == 'base'
+    for name in ('trunk', 'FL_hip_rotor', 'imu_link'):
+        assert variant[name][0] == nominal[name][0], name
+    changed = {n for n in nominal if variant[n][0] != nominal[n][0]}
+    assert {'FL_thigh', 'RR_calf'} <= changed and 'trunk' not in changed
+    with pytest.raises(ValueError, match='has no link base_link'):
+        perturbed_urdf(str(spec.urdf), payload_mass=1.0, out_dir=str(tmp_path))
+    # Its meshes (package://example-robot-data/...) are found from the copy's place too:
+    # PyBullet refused the copy before.
+    meshes = [e.get('filename') for e in ET.parse(path).getroot().iter('mesh')]
+    assert meshes and all(Path(m).is_file() for m in meshes)
+    world = SimWorld(path, joint_names=spec.joints, foot_frames=spec.feet,
+                     initial_joint_positions=spec.standing_pose)
+    world.close()

@@ -83,20 +83,26 @@ def test_spawn_standing_feet_touching(world_factory):
 
 @pytest.mark.parametrize('name', ['anymal_c', 'go1', 'b1'])
 def test_any_robot_file_spawns_standing_with_its_feet_touching(name):
-    """Another robot, from its robot file (its own joint and foot names, its standing pose):
-    spawned with the lowest foot sphere on the ground. The spawn's ray casts must miss the
-    robot's own legs (feet under the hips): before, they hit them and Go1 spawned high."""
-    from replan_core.robot_file import load_robot_file
+    """Another robot, from its robot file (its own joint and foot names, its standing pose,
+    its contact sphere): spawned with the lowest point of the lowest foot sphere on the
+    ground, at the standing height the model gives (robot_facts). The spawn's ray casts must
+    miss the robot's own legs (feet under the hips): before, they hit them and Go1 spawned
+    high; and ANYmal's sphere sits 2.25 cm above its foot frame: taken for the frame, ANYmal
+    spawned 2.1 cm high and dropped."""
+    from replan_core.robot_file import load_robot_file, robot_facts
     root = Path(__file__).resolve().parents[3]
     spec = load_robot_file(root / 'config' / 'robots' / f'{name}.yaml', root)
     w = SimWorld(str(spec.urdf), joint_names=spec.joints, foot_frames=spec.feet,
-                 initial_joint_positions=spec.standing_pose)
+                 initial_joint_positions=spec.standing_pose, foot_offset=spec.foot_offset)
     try:
         c = w.contact_state()
         radius = np.array([w._foot_radius(link) for link in w._feet])
-        # The foot frames are the sphere centres in these models (robot files: offset 0).
-        assert min(c.foot_position[:, 2] - radius) == pytest.approx(0.0, abs=1e-6)
-        assert w.base_state().position[2] > 0.2
+        np.testing.assert_allclose(radius, spec.foot_radius)        # the file says the URDF's
+        # The sphere centre is about the offset above the frame (which tilts with the shank).
+        sole = c.foot_position[:, 2] + spec.foot_offset[2] - radius
+        assert min(sole) == pytest.approx(0.0, abs=3e-3)
+        assert w.base_state().position[2] == pytest.approx(
+            robot_facts(spec).standing_height, abs=1e-4)
     finally:
         w.close()
 

@@ -1,12 +1,14 @@
 """Run a scripted scenario headless and write the bag, metrics.json and plots.
 
-    scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--quiet] [--repeat N]
+    scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--quiet] [--repeat N] [--robot NAME|FILE]
 
 A scenario file (see config/scenarios/ and docs/usage.md, "Scenarios"):
 
     name: forward                       # optional, for the summary
     duration: 20.0                      # s of sim time
     profile: realistic                  # optional: realistic (default) | ideal | a YAML file
+    robot: hyq                          # optional: a name of config/robots/ (default hyq) or
+                                        #   a robot file (docs/robot_files.md)
     terrain: flat                       # flat | step_up | step_down | rough, or a mapping
                                         #   {type: step_up, <sim terrain parameters>};
                                         #   the only place for the terrain (a terrain key
@@ -42,9 +44,21 @@ from pathlib import Path
 import yaml
 from geometry_msgs.msg import TwistStamped
 
+from replan_core.metrics import FallLimits
 from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
-from replan_ros.launch.launch_graph import add_live_option, check_live_port, live_argv
-from replan_ros.launch.param_files import DEFAULT_PROFILE, check_run_files, profile_file
+from replan_ros.launch.launch_graph import (
+    add_live_option,
+    add_robot_option,
+    check_live_port,
+    live_argv,
+)
+from replan_ros.launch.param_files import (
+    DEFAULT_PROFILE,
+    DEFAULT_ROBOT,
+    check_run_files,
+    profile_file,
+    robot_parameters,
+)
 from replan_ros.launch.progress import ProgressLine
 from replan_ros.launch.watch import ScheduledInputs
 from replan_ros.messages.stamps import sec_to_ns, sec_to_stamp, stamp_to_sec
@@ -59,8 +73,8 @@ from replan_ros.tools.rerun import (
 )
 
 NODE_NAMES = ('sim', 'gait', 'mpc', 'wbc', 'recorder')
-TOP_KEYS = {'name', 'description', 'duration', 'profile', 'terrain', 'params', 'events',
-            'fall_limits'}
+TOP_KEYS = {'name', 'description', 'duration', 'profile', 'robot', 'terrain', 'params',
+            'events', 'fall_limits'}
 
 
 class ScenarioError(ValueError):
@@ -78,6 +92,7 @@ class Scenario:
         default_factory=list)
     fall_limits: dict = field(default_factory=dict)
     profile: str = DEFAULT_PROFILE
+    robot: str = DEFAULT_ROBOT        # a name of config/robots/ or a robot file
     source_text: str = ''
     source: str = '<scenario>'
     terrain_given: bool = False       # the file has a top-level terrain (else: flat)
@@ -122,9 +137,12 @@ def parse_scenario(text: str, source: str = '<scenario>') -> Scenario:
     profile = doc.get('profile', DEFAULT_PROFILE)
     if not isinstance(profile, str) or not profile:
         raise ScenarioError(f'{source}: profile must be a profile name or a YAML file')
+    robot = doc.get('robot', DEFAULT_ROBOT)
+    if not isinstance(robot, str) or not robot:
+        raise ScenarioError(f'{source}: robot must be a robot name or a robot file')
     scenario = Scenario(name=str(doc.get('name', Path(source).stem)), duration=float(duration),
                         terrain=terrain, params=params, fall_limits=doc.get('fall_limits') or {},
-                        profile=profile, source_text=text, source=source,
+                        profile=profile, robot=robot, source_text=text, source=source,
                         terrain_given='terrain' in doc)
     for i, event in enumerate(doc.get('events') or []):
         where = f'{source}: events[{i}]'
@@ -199,7 +217,9 @@ def check_scenario(scenario: Scenario, config_dir: Path, extra_param_files=()) -
                               f'of {scenario.source}; {hint}')
     doc = params_document(scenario)
     terrain = {k: v for k, v in doc['sim']['ros__parameters'].items() if k.startswith('terrain')}
-    sources = [profile_file(config_dir, scenario.profile),
+    profile = profile_file(config_dir, scenario.profile)
+    robot = robot_parameters(config_dir, scenario.robot, profile)
+    sources = [profile, robot.derived, robot.overrides,
                Source(f'{scenario.source} (params)', scenario.params),
                Source(f'{scenario.source} (terrain)', {'sim': terrain}),
                *extra_param_files]
@@ -243,7 +263,8 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                   param_files=[params_file, *extra_param_files], record_dir=bag_dir,
                   gui=gui, respawn=False,
                   extra_params={'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}},
-                  log=log, live_port=live_port, stop_time=scenario.duration)
+                  log=log, live_port=live_port, stop_time=scenario.duration,
+                  robot=scenario.robot)
     inputs = scenario_inputs(scenario)
 
     def publish_events(node) -> list:
@@ -257,8 +278,14 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                      wall_timeout=max(300.0, 20.0 * scenario.duration), on_start=publish_events,
                      progress=progress, event_times=event_times)
     wall = time.monotonic() - wall_start
+    if graph.robot_layer is not None and 'min_height' not in scenario.fall_limits:
+        # The fall height is the reference robot's scaled by standing height: HyQ's 0.30 m
+        # would count a standing Go1 (0.27 m) as fallen.
+        scenario.fall_limits = {**scenario.fall_limits, 'min_height':
+                                FallLimits().min_height * graph.robot_layer.height_ratio}
     metrics = analyse_run(bag_dir, scenario, out_dir, launch_exit_code=code,
                           dead_nodes=graph.failed, wall_time_total=wall, plots=plots)
+    metrics['robot'] = graph.robot
     metrics['launcher_real_time_factor'] = graph.real_time_factor
     metrics['peak_memory_mb'] = {k: round(v, 1) for k, v in graph.peak_memory_mb.items()}
     metrics['peak_memory_total_mb'] = round(sum(graph.peak_memory_mb.values()), 1)
@@ -293,6 +320,7 @@ def main(argv=None) -> int:
                              'the first: base trajectory and every message of the run\'s state '
                              'and decisions, byte for byte (rerun.EXACT_TOPICS); exit 0 only if '
                              'all are bit-identical')
+    add_robot_option(parser, default=None)
     add_live_option(parser)
     args = parser.parse_args(live_argv(argv))
     check_live_port(parser, args.live)
@@ -308,6 +336,8 @@ def main(argv=None) -> int:
         scenario = load_scenario(args.scenario)
         if args.profile:
             scenario.profile = args.profile
+        if args.robot:
+            scenario.robot = args.robot
         profile_file(config_dir, scenario.profile)
         check_scenario(scenario, config_dir, args.params)
     except ConfigError as err:
@@ -319,7 +349,7 @@ def main(argv=None) -> int:
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'{scenario.name}-{time.strftime("%Y%m%d-%H%M%S")}'
     print(f'[scenario] {scenario.name}: {scenario.duration} s of sim time, profile '
-          f'{scenario.profile}, output in {out}')
+          f'{scenario.profile}, robot {scenario.robot}, output in {out}')
     outs = [out] if args.repeat == 1 else [out / f'run-{k}' for k in range(1, args.repeat + 1)]
     completed = True
     for run_out in outs:

@@ -18,7 +18,12 @@ from pathlib import Path
 from ament_index_python.packages import get_package_prefix
 from rclpy.duration import Duration as RclpyDuration
 
-from replan_ros.launch.param_files import DEFAULT_PROFILE, check_run_files, profile_file
+from replan_ros.launch.param_files import (
+    DEFAULT_PROFILE,
+    check_run_files,
+    profile_file,
+    robot_parameters,
+)
 from replan_ros.launch.progress import ProgressLine, RunProgress
 from replan_ros.launch.watch import ClockWatch
 from replan_ros.transport.on_demand import helper_name
@@ -110,9 +115,13 @@ class Graph:
                  record_dir: Path | None = None, gui: bool = False, respawn: bool = True,
                  extra_params: dict[str, dict[str, str]] | None = None,
                  env: dict[str, str] | None = None, log=print,
-                 live_port: int | None = None, stop_time: float | None = None) -> None:
+                 live_port: int | None = None, stop_time: float | None = None,
+                 robot: str | None = None) -> None:
         """ConfigError (nothing started, nothing written) when a parameter file of the run
-        does not pass ``params.check_run``. With ``live_port`` the live view
+        does not pass ``params.check_run``, or the ``robot`` (a name of config/robots/ or a
+        robot file; None: the files hold one already, or the nodes' HyQ defaults) cannot be
+        used. The robot's parameters (``run_dir/robot.yaml``) come after the profile and
+        before the user's files. With ``live_port`` the live view
         (``replan_ros.view.live_view``, a Foxglove WebSocket on that port) runs with the graph.
         ``stop_time`` (sim s, a run's duration): the sim steps no further than the first tick
         at or after it, so the run ends at the same tick every time."""
@@ -120,12 +129,21 @@ class Graph:
         if stop_time is not None:
             sim = {**extra_params.get('sim', {}), 'stop_time': repr(float(stop_time))}
             extra_params = {**extra_params, 'sim': sim}
-        if profile is not None:
-            param_files = [profile_file(config_dir, profile), *param_files]
-        self.resolved = check_run_files(config_dir, param_files, extra_params)
+        profile_path = profile_file(config_dir, profile) if profile is not None else None
+        layer = (robot_parameters(config_dir, robot, profile_path) if robot is not None
+                 else None)
+        self.robot = layer.name if layer is not None else None
+        self.robot_layer = layer
+        first = [profile_path] if profile_path is not None else []
+        robot_sources = [layer.derived, layer.overrides] if layer is not None else []
+        self.resolved = check_run_files(config_dir, [*first, *robot_sources, *param_files],
+                                        extra_params)
         self.run_dir = run_dir
         self.log_dir = run_dir / 'logs'
         self.log_dir.mkdir(parents=True, exist_ok=True)
+        if layer is not None:
+            first.append(layer.write(run_dir / 'robot.yaml'))
+        param_files = [*first, *param_files]
         self.env = dict(env or os.environ)
         self.env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
         self.env['PYTHONUNBUFFERED'] = '1'

@@ -7,8 +7,9 @@ the profile, ``--params``) is checked against the nodes' parameter tables
 of range or not among the choices, or two nodes that disagree (``wbc.control_rate`` and
 ``sim.control_period``; ``sim.command_timeout`` must exceed ``wbc.plan_timeout``) stops the
 start with one line, e.g. ``config error: /tmp/x.yaml: gait.replan_window = 0 is out of range
-[1, 8]``. Each node is its own process (own process group) with its log in the run folder. A
-node that dies is reported (which, when, exit code) and started again after a back-off of 1 s,
+[1, 8]``; so does an unknown ``--robot`` or a robot file whose names do not match its model.
+Each node is its own process (own process group) with its log in the run folder. A node that
+dies is reported (which, when, exit code) and started again after a back-off of 1 s,
 2 s, 4 s ...; a node that dies 3 times within 30 s stops the graph and its last 20 log lines
 are printed. With ``--no-respawn`` the first death stops the rest. Ctrl-C, SIGTERM or the
 sim-time ``--duration`` stop everything cleanly (SIGINT, then SIGKILL after a timeout).
@@ -33,12 +34,21 @@ import sys
 from pathlib import Path
 
 from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
-from replan_ros.launch.param_files import DEFAULT_PROFILE, PROFILES, profile_file
+from replan_ros.launch.param_files import DEFAULT_PROFILE, DEFAULT_ROBOT, PROFILES, profile_file
 from replan_ros.launch.progress import ProgressLine
 from replan_ros.params import ConfigError
 
 LIVE_DEFAULT_PORT = 8765       # Foxglove's default WebSocket port
 LIVE_HOST = '127.0.0.1'        # config/live_view.yaml's host: this machine only (ssh -L)
+
+
+def add_robot_option(parser: argparse.ArgumentParser, default: str | None = DEFAULT_ROBOT,
+                     ) -> None:
+    """``--robot NAME|FILE``, shared by launch.sh and scenario.sh."""
+    parser.add_argument('--robot', default=default, metavar='NAME|FILE',
+                        help='the robot: a name of config/robots/ (hyq, anymal_c, go1, b1) or '
+                             'a robot file (docs/robot_files.md); its parameters are derived '
+                             f'from the reference robot\'s (default {DEFAULT_ROBOT})')
 
 
 def add_live_option(parser: argparse.ArgumentParser) -> None:
@@ -105,6 +115,7 @@ def main(argv=None) -> int:
     parser.add_argument('--quiet', action='store_true',
                         help='no progress line (sim time, real-time factor, distance, '
                              're-plans) while the graph runs')
+    add_robot_option(parser)
     add_live_option(parser)
     args = parser.parse_args(live_argv(argv))
     for path in args.params:
@@ -121,12 +132,12 @@ def main(argv=None) -> int:
         graph = Graph(run_dir, config_dir=args.config_dir, param_files=args.params,
                       profile=args.profile, record_dir=args.record, gui=args.gui,
                       respawn=not args.no_respawn, live_port=args.live,
-                      stop_time=args.duration)
+                      stop_time=args.duration, robot=args.robot)
     except ConfigError as err:
         print(f'config error: {err}', file=sys.stderr)
         return EXIT_CONFIG
     print(f'[launch] run folder {run_dir} (domain {os.environ.get("ROS_DOMAIN_ID", "0")}), '
-          f'profile {args.profile}')
+          f'profile {args.profile}, robot {graph.robot}')
     if args.live is not None:
         print(f'[launch] live view: open ws://localhost:{args.live} in Foxglove or Lichtblick '
               '(layout config/foxglove/replan.json)')

@@ -1,15 +1,17 @@
-"""The parameter files of a run: the world profile's file (``profile_file``) and the check of
-every file of the run against the nodes' parameter tables before anything starts
-(``check_run_files``)."""
+"""The parameter files of a run: the world profile's file (``profile_file``), the robot's
+parameters (``robot_parameters``) and the check of every file of the run against the nodes'
+parameter tables before anything starts (``check_run_files``)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from replan_ros.params import TABLES, Source, check_run, load_param_file, load_yaml
+from replan_ros.params.robot import RobotLayer, project_root, robot_layer
 
 PROFILES = ('realistic', 'ideal')
 DEFAULT_PROFILE = 'realistic'
+DEFAULT_ROBOT = 'hyq'
 
 
 def profile_file(config_dir: Path, profile: str) -> Path:
@@ -43,3 +45,12 @@ def check_run_files(config_dir: Path, param_files, extra_params=None):
         sources.append(Source('command line (-p)', {
             name: {key: load_yaml(str(text)) for key, text in values.items()}}, nodes=(name,)))
     return check_run(sources, TABLES)
+
+
+def robot_parameters(config_dir: Path, robot: str, profile: Path | None) -> RobotLayer:
+    """The parameters of ``robot`` (a name of ``config/robots/`` or a robot file) for a run in
+    ``profile``: derived from the reference robot's values of the node files and the profile
+    (docs/robot_files.md, "Scaling rules"). ConfigError (one line) for an unknown robot or a
+    robot file whose names do not match its model."""
+    reference = check_run_files(config_dir, [profile] if profile is not None else [])
+    return robot_layer(robot, config_dir, project_root(), reference.values)

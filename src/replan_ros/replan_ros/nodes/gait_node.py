@@ -44,7 +44,7 @@ from replan_ros.messages.contacts import contacts_from_cdr
 from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.stamps import ns_to_stamp, sec_to_stamp, stamp_to_ns
-from replan_ros.nodes.node_main import log_at, run_node
+from replan_ros.nodes.node_main import load_node_robot, log_at, run_node
 from replan_ros.params import declare_node_parameters, gait_params
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.on_demand import OnDemandSubscriptions
@@ -80,7 +80,7 @@ class GaitNode(Node):
         self.warn_period = float(p['warn_period'])
         self.contacts_wait_warn = float(p['contacts_wait_warn'])    # wall s
         self._started = time.monotonic()
-        self.model = self._robot_model(p['urdf_path'])
+        self.model = self._robot_model(p)
 
         self.footholds_pub = self.create_publisher(PointCloud2, 'footholds', LATCHED,
                                                    event_callbacks=INTERNAL_PUB_EVENTS)
@@ -143,14 +143,15 @@ class GaitNode(Node):
             self.get_logger().fatal(f'config error: gait: {err}')
             raise SystemExit(2) from None
 
-    def _robot_model(self, urdf_path: str):
-        path = urdf_path or os.environ.get('REPLAN_URDF', '')
+    def _robot_model(self, p):
+        robot = load_node_robot(self, p, os.environ.get('REPLAN_URDF', ''))
+        path = robot.urdf
         if not path:
             self.get_logger().warn('no urdf_path and no $REPLAN_URDF: hips from the nominal '
                                    'HyQ offsets')
             return None
         try:
-            model = RobotModel(path)
+            model = RobotModel(path, robot.joints, robot.feet)
         except Exception as err:   # any load error: fall back to the nominal hips, keep running
             self.get_logger().error(f'cannot load {path} ({err}): hips from the nominal HyQ '
                                     'offsets')

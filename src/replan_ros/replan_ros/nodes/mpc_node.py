@@ -48,7 +48,7 @@ from replan_ros.messages.joint_state import joint_state_from_msg
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.path import encode_path
 from replan_ros.messages.stamps import sec_to_ns, sec_to_stamp, stamp_to_ns
-from replan_ros.nodes.node_main import run_node
+from replan_ros.nodes.node_main import load_node_robot, run_node
 from replan_ros.params import declare_node_parameters, mpc_settings
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.on_demand import OnDemandSubscriptions
@@ -73,7 +73,7 @@ class MpcNode(Node):
         super().__init__('mpc')
         p = declare_node_parameters(self, 'mpc', on_change=self._on_parameter_change)
         self.settings = self._settings(p)
-        self.model = self._robot_model(str(p['urdf_path']))
+        self.model = self._robot_model(p)
         self.mpc = LipMpc(self.settings)                       # QP built once, here
         self.state_buffer = max(int(p['state_buffer']), 2)
         self.state_wait = max(float(p['state_wait']), 0.0)
@@ -132,10 +132,11 @@ class MpcNode(Node):
             self.get_logger().fatal(f'config error: mpc: {err}')
             raise SystemExit(2) from None
 
-    def _robot_model(self, urdf_path: str) -> RobotModel:
-        path = urdf_path or os.environ.get('REPLAN_URDF', '')
+    def _robot_model(self, p) -> RobotModel:
+        robot = load_node_robot(self, p, os.environ.get('REPLAN_URDF', ''))
+        path = robot.urdf
         try:
-            return RobotModel(path)
+            return RobotModel(path, robot.joints, robot.feet)
         except Exception as err:   # any load error: without a model there is no CoM to plan
             # from; exit non-zero so that the launcher reports it (and respawns, up to a limit)
             self.get_logger().fatal(f'cannot load the URDF {path!r} ({err}): exiting')

@@ -13,6 +13,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from replan_ros.params import ConfigError
+from replan_ros.params.robot import NodeRobot, node_robot
+
 
 def log_at(logger, level: str, text: str) -> None:
     """``text`` at ``level`` ('debug', 'info', 'warning' or 'error'), one call site per
@@ -29,6 +32,17 @@ def log_at(logger, level: str, text: str) -> None:
         logger.error(text)
     else:
         raise ValueError(f'unknown log level {level!r}')
+
+
+def load_node_robot(node: Node, p: dict, default_urdf: str = '') -> NodeRobot:
+    """The model and names of the node's ``robot_file`` / ``urdf_path`` parameters
+    (params.robot.node_robot); a robot file that cannot be used is one ``config error:`` line
+    and exit code 2, as a bad parameter."""
+    try:
+        return node_robot(str(p['robot_file']), str(p['urdf_path']), default_urdf)
+    except ConfigError as err:
+        node.get_logger().fatal(f'config error: {err}')
+        raise SystemExit(2) from None
 
 
 DRAIN_QUIET = 0.3     # s without anything drained: done

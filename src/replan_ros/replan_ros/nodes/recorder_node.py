@@ -48,6 +48,7 @@ from replan_ros.messages.introspection import message_class
 from replan_ros.messages.stamps import ns_to_stamp
 from replan_ros.nodes.node_main import run_node
 from replan_ros.params import declare_node_parameters
+from replan_ros.params.robot import node_robot
 from replan_ros.recording.bag_io import (
     BagWriter,
     has_header,
@@ -106,6 +107,7 @@ class RecorderNode(Node):
         self._queue_depth = int(p['queue_depth'])
         self._publish_time = p['publish_time']
         self._log_time_clock = p['log_time_clock']
+        self._robot_file = str(p['robot_file'])
         self._sim_ns = 0                # the newest /clock taken (ns of sim time), 0 before it
 
         self.path = bag_path(p['output'] or p['output_dir'])
@@ -292,8 +294,9 @@ class RecorderNode(Node):
         if not any(self._selected(t) for t in DERIVED_TOPICS):
             return None
         try:
-            view = StateView()
-        except (OSError, ValueError, RuntimeError) as err:
+            robot = node_robot(self._robot_file, '', '')     # the robot file's model, names
+            view = StateView(robot.urdf or None, joint_names=robot.joints)
+        except (OSError, ValueError, RuntimeError) as err:   # ConfigError is a ValueError
             self.get_logger().error(f'no /tf nor /robot_description in the bag: {err}')
             return None
         self._write_derived([view.description()], 0)

@@ -47,7 +47,7 @@ from replan_core.types import JOINT_NAMES
 from replan_ros.messages.joint_state import torque_command_from_cdr
 from replan_ros.messages.stamps import ns_to_stamp, sec_to_ns
 from replan_ros.messages.wrench import wrench_from_msg, wrench_to_msg
-from replan_ros.nodes.node_main import log_at, run_node
+from replan_ros.nodes.node_main import load_node_robot, log_at, run_node
 from replan_ros.nodes.sim_outputs import TickOutputs
 from replan_ros.params import (
     actuator_params,
@@ -80,7 +80,9 @@ class SimNode(Node):
         super().__init__('sim')
         # Declared from params.SIM (defaults, units, ranges); a bad value exits with 2.
         p = declare_node_parameters(self, 'sim', on_change=self._on_parameter_change)
-        urdf = p['urdf_path'] or _default_urdf()
+        # The robot file's model; its names map to the project's (topics keep those).
+        robot = load_node_robot(self, p, _default_urdf())
+        urdf = robot.urdf
         terrain_params = {
             'step_x': p['terrain_step_x'], 'step_height': p['terrain_step_height'],
             'step_length': p['terrain_step_length'], 'width': p['terrain_width'],
@@ -96,7 +98,8 @@ class SimNode(Node):
             # The simulated robot: the model, or a copy with a payload and leg mass errors.
             urdf = perturbed_urdf(urdf, payload_mass=p['payload_mass'],
                                   payload_offset=np.array(p['payload_offset'], dtype=float),
-                                  leg_mass_error=p['leg_mass_error'], seed=p['noise_seed'])
+                                  leg_mass_error=p['leg_mass_error'], seed=p['noise_seed'],
+                                  base_link=robot.root_link)
             self.world = SimWorld(
                 urdf, physics_dt=p['physics_dt'], control_period=p['control_period'],
                 actuator=actuator, contact_stiffness=p['contact_stiffness'],
@@ -105,7 +108,9 @@ class SimNode(Node):
                 initial_base_height=p['initial_base_height'] or None,
                 terrain=p['terrain'], terrain_params=terrain_params,
                 contact_threshold=p['contact_threshold'], debounce_ticks=p['debounce_ticks'],
-                friction=p['friction'], gui=p['gui'], seed=p['seed'])
+                friction=p['friction'], gui=p['gui'], seed=p['seed'],
+                joint_names=robot.joints, foot_frames=robot.feet,
+                foot_offset=robot.spec.foot_offset if robot.spec is not None else None)
         except Exception as err:   # a missing or malformed URDF (PyBullet, XML, OS errors)
             self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')
             raise SystemExit(1) from None

@@ -36,7 +36,7 @@ from replan_ros.messages.contacts import encode_contact_events
 from replan_ros.messages.footholds import footholds_from_msg
 from replan_ros.messages.joint_state import encode_torque_command, joint_state_from_cdr
 from replan_ros.messages.stamps import ns_to_sec, ns_to_stamp, stamp_to_ns
-from replan_ros.nodes.node_main import log_at, run_node
+from replan_ros.nodes.node_main import load_node_robot, log_at, run_node
 from replan_ros.nodes.wbc_inputs import TickInputs
 from replan_ros.params import (
     declare_node_parameters,
@@ -81,10 +81,12 @@ class WbcNode(Node):
                                         p['first_command_waits_for'],
                                         float(p['first_command_wait_timeout']))
 
-        urdf = p['urdf_path'] or os.environ.get('REPLAN_URDF') or str(
-            Path(__file__).resolve().parents[4] / 'urdf' / 'hyq.urdf')
+        # The robot file's model; its names map to the project's (topics keep those).
+        robot = load_node_robot(self, p, os.environ.get('REPLAN_URDF') or str(
+            Path(__file__).resolve().parents[4] / 'urdf' / 'hyq.urdf'))
+        urdf = robot.urdf
         try:
-            self.robot = RobotModel(urdf)
+            self.robot = RobotModel(urdf, robot.joints, robot.feet)
         except Exception as err:   # any load error: without a model there is nothing to control
             # with; exit non-zero so that the launcher reports it (and respawns, up to a limit)
             self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')

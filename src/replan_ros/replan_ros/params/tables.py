@@ -37,12 +37,18 @@ STANDING_POSE = (-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.
 _ACT = {'time_constant': 0.0, 'delay': 0.0, 'viscous_damping': 0.0,
         'coulomb_friction': 0.0, 'torque_limit_scale': 1.0}
 _URDF = "robot URDF; '' = $REPLAN_URDF, else <repo>/urdf/hyq.urdf"
+_ROBOT_FILE = _p(
+    'robot_file', '', "robot file (docs/robot_files.md): a name of config/robots/ (go1) or a "
+    "path; its model, and its joint and foot names mapped to the project's on the topics "
+    "(a urdf_path replaces its model, same names); '' = urdf_path with the project's names. "
+    'The launcher sets it (--robot), with the parameters derived for the robot')
 
 
 def _gait_table() -> tuple[ParamSpec, ...]:
     from replan_core.gait import GaitParams  # lazy: see _LazyTables
     _G = GaitParams()
     return (
+        _ROBOT_FILE,
         _p('urdf_path', '', "robot URDF for the hip positions; '' = $REPLAN_URDF"),
         _p('swing_duration', _G.swing_duration, 'duration of one swing', 's', min=0.05, max=5.0),
         _p('four_feet_duration', _G.four_feet_duration, 'four feet on the ground before each swing',
@@ -117,6 +123,7 @@ def _mpc_table() -> tuple[ParamSpec, ...]:
     from replan_core.mpc import MpcSettings  # lazy: see _LazyTables
     _M = MpcSettings()
     return (
+        _ROBOT_FILE,
         _p('urdf_path', '', "robot URDF for the CoM (pinocchio); '' = $REPLAN_URDF"),
         _p('dt', _M.dt, 'sampling = constant-jerk interval of the plan', 's', min=0.005, max=0.5),
         _p('horizon', _M.horizon, 'planning horizon (paper: 8 s)', 's', min=0.1, max=30.0),
@@ -187,6 +194,7 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
     from replan_core.tick_protocol import ProtocolParams  # lazy, as WbcParams
     _P = ProtocolParams()   # one default each: the protocol's dataclass
     return (
+        _ROBOT_FILE,
         _p('urdf_path', '', _URDF),
         _p('control_rate', _P.control_rate,
            'the sim control tick rate, 1 / sim.control_period: stale-input '
@@ -282,6 +290,7 @@ def _wbc_table() -> tuple[ParamSpec, ...]:
 
 
 SIM = (
+    _ROBOT_FILE,
     _p('urdf_path', '', _URDF),
     _p('physics_dt', 0.001, 'physics step', 's', min=1e-5, max=0.01),
     _p('control_period', 0.004, 'control tick (a multiple of physics_dt)', 's', min=1e-4,
@@ -394,6 +403,7 @@ RECORDER = (
     _p('metadata_json', '', 'JSON object of extra key/values stored in the bag',
        syntax='json_object'),
     _p('diagnostics_period', 1.0, '/diagnostics status period', 's', min=0.01, max=3600.0),
+    _ROBOT_FILE,        # the robot the bag's /tf and /robot_description draw
 )
 
 # The live view (live_view.py): the graph over a Foxglove WebSocket, off the critical path.
@@ -412,6 +422,7 @@ LIVE_VIEW = (
        '(Foxglove Teleop panel)', kind='str[]'),
     _p('queue_size', 500, 'frames queued per viewer before the oldest are dropped', 'frames',
        min=1, max=1_000_000),
+    _ROBOT_FILE,
     _p('urdf_path', '', _URDF),
 )
 

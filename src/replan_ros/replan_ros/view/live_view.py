@@ -38,7 +38,7 @@ from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
 from replan_ros.messages.introspection import message_class
-from replan_ros.nodes.node_main import run_node
+from replan_ros.nodes.node_main import load_node_robot, run_node
 from replan_ros.params import declare_node_parameters
 from replan_ros.recording.bag_io import has_header, message_definition, normalize_type_name
 from replan_ros.transport import qos
@@ -113,8 +113,9 @@ class LiveViewNode(Node):
         self._wanted_ids: set[int] = set()
         self._derived_wanted = False
         self._now_ns = 0                 # newest sim time seen (stamps, /clock)
-        self.view = StateView(p['urdf_path'] or None, period=p['view_period'],
-                              force_scale=p['force_scale'])
+        robot = load_node_robot(self, p, '')       # the robot file's model and names
+        self.view = StateView(robot.urdf or None, period=p['view_period'],
+                              force_scale=p['force_scale'], joint_names=robot.joints)
         self._description_pub = self.create_publisher(String, 'robot_description', qos.LATCHED)
         self._description_pub.publish(String(data=self.view.urdf))
         # Created here, not when a viewer advertises: the server thread never creates entities.

@@ -186,10 +186,14 @@ class StateView:
     """Feed it the serialized messages of ``INPUT_TOPICS``; it returns the derived ones."""
 
     def __init__(self, urdf_path: str | None = None, *, period: float = 0.04,
-                 force_scale: float = 0.001, min_normal_force: float = 1.0) -> None:
+                 force_scale: float = 0.001, min_normal_force: float = 1.0,
+                 joint_names: tuple[str, ...] | None = None) -> None:
+        """joint_names: the model's joints in the project's order (a robot file's; None: the
+        project's HyQ names)."""
         self.urdf_path = urdf_path or default_urdf_path()
         self.urdf = Path(self.urdf_path).read_text()
-        self.frames = LinkFrames(self.urdf_path)
+        self.frames = (LinkFrames(self.urdf_path) if joint_names is None
+                       else LinkFrames(self.urdf_path, tuple(joint_names)))
         self.period_ns = round(period * 1e9)
         self.force_scale = float(force_scale)
         self.min_normal_force = float(min_normal_force)

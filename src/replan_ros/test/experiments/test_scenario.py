@@ -31,8 +31,14 @@ def test_params_document_carries_terrain_and_overrides():
     assert doc['sim']['ros__parameters'] == {'terrain': 'step_up', 'terrain_height': 0.05}
 
 
+def test_a_scenario_names_its_robot_default_hyq():
+    assert parse_scenario('duration: 5\n').robot == 'hyq'
+    assert parse_scenario('duration: 5\nrobot: go1\n').robot == 'go1'
+
+
 @pytest.mark.parametrize('text, message', [
     ('duration: [1, 2', 'not valid YAML'),
+    ('duration: 5\nrobot: [go1]\n', 'robot must be a robot name or a robot file'),
     ('- 1\n- 2\n', 'top level must be a mapping'),
     ('duration: 5\nspeed: 3\n', 'unknown keys'),
     ('duration: -1\n', 'duration'),
