@@ -107,7 +107,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
                      'launch_exit_code': launch_exit_code,
                      'dead_nodes': list(dead_nodes), 'bag': str(bag)}
     truth_topic = TRUTH_TOPIC if data.get(TRUTH_TOPIC) else '/odom'
-    odom = _first_per_stamp(base_state_from_odom(m) for _, m in data.get(truth_topic, []))
+    odom = first_per_stamp(base_state_from_odom(m) for _, m in data.get(truth_topic, []))
     clock = data.get('/clock', [])
     if not odom or len(clock) < 2:
         metrics.update(completed=False, fell=None,
@@ -171,7 +171,7 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
         read_errors=[e for _, e in data.get('_errors', [])])
     estimate = (_estimate_against_truth(data, odom) if truth_topic == TRUTH_TOPIC else None)
     metrics['estimator'] = estimate[0] if estimate else None
-    contacts = _true_contacts(data)
+    contacts = true_contacts(data)
     balance = _measured_balance(data, contacts, times, rpy, estimate[1] if estimate else None)
     metrics.update(balance[0])
     _add_response_metrics(metrics, contacts, balance[1].get('touchdowns', np.zeros(0)), times,
@@ -218,7 +218,7 @@ def replan_wall_latency(data) -> dict | None:
                                                    2)}
 
 
-def _true_contacts(data) -> dict:
+def true_contacts(data) -> dict:
     """The simulator's contact states by stamp (/ground_truth/contacts, one per stamp)."""
     contacts = {}
     for _, msg in data.get('/ground_truth/contacts', []):
@@ -289,7 +289,7 @@ def _add_push_velocity(metrics: dict, times: np.ndarray, velocity: np.ndarray) -
         push['velocity_change_mps'] = _round(along[after].max() - along[before].mean(), 4)
 
 
-def _first_per_stamp(states) -> list:
+def first_per_stamp(states) -> list:
     """Base states sorted by stamp, one per stamp (the sim republishes a tick while it waits)."""
     seen: dict[float, object] = {}
     for state in states:
@@ -299,7 +299,7 @@ def _first_per_stamp(states) -> list:
 
 def _estimate_against_truth(data, truth: list) -> tuple[dict, dict] | None:
     """Estimator errors (/odom against the truth at common stamps) and the series to plot."""
-    estimated = {b.stamp: b for b in _first_per_stamp(
+    estimated = {b.stamp: b for b in first_per_stamp(
         base_state_from_odom(m) for _, m in data.get('/odom', []))}
     pairs = [(estimated[b.stamp], b) for b in truth if b.stamp in estimated]
     if len(pairs) < 2:
@@ -322,7 +322,7 @@ def _measured_balance(data, contacts: dict, times: np.ndarray, rpy: np.ndarray,
     ZMP, touchdown timing and the attitude excursions around touchdowns, from
     /ground_truth/contacts, /zmp_plan and /footholds. ``estimate``: the estimated and true base
     series; the plans live in the estimated frame and are moved by the estimation error.
-    ``contacts``: ``_true_contacts(data)``. The second dict holds the series to plot and the
+    ``contacts``: ``true_contacts(data)``. The second dict holds the series to plot and the
     actual touchdown times of the executed steps (``touchdowns``)."""
     if not contacts:
         return {}, {}

@@ -37,12 +37,12 @@ _TOPICS = ('/ground_truth/odom', '/ground_truth/contacts')
 def _read(bag: Path):
     """Base and contact states of the truth by stamp, read as the run's own analysis reads
     them (one per stamp)."""
-    from replan_ros.experiments.analysis import _first_per_stamp, _true_contacts, read_messages
+    from replan_ros.experiments.analysis import first_per_stamp, read_messages, true_contacts
     from replan_ros.messages.odom import base_state_from_odom
     data = read_messages(bag, _TOPICS)
-    base = {state.stamp: state for state in _first_per_stamp(
+    base = {state.stamp: state for state in first_per_stamp(
         base_state_from_odom(msg) for _, msg in data.get('/ground_truth/odom', []))}
-    return base, _true_contacts(data)
+    return base, true_contacts(data)
 
 
 def push_effects(bag: Path, push_start: float, push_duration: float, horizon: float = 6.0,
