@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import xml.etree.ElementTree as ET
 from collections import deque
 from dataclasses import dataclass
 
@@ -55,6 +56,11 @@ _TERRAIN_DEFAULTS = {
     'rough_amplitude': 0.03,  # m, heights uniform in [0, amplitude]
     'rough_resolution': 0.05,  # m, cell size
 }
+# A link without <inertial> is massless in the controller's model (pinocchio) but PyBullet gives
+# it 1 kg and a unit inertia: ANYmal C's root link made its sim trunk 1 kg and 1 kg m^2 heavier
+# than the model. Such a link gets a negligible one instead (zero would fix a root in place).
+_MASSLESS_LINK_MASS = 1e-6      # kg
+_MASSLESS_LINK_INERTIA = 1e-9   # kg m^2
 _SPAWN_CONTACT_DISTANCE = 0.002   # m, a foot this close to the ground at spawn is in contact
 
 
@@ -172,6 +178,10 @@ class SimWorld:
             info = p.getJointInfo(self._robot, i)
             joints[info[1].decode()] = i
             links[info[12].decode()] = i
+        links[p.getBodyInfo(self._robot)[0].decode()] = -1
+        for name in _links_without_inertial(urdf_path):
+            p.changeDynamics(self._robot, links[name], mass=_MASSLESS_LINK_MASS,
+                             localInertiaDiagonal=[_MASSLESS_LINK_INERTIA] * 3)
         if len(joint_names) != len(JOINT_NAMES) or len(foot_frames) != len(FOOT_FRAMES):
             raise ValueError(f'{urdf_path}: need {len(JOINT_NAMES)} joint names and '
                              f'{len(FOOT_FRAMES)} foot links')
@@ -626,3 +636,9 @@ class SimWorld:
         else:
             bodies.append(plane(0.0))
         return bodies
+
+
+def _links_without_inertial(urdf_path: str) -> list[str]:
+    """Names of the links of a URDF that have no ``<inertial>`` (massless in pinocchio)."""
+    return [link.get('name') for link in ET.parse(urdf_path).getroot().iter('link')
+            if link.find('inertial') is None]

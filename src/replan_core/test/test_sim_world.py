@@ -107,6 +107,26 @@ def test_any_robot_file_spawns_standing_with_its_feet_touching(name):
         w.close()
 
 
+@pytest.mark.parametrize('name', ['anymal_c', 'go1', 'b1'])
+def test_sim_mass_equals_the_model_mass(name):
+    """The sim's robot weighs what the controller's model (pinocchio) says: a link without an
+    <inertial> (ANYmal C's root) is massless in both. PyBullet's default for it, 1 kg and a
+    unit inertia, made ANYmal C's simulated trunk 1 kg heavier and far harder to turn."""
+    from replan_core.robot_file import load_robot_file, robot_facts
+    root = Path(__file__).resolve().parents[3]
+    spec = load_robot_file(root / 'config' / 'robots' / f'{name}.yaml', root)
+    w = SimWorld(str(spec.urdf), joint_names=spec.joints, foot_frames=spec.feet,
+                 initial_joint_positions=spec.standing_pose, foot_offset=spec.foot_offset)
+    try:
+        p, robot = w._p, w._robot
+        masses = [p.getDynamicsInfo(robot, link)[0]
+                  for link in range(-1, p.getNumJoints(robot))]
+        assert sum(masses) == pytest.approx(robot_facts(spec).mass, abs=1e-4)
+        assert max(p.getDynamicsInfo(robot, -1)[2]) < 1.0     # kg m^2, not PyBullet's unit
+    finally:
+        w.close()
+
+
 def test_drop_lands_with_touchdown_events(world_factory):
     w = world_factory(initial_base_height=STAND_HEIGHT + 0.15)
     assert not w.contact_state().contact.any()
