@@ -1,7 +1,8 @@
 """scripts/launch.sh --live --record as a user runs it: a client speaking the Foxglove WebSocket
 protocol (websockets, both subprotocols) receives the URDF, the transforms, odom and
 joint_states and the force markers, and turns the robot through cmd_vel; the bag's /tf and
-/robot_description decode with an independent reader (rosbags).
+/robot_description decode with an independent reader (rosbags). The live view of Go1 alone
+serves the meshes its /robot_description names (fetchAsset).
 
 One graph for the module (ideal profile: the fastest): the tests run in file order and the last
 one stops it to read the bag.
@@ -12,14 +13,16 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import re
 import socket
 import struct
+import sys
 import time
 from pathlib import Path
 
 import pytest
 from geometry_msgs.msg import Twist
-from harness import REPO_ROOT
+from harness import CONFIG_DIR, REPO_ROOT, NodeProcess, graph_env
 from mcap_ros2._dynamic import generate_dynamic
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
@@ -28,6 +31,7 @@ from std_msgs.msg import String
 from test_launch import LaunchProcess
 from visualization_msgs.msg import Marker, MarkerArray
 
+from replan_core.robot_file import example_robot_data_dir
 from replan_core.types import JOINT_NAMES
 from replan_ros.view.live_client import LiveClient, free_port
 
@@ -63,6 +67,38 @@ def test_a_taken_port_stops_the_start_before_anything_runs(ros_domain, tmp_path)
         assert launch.process.wait(60) == 2, launch.output
     assert launch.wait_for(f'--live {port}: port not free', 5), launch.output
     assert not (tmp_path / 'run').exists()
+
+
+def test_the_go1_live_view_serves_the_meshes_of_its_robot_description(ros_domain, tmp_path):
+    """The live view as `--robot go1` starts it (its robot_file), alone: no graph needed to
+    draw the model."""
+    port = free_port()
+    node = NodeProcess('live_view', [
+        sys.executable, '-m', 'replan_ros.view.live_view', '--ros-args', '-r',
+        '__node:=live_view', '--params-file', str(CONFIG_DIR / 'live_view.yaml'),
+        '-p', 'robot_file:=go1', '-p', f'port:={port}'], graph_env(ros_domain),
+        tmp_path / 'live_view.log')
+    viewer = None
+    try:
+        viewer = Viewer(port)
+        assert 'assets' in viewer.info['capabilities']
+        viewer.subscribe(['/robot_description'], timeout=30)
+        urdf = ''
+        end = time.monotonic() + 30
+        while not urdf and time.monotonic() < end:
+            urdf = next((viewer.decode(t, p).data for t, _s, p in viewer.poll(0.5)), '')
+        meshes = sorted(set(re.findall(r'filename="(package://[^"]+)"', urdf)))
+        assert len(meshes) >= 5, urdf[:300]
+        uri = next(m for m in meshes if m.endswith('/calf.dae'))
+        expected = (example_robot_data_dir() / uri.split('/robots/', 1)[1]).read_bytes()
+        assert viewer.fetch_asset(uri) == (0, '', expected)
+        status, error, _data = viewer.fetch_asset('package://go1_description/../../x')
+        assert status == 1 and 'inside its package' in error
+    finally:
+        if viewer is not None:
+            viewer.close()
+        node.stop()
+    assert 'Traceback' not in node.log(), node.log()
 
 
 @pytest.fixture(scope='module')

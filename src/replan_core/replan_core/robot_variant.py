@@ -7,6 +7,7 @@ cables) and link masses known to some percent only.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 import os
@@ -16,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from replan_core.model_assets import PACKAGE_SCHEME, AssetError, package_file
 from replan_core.types import BASE_FRAME
 
 # Stream index in the seed sequence (replan_core.sensors uses 0 and 1).
@@ -168,11 +170,11 @@ def _absolute_file_references(robot: ET.Element, directory: Path) -> None:
         name = element.get('filename')
         if not name:
             continue
-        if name.startswith('package://'):
-            package, _, rest = name[len('package://'):].partition('/')
-            for ancestor in (directory, *directory.parents):
-                if (ancestor / package / rest).is_file():
-                    element.set('filename', str(ancestor / package / rest))
-                    break
+        if name.startswith(PACKAGE_SCHEME):
+            # The package is a folder in one of the original's ancestors.
+            with contextlib.suppress(AssetError):
+                path = package_file(name, (directory, *directory.parents))
+                if path.is_file():
+                    element.set('filename', str(path))
         elif '://' not in name and not os.path.isabs(name):
             element.set('filename', str(directory / name))

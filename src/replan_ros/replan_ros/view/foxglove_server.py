@@ -5,13 +5,17 @@ subprotocol names that viewers offer: ``foxglove.websocket.v1`` (Lichtblick, old
 and ``foxglove.sdk.v1`` (the current Foxglove app, foxglove_bridge 3.x; same messages).
 ``foxglove-sdk`` 0.30.3's server refuses clients that offer only the first (HTTP 400), hence
 this small server. Implemented: serverInfo, advertise, subscribe/unsubscribe, binary message
-data (0x01) and time (0x02), status, and client publishing (``clientPublish``: client
-advertise/unadvertise and client message data, encodings ``cdr`` and ``json``).
+data (0x01) and time (0x02), status, client publishing (``clientPublish``: client
+advertise/unadvertise and client message data, encodings ``cdr`` and ``json``) and, given a
+``fetch_asset`` function, the ``assets`` capability (``fetchAsset`` answered by a binary Fetch
+Asset Response, 0x04: viewers fetch the meshes a URDF names, ``package://...``).
 
 Never blocks the caller: ``add_channel``, ``send`` and ``send_time`` hand their work to the
 server's event loop and return; each client has a bounded queue whose oldest frames are
 dropped when the client reads too slowly. ``on_first_subscriber(channel_id)`` tells the owner
-when a channel is first wanted, so that it reads only what viewers look at.
+when a channel is first wanted, so that it reads only what viewers look at. ``fetch_asset(uri)``
+runs in a worker thread (a mesh may be tens of MB) and returns the bytes or raises; its
+exception's text is the error the client gets.
 """
 
 from __future__ import annotations
@@ -32,12 +36,17 @@ from websockets.exceptions import ConnectionClosed
 SUBPROTOCOLS = ('foxglove.websocket.v1', 'foxglove.sdk.v1')   # preferred first
 OP_MESSAGE_DATA = 0x01          # server -> client: u32 subscription id, u64 time ns, payload
 OP_TIME = 0x02                  # server -> client: u64 time ns
+OP_FETCH_ASSET_RESPONSE = 0x04  # server -> client: u32 request id, u8 status, u32 error
+                                #   length, error (UTF-8), data (spec: "Fetch Asset Response")
+ASSET_OK, ASSET_ERROR = 0, 1
 OP_CLIENT_MESSAGE_DATA = 0x01   # client -> server: u32 client channel id, payload
 CLIENT_ENCODINGS = ('cdr', 'json')
 STATUS_INFO, STATUS_WARNING, STATUS_ERROR = 0, 1, 2
 
 # (topic, encoding, schema name, payload) -> None if accepted, else why not.
 ClientMessageHandler = Callable[[str, str, str, bytes], str | None]
+# uri -> the asset's bytes; raises (any exception) if it is not served, its text the reason.
+AssetFetcher = Callable[[str], bytes]
 
 
 @dataclass
@@ -67,6 +76,7 @@ class _Client:
         self.queue: deque[bytes | str] = deque(maxlen=queue_size)
         self.wake = asyncio.Event()
         self.dropped = 0
+        self.fetches: set[asyncio.Task] = set()        # asset reads under way (kept alive)
 
     def push(self, frame: bytes | str) -> None:
         if len(self.queue) == self.queue.maxlen:
@@ -80,6 +90,15 @@ def message_frame(subscription_id: int, stamp_ns: int, payload: bytes) -> bytes:
     return struct.pack('<BIQ', OP_MESSAGE_DATA, subscription_id, max(int(stamp_ns), 0)) + payload
 
 
+def fetch_asset_frame(request_id: int, data: bytes = b'', error: str = '') -> bytes:
+    """Binary Fetch Asset Response (opcode 0x04): status 0 and the data, or, with an
+    ``error``, status 1, the error text and no data."""
+    text = error.encode()
+    return (struct.pack('<BIBI', OP_FETCH_ASSET_RESPONSE, request_id,
+                        ASSET_ERROR if error else ASSET_OK, len(text))
+            + text + (b'' if error else bytes(data)))
+
+
 def status(level: int, message: str) -> str:
     return json.dumps({'op': 'status', 'level': level, 'message': message})
 
@@ -91,11 +110,14 @@ class FoxgloveServer:
                  client_topics: tuple[str, ...] = (),
                  on_client_message: ClientMessageHandler | None = None,
                  on_first_subscriber: Callable[[int], None] | None = None,
+                 fetch_asset: AssetFetcher | None = None,
                  queue_size: int = 500, log: Callable[[str], None] = print) -> None:
         self.host, self.requested_port, self.name = host, int(port), name
         self.client_topics = tuple(_absolute(t) for t in client_topics)
         self.on_client_message = on_client_message
         self.on_first_subscriber = on_first_subscriber
+        self.fetch_asset = fetch_asset
+        self.capabilities = ['clientPublish', 'time'] + (['assets'] if fetch_asset else [])
         self.wanted: set[int] = set()            # channels that have had a subscriber
         self.queue_size = max(int(queue_size), 1)
         self.log = log
@@ -208,7 +230,7 @@ class FoxgloveServer:
         self.log(f'client {peer} connected ({connection.subprotocol})')
         client.push(json.dumps({
             'op': 'serverInfo', 'name': self.name,
-            'capabilities': ['clientPublish', 'time'],
+            'capabilities': self.capabilities,
             'supportedEncodings': list(CLIENT_ENCODINGS),
             'metadata': {'client_topics': ','.join(self.client_topics)},
             'sessionId': self._session}))
@@ -226,6 +248,8 @@ class FoxgloveServer:
         finally:
             self._clients.discard(client)
             writer.cancel()
+            for fetch in list(client.fetches):
+                fetch.cancel()
             self.log(f'client {peer} disconnected'
                      + (f' ({client.dropped} frames dropped: slow reader)' if client.dropped
                         else ''))
@@ -259,6 +283,8 @@ class FoxgloveServer:
             elif op == 'unadvertise':
                 for channel_id in message['channelIds']:
                     client.advertised.pop(int(channel_id), None)
+            elif op == 'fetchAsset' and self.fetch_asset is not None:
+                self._start_fetch(client, message['requestId'], message['uri'])
             else:
                 client.push(status(STATUS_WARNING, f'unsupported op {op!r}'))
         except (KeyError, TypeError, ValueError) as err:
@@ -276,6 +302,23 @@ class FoxgloveServer:
                 self.on_first_subscriber(channel_id)
         if channel.last is not None:
             client.push(message_frame(subscription_id, *channel.last))
+
+    def _start_fetch(self, client: _Client, request_id, uri) -> None:
+        if isinstance(request_id, bool) or not isinstance(request_id, int) or not (
+                0 <= request_id < 1 << 32) or not isinstance(uri, str):
+            raise ValueError('expected "requestId": a uint32 and "uri": a string')
+        fetch = asyncio.get_running_loop().create_task(self._fetch(client, request_id, uri))
+        client.fetches.add(fetch)
+        fetch.add_done_callback(client.fetches.discard)
+
+    async def _fetch(self, client: _Client, request_id: int, uri: str) -> None:
+        try:
+            # Off the loop: reading a large mesh must not hold up the message frames.
+            data = await asyncio.to_thread(self.fetch_asset, uri)
+            frame = fetch_asset_frame(request_id, data=data)
+        except Exception as err:  # a refused or failed fetch is the client's answer only
+            frame = fetch_asset_frame(request_id, error=str(err) or type(err).__name__)
+        client.push(frame)
 
     def _client_advertise(self, client: _Client, entry: dict) -> None:
         topic = _absolute(str(entry['topic']))

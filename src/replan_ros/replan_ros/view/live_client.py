@@ -1,7 +1,8 @@
 """A headless viewer of the live view: a Foxglove WebSocket client (``websockets``).
 
 It speaks what Foxglove and Lichtblick speak to ``replan_ros.view.live_view``: reads the server
-info and the advertised channels, subscribes, and receives message frames. The node-graph
+info and the advertised channels, subscribes, receives message frames and fetches assets (the
+meshes a URDF names). The node-graph
 test of the live view and ``scripts/bench_speed.sh`` (the graph's speed with a viewer
 watching) use it.
 """
@@ -18,6 +19,15 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 MESSAGE_DATA = 0x01          # binary opcode of a message frame: subscription id, stamp, payload
+FETCH_ASSET_RESPONSE = 0x04  # binary opcode of an asset: request id, status, error, data
+
+
+def parse_fetch_asset_response(frame: bytes) -> tuple[int, int, str, bytes]:
+    """(request id, status, error text, data) of a Fetch Asset Response frame (uint32 request
+    id, uint8 status 0 ok / 1 error, uint32 error length, the error, then the data)."""
+    request_id, status, length = struct.unpack_from('<IBI', frame, 1)
+    error_end = 10 + length
+    return request_id, status, frame[10:error_end].decode(), bytes(frame[error_end:])
 
 
 def free_port() -> int:
@@ -46,6 +56,8 @@ class LiveClient:
         self.channels: dict[str, dict] = {}
         self.by_subscription: dict[int, str] = {}
         self.statuses: list[dict] = []
+        self.assets: dict[int, tuple[int, str, bytes]] = {}   # request id -> status, error, data
+        self._next_request = 1
         self.info = json.loads(self.ws.recv(timeout=10))
 
     def poll(self, seconds: float) -> list[tuple[str, int, bytes]]:
@@ -66,7 +78,22 @@ class LiveClient:
             elif frame[0] == MESSAGE_DATA:
                 subscription, stamp = struct.unpack_from('<IQ', frame, 1)
                 out.append((self.by_subscription[subscription], stamp, frame[13:]))
+            elif frame[0] == FETCH_ASSET_RESPONSE:
+                request_id, *answer = parse_fetch_asset_response(frame)
+                self.assets[request_id] = tuple(answer)
         return out
+
+    def fetch_asset(self, uri: str, timeout: float = 30.0) -> tuple[int, str, bytes]:
+        """(status, error, data) of a ``fetchAsset`` of ``uri`` (TimeoutError after
+        ``timeout`` s); message frames that arrive meanwhile are dropped."""
+        request_id, self._next_request = self._next_request, self._next_request + 1
+        self.ws.send(json.dumps({'op': 'fetchAsset', 'uri': uri, 'requestId': request_id}))
+        end = time.monotonic() + timeout
+        while request_id not in self.assets:
+            if time.monotonic() > end:
+                raise TimeoutError(f'no answer to fetchAsset {uri} in {timeout} s')
+            self.poll(0.2)
+        return self.assets.pop(request_id)
 
     def subscribe(self, topics, timeout: float = 30.0) -> None:
         """Subscribe to ``topics`` once all are advertised (ValueError after ``timeout`` s)."""

@@ -12,7 +12,10 @@
 - publishes ``robot_description`` (``std_msgs/String``, reliable, transient local) over DDS,
   as robot_state_publisher does (``/tf`` cannot be: ``tf2_msgs`` is not in the PyPI wheels);
 - lets viewers publish ``geometry_msgs/Twist`` on ``client_topics`` (``cmd_vel``: Foxglove's
-  Teleop panel), checked by the gait node like any other ``cmd_vel``.
+  Teleop panel), checked by the gait node like any other ``cmd_vel``;
+- serves the meshes the robot's URDF names (``package://...``) to viewers that fetch them
+  (the protocol's ``assets`` capability), from the model folders only
+  (``replan_core.model_assets``): example-robot-data's share tree and the project's ``urdf/``.
 
 Off the critical path: its own process; a topic is advertised to viewers as soon as it is
 discovered but read over DDS only once a viewer subscribes to it (or to a derived topic that
@@ -37,9 +40,11 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
+from replan_core.model_assets import served_model_assets
 from replan_ros.messages.introspection import message_class
 from replan_ros.nodes.node_main import load_node_robot, run_node
 from replan_ros.params import declare_node_parameters
+from replan_ros.params.robot import project_root
 from replan_ros.recording.bag_io import has_header, message_definition, normalize_type_name
 from replan_ros.transport import qos
 from replan_ros.transport.on_demand import OnDemandSubscriptions
@@ -126,6 +131,7 @@ class LiveViewNode(Node):
             p['host'], p['port'], name='replan live view', client_topics=tuple(self._client_pubs),
             on_client_message=self._on_client_message, queue_size=p['queue_size'],
             on_first_subscriber=self._wanted.append,
+            fetch_asset=served_model_assets(project_root()).read,
             log=self.get_logger().info)
         self.port = self.server.start()
         self.get_logger().info(

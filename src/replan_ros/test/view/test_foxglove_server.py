@@ -6,11 +6,14 @@ from __future__ import annotations
 import json
 import struct
 import time
+from pathlib import Path
 
 import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
+from replan_core.model_assets import served_model_assets
+from replan_core.robot_file import example_robot_data_dir, load_robot_file
 from replan_ros.view.foxglove_server import FoxgloveServer
 
 
@@ -107,3 +110,85 @@ def test_client_publishing_only_on_allowed_topics(server):
 def test_a_taken_port_is_an_os_error(server):
     with pytest.raises(OSError):
         FoxgloveServer('127.0.0.1', server.port, log=lambda _text: None).start()
+
+
+# ---------------------------------------------------------------------- assets (fetchAsset)
+
+ROOT = Path(__file__).resolve().parents[4]
+GO1_MESH = 'package://example-robot-data/robots/go1_description/meshes/thigh.dae'
+
+
+def fetch(ws, uri, request_id):
+    """A fetchAsset and its answer, decoded as the spec's Fetch Asset Response says: opcode
+    0x04, uint32 request id, uint8 status, uint32 error length, error, data (little-endian)."""
+    ws.send(json.dumps({'op': 'fetchAsset', 'uri': uri, 'requestId': request_id}))
+    frame = recv_binary(ws)
+    opcode, got_id, status, length = struct.unpack_from('<BIBI', frame)
+    assert (opcode, got_id) == (0x04, request_id)
+    return status, frame[10:10 + length].decode(), frame[10 + length:]
+
+
+@pytest.fixture
+def asset_server():
+    srv = FoxgloveServer('127.0.0.1', 0, fetch_asset=served_model_assets(ROOT).read,
+                         log=lambda _text: None)
+    srv.start()
+    yield srv
+    srv.stop()
+
+
+def test_assets_capability_only_with_a_fetcher(server, asset_server):
+    with client(server, ['foxglove.websocket.v1']) as ws:
+        assert 'assets' not in recv_json(ws, 'serverInfo')['capabilities']
+        ws.send(json.dumps({'op': 'fetchAsset', 'uri': GO1_MESH, 'requestId': 1}))
+        assert 'unsupported op' in recv_json(ws, 'status')['message']
+    with client(asset_server, ['foxglove.websocket.v1']) as ws:
+        assert {'assets', 'clientPublish', 'time'} <= set(
+            recv_json(ws, 'serverInfo')['capabilities'])
+
+
+def test_a_go1_mesh_is_served_byte_for_byte(asset_server):
+    """A mesh Go1's URDF names (its /robot_description), as Foxglove asks for it."""
+    spec = load_robot_file(ROOT / 'config' / 'robots' / 'go1.yaml', ROOT)
+    assert f'filename="{GO1_MESH}"' in spec.urdf.read_text()
+    mesh = example_robot_data_dir() / 'go1_description' / 'meshes' / 'thigh.dae'
+    with connect(f'ws://127.0.0.1:{asset_server.port}', subprotocols=['foxglove.sdk.v1'],
+                 open_timeout=5, max_size=None) as ws:
+        recv_json(ws, 'serverInfo')
+        assert fetch(ws, GO1_MESH, 7) == (0, '', mesh.read_bytes())
+        assert fetch(ws, 'package://go1_description/meshes/thigh.dae', 2**32 - 1) == (
+            0, '', mesh.read_bytes())
+
+
+@pytest.mark.parametrize(('uri', 'why'), [
+    ('package://no_such_package/meshes/a.dae', "unknown package 'no_such_package'"),
+    ('package://go1_description/../../../../../../../etc/passwd', 'stay inside its package'),
+    ('package://example-robot-data/robots/go1_description/meshes/missing.dae', 'no such file'),
+    ('file:///etc/passwd', 'only package:// URIs'),
+    ('http://127.0.0.1/x.dae', 'only package:// URIs'),
+])
+def test_a_uri_not_served_is_an_error_response_and_the_server_goes_on(asset_server, uri, why):
+    with client(asset_server, ['foxglove.websocket.v1']) as ws:
+        recv_json(ws, 'serverInfo')
+        status, error, data = fetch(ws, uri, 3)
+        assert status == 1 and why in error and data == b''
+        assert fetch(ws, 'package://replan_ros/urdf/hyq.urdf', 4) == (
+            0, '', (ROOT / 'urdf' / 'hyq.urdf').read_bytes())
+
+
+def test_a_malformed_fetch_is_a_status_and_a_failing_fetcher_an_error_response():
+    def broken(_uri):
+        raise RuntimeError('disk on fire')
+
+    srv = FoxgloveServer('127.0.0.1', 0, fetch_asset=broken, log=lambda _text: None)
+    srv.start()
+    try:
+        with client(srv, ['foxglove.websocket.v1']) as ws:
+            recv_json(ws, 'serverInfo')
+            for bad in ({'uri': GO1_MESH}, {'uri': GO1_MESH, 'requestId': -1},
+                        {'uri': 5, 'requestId': 1}, {'uri': GO1_MESH, 'requestId': 2**32}):
+                ws.send(json.dumps({'op': 'fetchAsset', **bad}))
+                assert "malformed 'fetchAsset'" in recv_json(ws, 'status')['message']
+            assert fetch(ws, GO1_MESH, 9) == (1, 'disk on fire', b'')
+    finally:
+        srv.stop()
