@@ -69,10 +69,10 @@ def walk_row(result: RunResult, axis: str, commanded: float) -> dict:
     return row
 
 
-def stand_measures(bag: Path, drift_from: float, touchdowns_after: float) -> dict | None:
+def stand_measures(bag: Path, drift_from: float, cycle: float) -> dict | None:
     """From the truth of a stand's bag: the trunk's horizontal displacement from
-    ``drift_from`` to the end, and the touchdowns (a foot's true contact flag rising) after
-    ``touchdowns_after`` s; None without the truth."""
+    ``drift_from`` to the end, and the touchdowns (a foot's true contact flag rising) more
+    than one crawl cycle (``cycle`` s) after the first lift-off; None without the truth."""
     from replan_ros.experiments.analysis import _first_per_stamp, _true_contacts, read_messages
     from replan_ros.messages.odom import base_state_from_odom
 
@@ -82,31 +82,37 @@ def stand_measures(bag: Path, drift_from: float, touchdowns_after: float) -> dic
     contacts = _true_contacts(data)
     return drift_and_touchdowns([(b.stamp, b.position) for b in base],
                                 [(t, contacts[t].contact) for t in sorted(contacts)],
-                                drift_from, touchdowns_after)
+                                drift_from, cycle)
 
 
 def drift_and_touchdowns(positions: list, contacts: list, drift_from: float,
-                         touchdowns_after: float) -> dict | None:
+                         cycle: float) -> dict | None:
     """``stand_measures`` from (stamp, xyz) and (stamp, four contact flags), by stamp."""
     window = [(t, p) for t, p in positions if t >= drift_from]
     if len(window) < 2:
         return None
     start, end = np.asarray(window[0][1], float), np.asarray(window[-1][1], float)
     flags = np.array([np.asarray(c, bool) for _, c in contacts]) if contacts else None
-    touchdowns = 0
+    # The first cycle starts with the first step (the first lift-off), not at t = 0: the
+    # gait's start-up steps are not the stand's.
+    touchdowns, after, last = 0, cycle, None
     if flags is not None and len(flags) > 1:
-        stamps = np.array([t for t, _ in contacts])
-        rises = flags[1:] & ~flags[:-1]
-        touchdowns = int(rises[stamps[1:] > touchdowns_after].sum())
+        stamps = np.array([t for t, _ in contacts])[1:]
+        rises, lifts = flags[1:] & ~flags[:-1], ~flags[1:] & flags[:-1]
+        if lifts.any():
+            after = float(stamps[np.flatnonzero(lifts.any(axis=1))[0]]) + cycle
+        touchdowns = int(rises[stamps > after].sum())
+        if rises.any():
+            last = round(float(stamps[np.flatnonzero(rises.any(axis=1))[-1]]), 3)
     return {'drift_m': round(float(np.linalg.norm(end[:2] - start[:2])), 5),
             'drift_window_s': [round(float(window[0][0]), 3), round(float(window[-1][0]), 3)],
-            'touchdowns_after': touchdowns, 'touchdowns_after_s': round(touchdowns_after, 3)}
+            'touchdowns_after': touchdowns, 'touchdowns_after_s': round(after, 3),
+            'last_touchdown_s': last}
 
 
-def cached_stand_measures(folder: Path, drift_from: float, touchdowns_after: float
-                          ) -> dict | None:
+def cached_stand_measures(folder: Path, drift_from: float, cycle: float) -> dict | None:
     """``stand_measures`` of the run in ``folder``, kept in ``folder/stand.json``."""
-    key = {'drift_from': drift_from, 'touchdowns_after': round(touchdowns_after, 6)}
+    key = {'drift_from': drift_from, 'cycle': round(cycle, 6)}
     cache = folder / 'stand.json'
     if cache.exists():
         try:
@@ -117,7 +123,7 @@ def cached_stand_measures(folder: Path, drift_from: float, touchdowns_after: flo
             pass
     if not (folder / 'bag').exists():
         return None
-    measures = stand_measures(folder / 'bag', drift_from, touchdowns_after)
+    measures = stand_measures(folder / 'bag', drift_from, cycle)
     cache.write_text(json.dumps({'key': key, 'measures': measures}))
     return measures
 

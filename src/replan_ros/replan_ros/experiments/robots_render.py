@@ -61,8 +61,10 @@ def stand_cell(row: dict | None) -> str:
     if row.get('drift_m') is None:
         return 'no truth in the bag'
     start, end = row['drift_window_s']
+    last = row.get('last_touchdown_s')
     return (f'{100.0 * row["drift_m"]:.2f} cm ({start:g}-{end:g} s); '
-            f'{row["touchdowns_after"]} touchdowns after {row["touchdowns_after_s"]:.2f} s')
+            f'{row["touchdowns_after"]} touchdowns after {row["touchdowns_after_s"]:.2f} s'
+            + (f' (last at {last:.2f} s)' if last is not None else ''))
 
 
 def push_cell(push: dict | None, skipped: str | None) -> str:
@@ -170,8 +172,8 @@ def how_section(meta: dict) -> list[str]:
         '`velocity_tracking`; yaw: the turn rate).',
         f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s; '
         f'drift = the trunk\'s horizontal displacement on the truth from {stand["drift_from"]:g} '
-        's to the end; touchdowns = true contact flags that rise after the first crawl cycle '
-        '(the robot\'s own, from its derived gait timing).',
+        's to the end; touchdowns = true contact flags that rise more than one crawl cycle (the '
+        'robot\'s own, from its derived gait timing) after the first lift-off.',
         f'- **Pushes**: walking forward at the set-point, one push of {push["push_duration"]:g} s '
         f'to {push["direction"]} (world frame, the robot heading along x) of force = mass x dv / '
         f'{push["push_duration"]:g} s, mass the model\'s (the table above; the realistic '

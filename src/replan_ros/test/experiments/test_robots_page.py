@@ -107,12 +107,14 @@ def test_a_robot_that_walks_is_measured_on_every_test(tmp_path):
 def test_drift_is_the_trunks_displacement_and_touchdowns_count_after_the_cycle():
     positions = [(0.004 * k, (0.001 * k if k >= 1250 else 0.0, 0.0, 0.3)) for k in range(3001)]
     contacts = [(0.004 * k, [True] * 4) for k in range(3001)]
-    contacts[100] = (contacts[100][0], [False, True, True, True])     # a step before 2.35 s
+    contacts[250] = (contacts[250][0], [False, True, True, True])     # first step at 1 s
+    contacts[800] = (contacts[800][0], [True, True, False, True])     # 3.2 s: in its cycle
     contacts[2000] = (contacts[2000][0], [True, False, True, True])   # one at 8 s
-    measures = drift_and_touchdowns(positions, contacts, drift_from=5.0, touchdowns_after=2.35)
+    measures = drift_and_touchdowns(positions, contacts, drift_from=5.0, cycle=2.35)
     assert measures['drift_m'] == pytest.approx(0.001 * 3000 - 0.001 * 1250, abs=1e-9)
     assert measures['drift_window_s'] == [5.0, 12.0]
-    assert measures['touchdowns_after'] == 1
+    assert measures['touchdowns_after_s'] == pytest.approx(1.0 + 2.35)
+    assert measures['touchdowns_after'] == 1 and measures['last_touchdown_s'] == 8.004
     assert drift_and_touchdowns(positions[:10], contacts, 5.0, 2.35) is None
 
 
