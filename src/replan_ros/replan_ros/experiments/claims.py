@@ -174,8 +174,13 @@ def sustained_push(ctx: Context, cfg: dict) -> list[dict]:
 
 def _robot_mass(runner: Runner) -> float | None:
     """Mass of the simulated realistic robot (kg): the model's URDF plus the profile's
-    payload; None if either cannot be read."""
+    payload (with the runner's ``robot``: its model and its derived payload); None if either
+    cannot be read."""
     try:
+        if getattr(runner, 'robot', None):
+            from replan_ros.experiments.robots_plan import robot_info
+            info = robot_info(runner.config_dir, runner.robot, 'realistic')
+            return info.mass_kg + float(info.value('sim.payload_mass'))
         from replan_core.robot_model import RobotModel
         urdf = os.environ.get('REPLAN_URDF', str(runner.config_dir.parent / 'urdf' / 'hyq.urdf'))
         profile = yaml.safe_load((runner.config_dir / 'profiles' / 'realistic.yaml').read_text())
@@ -326,7 +331,7 @@ def ideal_world(ctx: Context, cfg: dict, plan: dict) -> dict:
 
 def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
     """The ``selected`` experiments of ``plan``; returns their data for the page."""
-    settings = node_settings(runner.config_dir)        # ExperimentError: nothing run
+    settings = node_settings(runner.config_dir, getattr(runner, 'robot', None))
     ctx = Context(runner, settings)
     results: dict = {}
     if 'qp_timing' in selected:       # before any graph loads the cores

@@ -88,6 +88,11 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         '`config/experiments.yaml`).',
         '',
     ]
+    if meta.get('robot'):
+        head += [f'**Robot {meta["robot"]}** (`--robot`): every scenario runs it, the push '
+                 'phases follow its crawl cycle and the impulses are read against its mass; '
+                 'the plan\'s set-points, impulses and terrains are the plan file\'s (HyQ\'s in '
+                 '`config/experiments.yaml`), not scaled to it.', '']
     if meta.get('quick'):
         head += ['**Quick run** (`--quick`): one short run per kind, to check that the page is '
                  'produced. Its verdicts rest on too few runs to mean anything.', '']

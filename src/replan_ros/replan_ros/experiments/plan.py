@@ -123,13 +123,21 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
     return plan, [name for name in plan if not only or name in only]
 
 
-def node_settings(config_dir: Path) -> dict:
+def node_settings(config_dir: Path, robot: str | None = None) -> dict:
     """The node parameters the experiments derive from (the push phases from the crawl cycle)
     and the page's explanations quote, from the node files (the realistic profile does not
-    change them); ExperimentError if a file or key is missing."""
+    change them), or with ``robot`` as the launcher derives them for it; ExperimentError if a
+    file or key is missing."""
     try:
-        gait = yaml.safe_load((config_dir / 'gait.yaml').read_text())['gait']['ros__parameters']
-        wbc = yaml.safe_load((config_dir / 'wbc.yaml').read_text())['wbc']['ros__parameters']
+        if robot:
+            from replan_ros.experiments.robots_plan import robot_info
+            values = robot_info(config_dir, robot, 'realistic').values
+            gait, wbc = values['gait'], values['wbc']
+        else:
+            gait = yaml.safe_load((config_dir / 'gait.yaml').read_text())['gait'][
+                'ros__parameters']
+            wbc = yaml.safe_load((config_dir / 'wbc.yaml').read_text())['wbc'][
+                'ros__parameters']
         out = {'crawl_cycle_s': 4.0 * (float(gait['swing_duration'])
                                        + float(gait['four_feet_duration'])),
                'max_step_length_x_m': float(gait['max_step_length_x']),

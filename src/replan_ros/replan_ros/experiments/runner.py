@@ -1,7 +1,7 @@
 """The paper's experiments on the realistic robot, many runs per claim, and the results page.
 
     scripts/experiments.sh [--quick] [--jobs N | --ray ADDRESS] [--only NAME ...] [--out DIR]
-                           [--page FILE]
+                           [--page FILE] [--robot NAME|FILE]
 
 Runs the experiments of ``config/experiments.yaml`` (``full``, or ``quick`` with --quick) as
 scenario runs (``replan_ros.experiments.scenario``, one process graph each, on its own
@@ -48,6 +48,9 @@ from replan_ros.experiments.runs import (
     RunResult,
     git_revision,
 )
+from replan_ros.launch.launch_graph import add_robot_option
+from replan_ros.launch.param_files import profile_file, robot_parameters
+from replan_ros.params import ConfigError
 
 
 def machine_description() -> str:
@@ -67,7 +70,7 @@ def make_runner(args: argparse.Namespace, out: Path, config_dir: Path, jobs: int
     """The local runner (``--jobs``), or the Ray one (``--ray``), imported only then: Ray is
     an optional dependency."""
     common = dict(domain_base=args.domain_base, fresh=args.fresh, progress=progress,
-                  lock_file=args.lock)
+                  lock_file=args.lock, robot=args.robot)
     if not args.ray:
         return Runner(out, config_dir, jobs=jobs, **common)
     from replan_ros.experiments.ray_runs import RayRunner
@@ -108,6 +111,7 @@ def main(argv=None) -> int:
                         help='hold this file lock (flock) during each run, to share the '
                              'machine with other graph runs that take it')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
+    add_robot_option(parser, default=None)
     args = parser.parse_args(argv)
     if args.ray and args.ray != 'local' and args.jobs is not None:
         parser.error('--jobs goes with --ray local only: a cluster\'s nodes say their '
@@ -122,7 +126,9 @@ def main(argv=None) -> int:
     plan_file = args.plan or config_dir / 'experiments.yaml'
     try:
         plan, selected = load_plan(plan_file, args.quick, args.only)
-    except ExperimentError as err:
+        if args.robot:       # a wrong robot stops here, in one line, before any run
+            robot_parameters(config_dir, args.robot, profile_file(config_dir, 'realistic'))
+    except (ExperimentError, ConfigError) as err:
         print(f'experiments: {err}', file=sys.stderr)
         return 2
     out = args.out or root / 'runs' / ('experiments-quick' if args.quick else 'experiments')
@@ -165,7 +171,8 @@ def main(argv=None) -> int:
             'run_time_min': round(sum(
                 r.metrics.get('wall_time_total_s') or 0.0 for r in runner.results.values()
                 if isinstance(r, RunResult)) / 60.0, 1),
-            'quick': args.quick, 'failures': runner.failures, 'plan_file': str(plan_file)}
+            'quick': args.quick, 'failures': runner.failures, 'plan_file': str(plan_file),
+            'robot': args.robot}
     (out / 'results.json').write_text(json.dumps({'meta': meta, 'results': results},
                                                  indent=1, default=str))
     write_page(page, results, meta)

@@ -36,6 +36,8 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
                 'replan_ros/experiments/runner.py', 'replan_ros/experiments/runs.py',
                 'replan_ros/experiments/push_effects.py', 'replan_ros/experiments/stats.py',
                 'replan_ros/experiments/findings.py', 'replan_ros/experiments/ray_runs.py',
+                'config/robots_page.yaml', 'replan_ros/experiments/robots_page.py',
+                'replan_ros/experiments/robots_plan.py', 'replan_ros/experiments/robots_render.py',
                 'replan_ros/benchmarks/')
 
 
@@ -130,8 +132,9 @@ class Runner:
     def __init__(self, out_dir: Path, config_dir: Path, *, jobs: int = 1,
                  domain_base: int = DEFAULT_DOMAIN_BASE, fresh: bool = False,
                  progress: Progress | None = None,
-                 lock_file: Path | None = None) -> None:
+                 lock_file: Path | None = None, robot: str | None = None) -> None:
         self.out_dir, self.config_dir = out_dir, config_dir
+        self.robot = robot          # None: each scenario's own robot (HyQ unless it names one)
         self.code = code_fingerprint(config_dir.resolve().parent)
         self.lock_file = lock_file
         self.fresh, self.progress = fresh, progress
@@ -142,11 +145,16 @@ class Runner:
         self.failures: list[str] = []
 
     def scenario(self, name: str) -> dict:
+        """The scenario file ``name``; with ``robot``, its document runs that robot (a
+        top-level ``robot:`` key; without one the document, and so its run key, is as before)."""
         path = self.config_dir / 'scenarios' / f'{name}.yaml'
         try:
-            return yaml.safe_load(path.read_text())
+            doc = yaml.safe_load(path.read_text())
         except (OSError, yaml.YAMLError) as err:
             raise ExperimentError(f'cannot read scenario {path}: {err}') from err
+        if self.robot:
+            doc['robot'] = self.robot
+        return doc
 
     def run(self, doc: dict, bag: bool = False) -> RunResult:
         """The run of scenario ``doc``: made now, or read if made before or under way.

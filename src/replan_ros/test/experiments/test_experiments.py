@@ -10,8 +10,14 @@ import yaml
 
 from replan_ros.experiments.claims import bisect_impulse
 from replan_ros.experiments.page import write_page
-from replan_ros.experiments.plan import ExperimentError, load_plan, planned_runs, variant
-from replan_ros.experiments.runs import RunResult, code_fingerprint, run_key
+from replan_ros.experiments.plan import (
+    ExperimentError,
+    load_plan,
+    node_settings,
+    planned_runs,
+    variant,
+)
+from replan_ros.experiments.runs import Runner, RunResult, code_fingerprint, run_key
 from replan_ros.experiments.stats import compare, compare_paired, spread
 
 CONFIG = Path(__file__).resolve().parents[4] / 'config'
@@ -261,3 +267,13 @@ def test_censored_push_phases_are_left_out_of_the_sign_test(tmp_path):
     assert ('not resolved (better at 2, worse at 0, equal at 0 phases; a difference is one '
             'bisection step, 11 N s, or more); 2 phases censored (no probe fell in either '
             'setting: left out)') in text
+
+
+def test_experiments_robot_option_names_the_robot_in_every_document(tmp_path):
+    """--robot: each scenario document gets a top-level robot: key and the push phases follow
+    the robot's derived crawl cycle; without it the documents (and run keys) are as before."""
+    plain, go1 = Runner(tmp_path, CONFIG), Runner(tmp_path, CONFIG, robot='go1')
+    assert 'robot' not in plain.scenario('exp_walk')
+    assert go1.scenario('exp_walk') == {**plain.scenario('exp_walk'), 'robot': 'go1'}
+    assert node_settings(CONFIG)['crawl_cycle_s'] == pytest.approx(3.0)
+    assert node_settings(CONFIG, 'go1')['crawl_cycle_s'] == pytest.approx(2.347, abs=1e-3)
