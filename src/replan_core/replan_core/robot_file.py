@@ -212,6 +212,7 @@ class RobotFacts:
     """What the model says about a robot standing in its standing pose."""
 
     mass: float                 # kg, total
+    leg_mass: float             # kg, one leg: the links below its abduction joint (mean of 4)
     leg_length: float           # m, hip flexion axis to foot (thigh + shank), mean of 4 legs
     standing_height: float      # m, base origin above the ground under the feet's spheres
     com_height: float           # m, CoM above that ground
@@ -245,9 +246,12 @@ def robot_facts(spec: RobotSpec) -> RobotFacts:
     leg = np.linalg.norm(knees - hips, axis=1) + np.linalg.norm(feet - knees, axis=1)
     ground = float(soles[:, 2].mean())
     com = pin.centerOfMass(model, data, q)
+    pin.computeSubtreeMasses(model, data)
+    legs = [data.mass[model.getJointId(spec.joints[3 * k])] for k in range(4)]
     inertia = pin.crba(model, data, q)
     joint_rows = [model.joints[model.getJointId(n)].idx_v for n in spec.joints]
     return RobotFacts(mass=float(sum(i.mass for i in model.inertias)),
+                      leg_mass=float(np.mean(legs)),
                       leg_length=float(leg.mean()),
                       standing_height=float(q[2] - ground),
                       com_height=float(com[2] - ground),

@@ -2,7 +2,8 @@
 the rules of ``config/robots/scaling.yaml`` (docs/robot_files.md, "Scaling rules").
 
 value(R) = value(reference) * scale(R) / scale(reference), each scale measured on the models
-(``robot_file.RobotFacts``): ``weight`` m g, ``length`` the leg length l, ``time`` sqrt(l / g),
+(``robot_file.RobotFacts``): ``weight`` m g, ``leg_weight`` one leg's m_leg g, ``length`` the
+leg length l, ``time`` sqrt(l / g),
 ``speed`` sqrt(g l), ``rate`` sqrt(g / l), ``torque`` m g l, ``stiffness`` m g / l, ``damping``
 m sqrt(g / l), ``joint_inertia`` the smallest joint inertia; a list parameter scales each
 value. Values
@@ -23,6 +24,7 @@ G = 9.81    # m/s^2
 
 SCALES = {
     'weight': lambda f: f.mass * G,                          # N
+    'leg_weight': lambda f: f.leg_mass * G,                  # N
     'length': lambda f: f.leg_length,                        # m
     'time': lambda f: math.sqrt(f.leg_length / G),           # s
     'speed': lambda f: math.sqrt(G * f.leg_length),          # m/s

@@ -27,6 +27,8 @@ ROBOTS = ROOT / 'config' / 'robots'
 # for the notes, independently of this code).
 EXPECTED = {'hyq': (86.76, 0.60), 'anymal_c': (52.13, 0.54), 'go1': (13.10, 0.27),
             'b1': (55.69, 0.53)}
+# kg, one leg (the links below its abduction joint), summed from each URDF's leg links.
+LEG_MASS = {'hyq': 6.45, 'anymal_c': 6.44, 'go1': 1.88, 'b1': 7.47}
 
 
 @pytest.fixture(scope='module')
@@ -43,6 +45,7 @@ def test_each_robot_file_maps_its_model_into_the_project_names(name, facts):
     mass, height = EXPECTED[name]
     assert facts[name].mass == pytest.approx(mass, abs=0.01)
     assert facts[name].standing_height == pytest.approx(height, abs=0.01)
+    assert facts[name].leg_mass == pytest.approx(LEG_MASS[name], abs=0.01)
     # The feet stand outside (or under) their hips, symmetric left to right.
     about = facts[name].feet_about_hips
     assert np.allclose(about[0], about[1] * [1, -1], atol=1e-3)
@@ -110,11 +113,14 @@ def test_an_unreadable_robot_file_is_one_line_too(tmp_path):
         load_robot_file(tmp_path / 'missing.yaml', ROOT)
 
 
-RULES = {'rules': {'weight': ['wbc.fz_max'], 'length': ['gait.step_height'],
+RULES = {'rules': {'weight': ['wbc.fz_max'],
+                   'leg_weight': ['wbc.estimator.contact_force_threshold'],
+                   'length': ['gait.step_height'],
                    'time': ['gait.swing_duration'], 'speed': ['gait.max_linear_x'],
                    'rate': ['gait.max_angular_z'], 'joint_inertia': ['wbc.fall_damping']},
          'measured': {'mpc.com_height': 'com_height'}}
-VALUES = {'wbc': {'fz_max': 800.0, 'fall_damping': 2.0},
+VALUES = {'wbc': {'fz_max': 800.0, 'fall_damping': 2.0,
+                  'estimator.contact_force_threshold': 40.0},
           'gait': {'step_height': 0.1, 'swing_duration': 0.5, 'max_linear_x': 0.2,
                    'max_angular_z': 0.25},
           'mpc': {'com_height': 0.55}}
@@ -123,7 +129,8 @@ VALUES = {'wbc': {'fz_max': 800.0, 'fall_damping': 2.0},
 def test_the_reference_robot_keeps_its_tuned_values_exactly(facts):
     hyq = facts['hyq']
     assert derived_parameters(hyq, hyq, VALUES, RULES, measure=False) == {
-        'wbc': {'fz_max': 800.0, 'fall_damping': 2.0},
+        'wbc': {'fz_max': 800.0, 'fall_damping': 2.0,
+                'estimator.contact_force_threshold': 40.0},
         'gait': {'step_height': 0.1, 'swing_duration': 0.5, 'max_linear_x': 0.2,
                  'max_angular_z': 0.25}}
 
@@ -133,6 +140,8 @@ def test_each_rule_scales_by_its_physics(facts):
     out = derived_parameters(go1, hyq, VALUES, RULES)
     legs = go1.leg_length / hyq.leg_length
     assert out['wbc']['fz_max'] == pytest.approx(800.0 * go1.mass / hyq.mass)
+    assert out['wbc']['estimator.contact_force_threshold'] == pytest.approx(
+        40.0 * go1.leg_mass / hyq.leg_mass)
     assert out['gait']['step_height'] == pytest.approx(0.1 * legs)
     assert out['gait']['swing_duration'] == pytest.approx(0.5 * math.sqrt(legs))
     assert out['gait']['max_linear_x'] == pytest.approx(0.2 * math.sqrt(legs))

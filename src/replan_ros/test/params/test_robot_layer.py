@@ -82,7 +82,7 @@ def test_another_robot_gets_its_pose_derived_values_and_names(tmp_path):
     ratio = resolved['wbc']['fz_max'] / hyq['wbc']['fz_max']
     assert ratio == pytest.approx(13.10 / 86.76, rel=1e-3)          # the weight rule
     assert resolved['wbc']['estimator.contact_force_threshold'] == pytest.approx(
-        hyq['wbc']['estimator.contact_force_threshold'] * ratio)
+        hyq['wbc']['estimator.contact_force_threshold'] * 1.88 / 6.45, rel=5e-3)   # leg weight
     assert resolved['mpc']['com_height'] == pytest.approx(0.255, abs=0.005)   # measured
     assert resolved['wbc']['estimator.foot_radius'] == pytest.approx(0.02, abs=1e-6)
 
