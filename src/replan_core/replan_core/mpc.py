@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replan_core.gait import is_stand_plan
 from replan_core.lip import lift, lip_matrices
 from replan_core.mpc_full_qp import FullQp
 from replan_core.mpc_working_set import WorkingSetDual
@@ -41,6 +42,27 @@ FALLBACK_NONE = ''
 FALLBACK_RELAXED = 'relaxed'
 FALLBACK_SHIFTED = 'previous_plan_shifted'
 FALLBACK_HOLD = 'hold_position'
+
+
+def replan_start_state(t: float, measured_com: np.ndarray, measured_vcom: np.ndarray,
+                       footholds: FootholdPlan, last_plan: ComPlan | None,
+                       last_stood: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The CoM position (m), velocity (m/s) and acceleration (m/s^2) a re-plan at ``t`` starts
+    from.
+
+    Algorithm 1 re-plans from the measured CoM, with the acceleration of the plan in force
+    (eq. 2). A stand plan that follows a stand plan (``last_stood``: the plan in force was made
+    for one) continues the plan in force instead: the feet have not moved, and re-planning a
+    standing robot from its measured CoM adds the controller's steady tracking offset to the
+    reference at every idle re-plan (``gait.idle_replan_period``), a ratchet that carried the
+    trunk 2-3 cm in 7 s of standing (docs/gait.md, "Idle stance").
+    """
+    acc = np.zeros(3)
+    if last_plan is not None and last_plan.start_time <= t:
+        position, velocity, acc = last_plan.sample(t)
+        if last_stood and is_stand_plan(footholds):
+            return position, velocity, acc
+    return measured_com, measured_vcom, acc
 
 
 @dataclass

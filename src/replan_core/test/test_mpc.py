@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from replan_core.bench.mpc_bench import CRAWL_ORDER, HIP, crawl_plan, velocity_profile
+from replan_core.gait import stand_plan
 from replan_core.lip import rollout
 from replan_core.mpc import (
     FALLBACK_HOLD,
@@ -17,6 +18,7 @@ from replan_core.mpc import (
     STATUS_SOLVED,
     LipMpc,
     MpcSettings,
+    replan_start_state,
 )
 from replan_core.mpc_working_set import _nnqp
 from replan_core.support import support_schedule
@@ -196,6 +198,33 @@ def test_standing_after_a_crawl_solves_with_no_binding_row():
     assert not out.fallback
     np.testing.assert_allclose(out.plan.position[:, :2], [com[:2]] * len(out.plan.position),
                                atol=1e-5)
+
+
+def test_a_stand_replan_after_a_stand_plan_continues_the_plan_in_force():
+    """Algorithm 1: a re-plan starts from the measured CoM with the planned acceleration; a
+    stand plan after a stand plan continues the plan in force (the idle re-plans must not add
+    the controller's tracking offset to the reference every 0.5 s)."""
+    mpc = LipMpc(MpcSettings(zmp_margin=0.02))
+    walk, res = list(crawl(mpc, seed=3, replans=2))[-1]
+    last, t = res.plan, res.plan.start_time + 0.2
+    planned = last.sample(t)
+    measured_com, measured_vcom = planned[0] + [0.004, -0.002, 0.0], np.array([0.01, 0.0, 0.0])
+    stand = stand_plan(FEET, 0.0, t, 0, t + 0.5)
+    # Walking, or the first stand plan after walking: the measured state, the planned acc.
+    for footholds, stood in ((walk, False), (walk, True), (stand, False)):
+        com, vcom, acc = replan_start_state(t, measured_com, measured_vcom, footholds, last,
+                                            stood)
+        assert com is measured_com and vcom is measured_vcom
+        np.testing.assert_array_equal(acc, planned[2])
+    # Standing on: the plan in force at t, exactly.
+    com, vcom, acc = replan_start_state(t, measured_com, measured_vcom, stand, last, True)
+    for got, want in zip((com, vcom, acc), planned, strict=True):
+        np.testing.assert_array_equal(got, want)
+    # No plan in force yet (or one from the future: a new run): measured, at rest.
+    for plan in (None, res.plan):
+        com, vcom, acc = replan_start_state(res.plan.start_time - 1.0, measured_com,
+                                            measured_vcom, stand, plan, True)
+        assert com is measured_com and not acc.any()
 
 
 def test_polish_keeps_a_working_set_whose_multipliers_are_all_zero():

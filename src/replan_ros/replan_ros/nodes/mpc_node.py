@@ -38,7 +38,8 @@ from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from replan_core.mpc import LipMpc, MpcResult, MpcSettings
+from replan_core.gait import is_stand_plan
+from replan_core.mpc import LipMpc, MpcResult, MpcSettings, replan_start_state
 from replan_core.robot_model import RobotModel
 from replan_core.support import implied_velocity
 from replan_core.types import WORLD_FRAME, BaseState, ComPlan, FootholdPlan, JointState
@@ -103,6 +104,7 @@ class MpcNode(Node):
         self.retry_timer.cancel()
         self.pending: tuple[int, FootholdPlan] | None = None
         self.last_plan: ComPlan | None = None
+        self.last_stood = False          # the plan in force was made for a stand plan
         self.last_stamp_ns: int | None = None
         self.replans = 0
         # (wall, CPU) ms of the last re-plans, for the log line at shutdown.
@@ -237,9 +239,7 @@ class MpcNode(Node):
         except (ValueError, RuntimeError) as err:
             com, vcom = np.full(3, np.nan), np.full(3, np.nan)
             self._warn('com_state', f'com_state failed at t={t:.3f} s: {err}')
-        acc = np.zeros(3)
-        if self.last_plan is not None and self.last_plan.start_time <= t:
-            acc = self.last_plan.sample(t)[2]       # eq. (2): the planned acceleration at t_k
+        com, vcom, acc = replan_start_state(t, com, vcom, plan, self.last_plan, self.last_stood)
         v_ref = implied_velocity(plan)
         res = self.mpc.solve(t, com, vcom, acc, plan, v_ref=v_ref)
         self._solve_times.append((res.solve_time_ms, res.solve_cpu_ms))
@@ -250,6 +250,7 @@ class MpcNode(Node):
                        f'({res.reason}); fallback: {res.fallback or "none"}')
         if res.plan is not None:
             self.last_plan = res.plan
+            self.last_stood = is_stand_plan(plan)
             self._publish_plan(t, res)
         self._publish_diag(t, res, '')
 
