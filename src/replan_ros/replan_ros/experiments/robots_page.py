@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from replan_ros.experiments.analysis import first_per_stamp, read_messages, true_contacts
 from replan_ros.experiments.plan import ExperimentError
 from replan_ros.experiments.robots_plan import (
     ROBOT_KEYS,
@@ -53,6 +54,7 @@ from replan_ros.experiments.runs import (
     RunResult,
     git_revision,
 )
+from replan_ros.messages.odom import base_state_from_odom
 
 # -- what a run measured ---------------------------------------------------------------------
 
@@ -73,13 +75,10 @@ def stand_measures(bag: Path, drift_from: float, cycle: float) -> dict | None:
     """From the truth of a stand's bag: the trunk's horizontal displacement from
     ``drift_from`` to the end, and the touchdowns (a foot's true contact flag rising) more
     than one crawl cycle (``cycle`` s) after the first lift-off; None without the truth."""
-    from replan_ros.experiments.analysis import _first_per_stamp, _true_contacts, read_messages
-    from replan_ros.messages.odom import base_state_from_odom
-
     data = read_messages(bag, ('/ground_truth/odom', '/ground_truth/contacts'))
-    base = _first_per_stamp(base_state_from_odom(m) for _, m in
+    base = first_per_stamp(base_state_from_odom(m) for _, m in
                             data.get('/ground_truth/odom', []))
-    contacts = _true_contacts(data)
+    contacts = true_contacts(data)
     return drift_and_touchdowns([(b.stamp, b.position) for b in base],
                                 [(t, contacts[t].contact) for t in sorted(contacts)],
                                 drift_from, cycle)
