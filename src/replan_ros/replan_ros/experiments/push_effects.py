@@ -34,9 +34,9 @@ G = 9.81     # m/s^2
 _TOPICS = ('/ground_truth/odom', '/ground_truth/contacts')
 
 
-def _read(bag: Path):
-    """Base and contact states of the truth by stamp, read as the run's own analysis reads
-    them (one per stamp)."""
+def read_truth(bag: Path):
+    """Base and contact states of the truth by stamp (stamp order), read as the run's own
+    analysis reads them (one per stamp)."""
     from replan_ros.experiments.analysis import first_per_stamp, read_messages, true_contacts
     from replan_ros.messages.odom import base_state_from_odom
     data = read_messages(bag, _TOPICS)
@@ -49,7 +49,7 @@ def push_effects(bag: Path, push_start: float, push_duration: float, horizon: fl
                  baseline: float = 2.0) -> dict | None:
     """The module docstring's measures for the push at ``push_start`` (s) lasting
     ``push_duration`` (s); None if the bag lacks the truth over the window."""
-    base, contacts = _read(bag)
+    base, contacts = read_truth(bag)
     return effects_from_states(base, contacts, push_start, push_duration, horizon, baseline)
 
 

@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_ros.experiments.analysis import first_per_stamp, read_messages, true_contacts
 from replan_ros.experiments.plan import ExperimentError
+from replan_ros.experiments.push_effects import read_truth
 from replan_ros.experiments.robots_plan import (
     ROBOT_KEYS,
     RobotInfo,
@@ -54,7 +54,6 @@ from replan_ros.experiments.runs import (
     RunResult,
     git_revision,
 )
-from replan_ros.messages.odom import base_state_from_odom
 
 # -- what a run measured ---------------------------------------------------------------------
 
@@ -75,11 +74,8 @@ def stand_measures(bag: Path, drift_from: float, cycle: float) -> dict | None:
     """From the truth of a stand's bag: the trunk's horizontal displacement from
     ``drift_from`` to the end, and the touchdowns (a foot's true contact flag rising) more
     than one crawl cycle (``cycle`` s) after the first lift-off; None without the truth."""
-    data = read_messages(bag, ('/ground_truth/odom', '/ground_truth/contacts'))
-    base = first_per_stamp(base_state_from_odom(m) for _, m in
-                            data.get('/ground_truth/odom', []))
-    contacts = true_contacts(data)
-    return drift_and_touchdowns([(b.stamp, b.position) for b in base],
+    base, contacts = read_truth(bag)
+    return drift_and_touchdowns([(t, b.position) for t, b in base.items()],
                                 [(t, contacts[t].contact) for t in sorted(contacts)],
                                 drift_from, cycle)
 
