@@ -84,15 +84,44 @@ def achieved_velocity(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray
     return vx, vy, wz
 
 
+def whole_cycles(touchdowns: list[tuple[float, int]], start: float,
+                 end: float) -> tuple[float, float, int] | None:
+    """The longest span within [start, end] (s) from a touchdown of one leg to a later one of
+    the same leg, and the crawl cycles in it: ``(t0, t1, cycles)``, or None without two.
+
+    A crawl's trunk sways and surges with its cycle, so a velocity averaged over a span that is
+    not whole cycles keeps part of that swing (HyQ sideways at 0.1 m/s read 0.079 to 0.108 m/s
+    over 3 s windows). touchdowns: (time s, leg), one per step (``executed_steps``'
+    actual touchdowns, not contact edges: a stance foot whose load flickers around the
+    threshold has edges too).
+    """
+    best = None
+    for leg in sorted({leg for _, leg in touchdowns}):
+        times = sorted(t for t, other in touchdowns if other == leg and start <= t <= end)
+        if len(times) >= 2 and (best is None or times[-1] - times[0] > best[1] - best[0]):
+            best = (times[0], times[-1], len(times) - 1)
+    return best
+
+
 def tracking_errors(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
-                    segments: list[Segment], settle: float) -> list[dict]:
-    """Per commanded segment: commanded and achieved velocity, after ``settle`` s."""
+                    segments: list[Segment], settle: float,
+                    touchdowns: list[tuple[float, int]] | None = None) -> list[dict]:
+    """Per commanded segment: commanded and achieved velocity, after ``settle`` s. With the
+    true ``touchdowns`` ((time s, leg), as ``whole_cycles``), also the velocity over the whole
+    crawl cycles after the settling (``achieved_cycles``, its span ``cycles_span_s`` and
+    ``cycles``): the steady state without the cycle's sway."""
     rows = []
     for seg in segments:
         start = min(seg.start + settle, seg.start + 0.5 * (seg.end - seg.start))
         achieved = achieved_velocity(times, positions, yaws, start, seg.end)
         row = {'start_s': seg.start, 'end_s': seg.end, 'commanded': list(seg.command),
                'achieved': list(achieved) if achieved else None}
+        span = whole_cycles(touchdowns, start, seg.end) if touchdowns else None
+        cycles = achieved_velocity(times, positions, yaws, span[0], span[1]) if span else None
+        if touchdowns is not None:
+            row.update(achieved_cycles=list(cycles) if cycles else None,
+                       cycles_span_s=[span[0], span[1]] if cycles else None,
+                       cycles=span[2] if cycles else 0)
         if achieved is not None:
             err = np.subtract(achieved, seg.command)
             row['error'] = [float(e) for e in err]

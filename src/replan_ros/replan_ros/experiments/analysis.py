@@ -130,7 +130,14 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     straight, path_length = distance_travelled(pos)
     segments = command_segments(
         [(t, c) for t, c in scenario.cmd_vel_events], end_time=float(times[-1]))
-    tracking = tracking_errors(times, pos, rpy[:, 2], segments, settle=2.0)
+    contacts = true_contacts(data)
+    # Each executed step's true touchdown: the steady state over whole crawl cycles.
+    edges = [(float(t), int(leg)) for t in sorted(contacts)
+             for leg in np.flatnonzero(contacts[t].touchdown)]
+    steps = [(actual, leg) for leg, _, _, actual in executed_steps(edges, planned_steps(data))
+             if actual is not None]
+    tracking = tracking_errors(times, pos, rpy[:, 2], segments, settle=2.0,
+                               touchdowns=steps if contacts else None)
     mpc = _diag_values(data.get('/diagnostics', []), 'mpc')
     solve = _first(mpc, 'solve_time_ms', 'solve_ms')
     solve_cpu = _first(mpc, 'solve_cpu_ms')
@@ -171,7 +178,6 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
         read_errors=[e for _, e in data.get('_errors', [])])
     estimate = (_estimate_against_truth(data, odom) if truth_topic == TRUTH_TOPIC else None)
     metrics['estimator'] = estimate[0] if estimate else None
-    contacts = true_contacts(data)
     balance = _measured_balance(data, contacts, times, rpy, estimate[1] if estimate else None)
     metrics.update(balance[0])
     _add_response_metrics(metrics, contacts, balance[1].get('touchdowns', np.zeros(0)), times,

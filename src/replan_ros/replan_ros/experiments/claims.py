@@ -63,6 +63,7 @@ def _summary(result: RunResult, **extra) -> dict:
         last = tracking[-1]
         row.update(linear_error_mps=last.get('linear_error_mps'),
                    achieved=last.get('achieved'), commanded=last.get('commanded'),
+                   achieved_cycles=last.get('achieved_cycles'), cycles=last.get('cycles'),
                    settle_time_s=last.get('settle_time_s'), settle_steps=last.get('settle_steps'),
                    rise_time_s=last.get('rise_time_s'), rise_steps=last.get('rise_steps'),
                    yaw_rate_error_radps=last.get('yaw_rate_error_radps'))

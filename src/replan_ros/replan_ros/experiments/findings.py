@@ -18,7 +18,10 @@ def findings(page, name: str, data, results: dict) -> None:
             if not sel:
                 continue
             rise, settle = values(sel, 'rise_steps'), values(sel, 'settle_steps')
-            ratio = [np.hypot(*r['achieved'][:2]) / np.hypot(*r['commanded'][:2])
+            # The steady state over whole crawl cycles (the crawl's sway averaged out) where a
+            # run has one, else after the settling.
+            ratio = [np.hypot(*(r.get('achieved_cycles') if r.get('cycles') else
+                                r['achieved'])[:2]) / np.hypot(*r['commanded'][:2])
                      for r in sel if r.get('achieved') and any(r['commanded'][:2])]
             label = scenario.removeprefix('exp_').replace('_', ' ')
             page.finding(
@@ -32,7 +35,8 @@ def findings(page, name: str, data, results: dict) -> None:
                     '; no run gets within 10 % of the set-point')
                 page.findings[-1] += (
                     f'; the realistic robot walks at {np.mean(ratio) * 100:.0f} % of its '
-                    'set-point after the change (mean over the runs).')
+                    'set-point after the change (mean over the runs, over whole crawl '
+                    'cycles).')
     elif name == 'lateral_push':
         cfg, table = data['config'], data['settings']
         mass = data.get('robot_mass_kg')

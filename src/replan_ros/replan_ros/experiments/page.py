@@ -165,12 +165,19 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
             page.row('velocity change', setting, 'seconds until 90 % of the achieved change',
                      spread(values(sel, 'rise_time_s'), 2), len(sel), '', '')
             achieved = [r['achieved'] for r in sel if r.get('achieved')]
+            whole = [r for r in sel if r.get('achieved_cycles') and r.get('cycles')]
             if achieved:
                 mean = np.mean(achieved, axis=0)
                 lines.append(f'- {setting}: new set-point {tuple(sel[0]["commanded"])}, '
                              f'achieved (mean over the runs, after 2 s) '
-                             f'({mean[0]:.3f}, {mean[1]:.3f}, {mean[2]:.3f}); '
-                             f'{settled} of {len(sel)} runs within 10 %, {falls} falls.')
+                             f'({mean[0]:.3f}, {mean[1]:.3f}, {mean[2]:.3f})')
+                if whole:
+                    cycles = [r['cycles'] for r in whole]
+                    mean = np.mean([r['achieved_cycles'] for r in whole], axis=0)
+                    lines[-1] += (f', over the whole crawl cycles after 2 s ({min(cycles)} to '
+                                  f'{max(cycles)} cycles, {len(whole)} runs) '
+                                  f'({mean[0]:.3f}, {mean[1]:.3f}, {mean[2]:.3f})')
+                lines[-1] += f'; {settled} of {len(sel)} runs within 10 %, {falls} falls.'
     page.section('\n'.join(lines))
 
 

@@ -59,14 +59,18 @@ from replan_ros.experiments.runs import (
 
 
 def walk_row(result: RunResult, axis: str, commanded: float) -> dict:
-    """Achieved against commanded on ``axis`` (mean body-frame velocity of the truth after the
-    metrics' settling, the last segment with a set-point), or the fall."""
+    """Achieved against commanded on ``axis`` (mean body-frame velocity of the truth over the
+    whole crawl cycles after the metrics' settling, in the last segment with a set-point; after
+    the settling if it has no whole cycle: ``cycles`` 0), or the fall."""
     row = {'run': result.key, 'ok': result.ok, 'fell': result.fell, 'commanded': commanded,
-           'fall_time_s': result.metrics.get('fall_time_s'), 'achieved': None}
+           'fall_time_s': result.metrics.get('fall_time_s'), 'achieved': None, 'cycles': 0}
     segments = [s for s in result.metrics.get('velocity_tracking') or []
                 if any(s.get('commanded') or [])]
     if segments and segments[-1].get('achieved') is not None:
-        row['achieved'] = float(segments[-1]['achieved'][ROBOT_KEYS.index(axis)])
+        last = segments[-1]
+        whole = last.get('achieved_cycles') if last.get('cycles') else None
+        row['achieved'] = float((whole or last['achieved'])[ROBOT_KEYS.index(axis)])
+        row['cycles'] = int(last.get('cycles') or 0) if whole else 0
     return row
 
 

@@ -47,8 +47,9 @@ def walk_cell(row: dict | None, unit: str) -> str:
     if row.get('achieved') is None:
         return 'no figure'
     achieved, commanded = row['achieved'], row['commanded']
+    partial = ' (no whole crawl cycle: after the settling)' if row.get('cycles') == 0 else ''
     return (f'{_num(achieved)} of {commanded:g} {unit} '
-            f'({100.0 * (achieved - commanded) / commanded:+.1f} %)')
+            f'({100.0 * (achieved - commanded) / commanded:+.1f} %){partial}')
 
 
 def stand_cell(row: dict | None) -> str:
@@ -168,8 +169,10 @@ def how_section(meta: dict) -> list[str]:
         '## How each figure is made', '',
         f'- **Set-points**: per robot in the plan. Each walk is its own run from standing '
         f'(`{tests["walk"]["scenario"]}`, {tests["walk"]["duration"]:g} s), achieved = the '
-        'mean body-frame velocity of the simulator\'s truth after 2 s of settling (the run\'s '
-        '`velocity_tracking`; yaw: the turn rate).',
+        'mean body-frame velocity of the simulator\'s truth over the whole crawl cycles after '
+        '2 s of settling (from a leg\'s first true touchdown to its last: the crawl\'s sway '
+        'and surge average out; the run\'s `velocity_tracking`, `achieved_cycles`; yaw: the '
+        'turn rate).',
         f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s; '
         f'drift = the trunk\'s horizontal displacement on the truth from {stand["drift_from"]:g} '
         's to the end; touchdowns = true contact flags that rise more than one crawl cycle (the '

@@ -17,6 +17,7 @@ from replan_ros.experiments.robots_page import (
     planned_runs,
     push_ladder,
     timing,
+    walk_row,
 )
 from replan_ros.experiments.robots_plan import load_robots_plan, push_times
 from replan_ros.experiments.runs import RunResult, code_fingerprint, run_key
@@ -125,6 +126,21 @@ def test_timing_leaves_out_runs_that_failed():
     assert timing([good, failed]) == {'runs': 1, 'rtf_median': 2.0, 'rtf_min': 2.0,
                                       'mpc_median_ms': 1.0, 'mpc_p99_max_ms': 3.0}
     assert timing([failed])['rtf_median'] is None
+
+
+def test_a_walk_reads_its_speed_over_whole_crawl_cycles():
+    """The achieved speed is the one over whole crawl cycles where the run has one (the crawl's
+    sway averaged out), else the one after the settling, marked by ``cycles`` 0."""
+    segment = {'commanded': [0.0, 0.033, 0.0], 'achieved': [0.0, 0.0289, 0.0],
+               'achieved_cycles': [0.0, 0.0327, 0.0], 'cycles': 3}
+    metrics = {'sim_time_s': 14.0, 'fell': False,
+               'velocity_tracking': [{'commanded': [0.0, 0.0, 0.0], 'achieved': [0.0] * 3},
+                                     segment]}
+    row = walk_row(RunResult('w', {}, metrics, Path('w')), 'lateral', 0.033)
+    assert row['achieved'] == 0.0327 and row['cycles'] == 3
+    segment.update(achieved_cycles=None, cycles=0)
+    row = walk_row(RunResult('w', {}, metrics, Path('w')), 'lateral', 0.033)
+    assert row['achieved'] == 0.0289 and row['cycles'] == 0
 
 
 def test_the_robots_page_and_its_plan_do_not_shape_a_run(tmp_path):
