@@ -131,11 +131,10 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
     segments = command_segments(
         [(t, c) for t, c in scenario.cmd_vel_events], end_time=float(times[-1]))
     contacts = true_contacts(data)
-    # Each executed step's true touchdown: the steady state over whole crawl cycles.
     edges = [(float(t), int(leg)) for t in sorted(contacts)
              for leg in np.flatnonzero(contacts[t].touchdown)]
     steps = [(actual, leg) for leg, _, _, actual in executed_steps(edges, planned_steps(data))
-             if actual is not None]
+             if actual is not None]     # each executed step's true touchdown: whole cycles
     tracking = tracking_errors(times, pos, rpy[:, 2], segments, settle=2.0,
                                touchdowns=steps if contacts else None)
     mpc = _diag_values(data.get('/diagnostics', []), 'mpc')
