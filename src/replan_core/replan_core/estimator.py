@@ -104,6 +104,10 @@ class StateEstimator:
             raise ValueError(f'dt must be a positive time step (s), got {dt!r}')
         if not math.isfinite(initial_yaw):
             raise ValueError('initial_yaw must be finite')
+        if not (math.isfinite(p.contact_observer_gain) and 0.0 <= p.contact_observer_gain * dt
+                < 1.0):
+            raise ValueError('contact_observer_gain (1/s) must be >= 0 and below 1 / dt, got '
+                             f'{p.contact_observer_gain!r}')
         if p.contact_debounce_ticks < 1:
             raise ValueError('contact_debounce_ticks must be at least 1')
         if not 0.0 <= p.contact_release_threshold <= p.contact_force_threshold:
@@ -416,7 +420,7 @@ class StateEstimator:
         tau_full = self._tau_full
         tau_full[self._v_index] = tau_meas
         rhs = self._leg_residual(q, v, nle - tau_full, dt).reshape(N_LEGS, 3, 1)  # J^T f
-        # f = J^-T (h - tau), damped: J (J^T J + lambda^2 I)^-1 keeps a stretched leg finite.
+        # f = J^-T (J^T f), damped: J (J^T J + lambda^2 I)^-1 keeps a stretched leg finite.
         jac_t = jac.transpose(0, 2, 1)
         self._force = (jac @ np.linalg.solve(jac_t @ jac + self._eye3_damped, rhs))[..., 0]
         p = self.params
@@ -454,7 +458,9 @@ class StateEstimator:
         upper = self._pin_data.M
         m_rows = (np.triu(upper) + np.triu(upper, 1).T)[rows]     # (12, nv) kg m^2, kg m
         momentum = m_rows @ v                                      # p_leg, N m s
-        if self._observer is None or not self.initialized:
+        # One step moves r by gain * dt of its error: from 1 on (a gap of several missed
+        # ticks) it would overshoot, so the observer starts over from the static value.
+        if self._observer is None or not self.initialized or gain * dt >= 1.0:
             residual = static
             integral = momentum - residual / gain
         else:

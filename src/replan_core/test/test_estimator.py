@@ -411,6 +411,31 @@ class RecordingSensors(Sensors):
         return sample
 
 
+def test_the_observer_starts_over_after_a_gap(world, robot):
+    """Standing, 10 ticks missed (dt 44 ms: one observer step would move its estimate by 6.6
+    times its error): the estimated forces stay within 15 % of PyBullet's, no edge; a gain of
+    1 / dt or more, or a negative one, is refused."""
+    sensors = RecordingSensors(seed=5)
+    log = run(world, robot, StateEstimator(robot, EstimatorParams(), DT),
+              hold(initial_com(world, robot)), 1.5, sensors)
+    truth = [entry[2] for entry in log]
+    samples = sensors.samples
+    gap = 300
+    estimator = StateEstimator(robot, EstimatorParams(), DT)
+    for k, (imu, joints) in enumerate(samples):
+        if gap <= k < gap + 10:
+            continue
+        _, contact = estimator.update(imu, joints)
+        if k >= gap + 10:
+            true_fz = truth[k].force[:, 2]
+            assert np.all(np.abs(contact.force[:, 2] - true_fz) < 0.15 * true_fz), k
+            assert contact.contact.all() and not contact.touchdown.any()
+            assert not contact.liftoff.any()
+    for gain in (1.0 / DT, -1.0, float('nan')):
+        with pytest.raises(ValueError, match='contact_observer_gain'):
+            StateEstimator(robot, EstimatorParams(contact_observer_gain=gain), DT)
+
+
 def test_prepared_covariance_step_changes_nothing(world, robot):
     """prepare_next between updates (as the controller calls it after its command) gives bit
     for bit the results of the same updates without it, through a lift-off and touchdown (a
