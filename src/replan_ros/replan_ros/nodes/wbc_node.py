@@ -99,8 +99,13 @@ class WbcNode(Node):
         self.estimator: StateEstimator | None = None
         if self.state_estimation or self.contact_estimation:
             # The controller's model: the estimator keeps a pinocchio data of its own.
-            self.estimator = StateEstimator(self.robot, estimator_params(p),
-                                            dt=self.period_ns / _NS)
+            try:
+                self.estimator = StateEstimator(self.robot, estimator_params(p),
+                                                dt=self.period_ns / _NS)
+            except ValueError as err:   # a combination the tables cannot see (gain vs rate)
+                self.get_logger().fatal(f'config error: wbc: {err} (control_rate '
+                                        f'{p["control_rate"]} Hz)')
+                raise SystemExit(2) from None
 
         # Each processed tick: stamp (ns) -> (base, joints, contacts), and the (odom, contacts)
         # messages published for it.

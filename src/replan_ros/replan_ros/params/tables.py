@@ -168,7 +168,11 @@ _ESTIMATOR_UNITS = {
     'accel_gate': 'm/s^2', 'accel_noise': 'm/s^2/sqrt(Hz)', 'base_position_noise': 'm/sqrt(s)',
     'foot_stance_noise': 'm/sqrt(s)', 'foot_swing_noise': 'm/sqrt(s)',
     'foot_position_noise': 'm', 'foot_velocity_noise': 'm/s', 'swing_velocity_noise': 'm/s',
-    'initial_position_noise': 'm', 'initial_velocity_noise': 'm/s'}
+    'initial_position_noise': 'm', 'initial_velocity_noise': 'm/s',
+    'contact_observer_gain': '1/s'}
+# Ranges narrower than the generic 0..1e6: the observer's gain must also stay below the control
+# rate (gain * dt < 1, else one step overshoots), which the wbc node checks with its rate.
+_ESTIMATOR_RANGES = {'contact_observer_gain': (0.0, 1000.0)}
 
 
 def _estimator_specs() -> tuple[ParamSpec, ...]:
@@ -182,6 +186,7 @@ def _estimator_specs() -> tuple[ParamSpec, ...]:
         value = value.tolist() if hasattr(value, 'tolist') else value
         low = 1 if isinstance(value, int) and not isinstance(value, bool) else 0.0
         high = 1000 if isinstance(value, int) and not isinstance(value, bool) else 1e6
+        low, high = _ESTIMATOR_RANGES.get(item.name, (low, high))
         specs.append(_p(f'estimator.{item.name}', value,
                         f'state estimator: {item.name} (replan_core.estimator.EstimatorParams)',
                         _ESTIMATOR_UNITS.get(item.name, ''), min=low, max=high))
