@@ -120,7 +120,6 @@ def test_node_started_alone_with_an_unknown_robot_exits_non_zero(node, launcher)
     assert "config error: unknown robot 'go2' (known: anymal_c, b1, go1, hyq" in process.log()
 
 
-
 def test_wbc_refuses_an_observer_gain_at_its_control_rate(launcher):
     """Each value is in range, their combination is not: the foot-force observer's gain must
     stay below the control rate (gain * dt < 1), which only the node knows."""
@@ -131,6 +130,7 @@ def test_wbc_refuses_an_observer_gain_at_its_control_rate(launcher):
     assert wbc.process.returncode == 2
     assert 'config error: wbc: contact_observer_gain (1/s) must be >= 0 and below 1 / dt, got ' \
         '300.0 (control_rate 250.0 Hz)' in wbc.log()
+
 
 def test_node_started_alone_with_a_misspelt_key_exits_non_zero(launcher, tmp_path):
     bad = tmp_path / 'bad.yaml'

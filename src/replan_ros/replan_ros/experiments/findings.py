@@ -6,7 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from replan_ros.experiments.stats import compare_paired, p_text, push_sign_test, values
+from replan_ros.experiments.stats import (
+    compare_paired,
+    p_text,
+    push_sign_test,
+    steady_velocity,
+    values,
+)
 
 
 def findings(page, name: str, data, results: dict) -> None:
@@ -20,8 +26,7 @@ def findings(page, name: str, data, results: dict) -> None:
             rise, settle = values(sel, 'rise_steps'), values(sel, 'settle_steps')
             # The steady state over whole crawl cycles (the crawl's sway averaged out) where a
             # run has one, else after the settling.
-            ratio = [np.hypot(*(r.get('achieved_cycles') if r.get('cycles') else
-                                r['achieved'])[:2]) / np.hypot(*r['commanded'][:2])
+            ratio = [np.hypot(*steady_velocity(r)[:2]) / np.hypot(*r['commanded'][:2])
                      for r in sel if r.get('achieved') and any(r['commanded'][:2])]
             label = scenario.removeprefix('exp_').replace('_', ' ')
             page.finding(

@@ -54,6 +54,7 @@ from replan_ros.experiments.runs import (
     RunResult,
     git_revision,
 )
+from replan_ros.experiments.stats import steady_velocity
 
 # -- what a run measured ---------------------------------------------------------------------
 
@@ -68,9 +69,8 @@ def walk_row(result: RunResult, axis: str, commanded: float) -> dict:
                 if any(s.get('commanded') or [])]
     if segments and segments[-1].get('achieved') is not None:
         last = segments[-1]
-        whole = last.get('achieved_cycles') if last.get('cycles') else None
-        row['achieved'] = float((whole or last['achieved'])[ROBOT_KEYS.index(axis)])
-        row['cycles'] = int(last.get('cycles') or 0) if whole else 0
+        row['achieved'] = float(steady_velocity(last)[ROBOT_KEYS.index(axis)])
+        row['cycles'] = int(last.get('cycles') or 0) if last.get('achieved_cycles') else 0
     return row
 
 

@@ -26,6 +26,14 @@ def values(rows: list[dict], key: str, **where) -> list[float]:
     return out
 
 
+def steady_velocity(row: dict) -> list | None:
+    """A velocity-tracking row's steady state (vx, vy, wz): the velocity over whole crawl
+    cycles where the row has one (``achieved_cycles``, ``cycles`` > 0: the crawl's sway
+    averaged out), else the one after the settling (``achieved``); None without either."""
+    whole = row.get('achieved_cycles') if row.get('cycles') else None
+    return whole or row.get('achieved')
+
+
 def spread(xs: list[float], digits: int = 3, scale: float = 1.0) -> str:
     """'mean +- std (min to max)' of ``xs`` times ``scale``; '-' if empty."""
     if not xs:
