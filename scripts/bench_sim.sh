@@ -5,13 +5,22 @@
 # The last row is the realistic world, every realism option on: actuator lag, delay and joint
 # friction, compliant feet, the perturbed URDF (payload, leg masses), and per tick imu_truth,
 # the IMU and joint sensor models (the PD then reads the sensed joints) and the state queries.
-# Usage: scripts/bench_sim.sh [SIM_SECONDS]   (default 4)
+# --robot NAME|FILE: another robot (a robot file), gains and payload scaled from HyQ's.
+# Usage: scripts/bench_sim.sh [SIM_SECONDS] [--robot NAME|FILE]   (default 4 s, HyQ)
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
-for arg in "$@"; do
-    case "$arg" in
+seconds=4
+robot=()
+while [ $# -gt 0 ]; do
+    case "$1" in
         -h|--help) usage; exit 0 ;;
-        -*) echo "bench_sim.sh: unknown option $arg" >&2; usage >&2; exit 2 ;;
+        --robot) [ $# -ge 2 ] || { echo "bench_sim.sh: --robot needs a name" >&2; exit 2; }
+                 robot=(--robot "$2"); shift ;;
+        -*) echo "bench_sim.sh: unknown option $1" >&2; usage >&2; exit 2 ;;
+        *) seconds="$1" ;;
     esac
+    shift
 done
 replan_env
-python -m replan_core.bench.sim_bench "${1:-4}" 2>&1 | grep -v -e '^argv' -e 'build time'
+python -m replan_core.bench.sim_bench "$seconds" "${robot[@]}" --root "$ROOT" 2>&1 \
+    | grep -v -e '^argv' -e 'build time'
+exit "${PIPESTATUS[0]}"

@@ -43,6 +43,7 @@ from replan_core.types import (
     ContactState,
     JointState,
 )
+from replan_core.urdf_merge import merged_fixed_links
 
 GRAVITY = 9.81                    # m/s^2
 TERRAINS = ('flat', 'step_down', 'step_up', 'rough')
@@ -170,7 +171,10 @@ class SimWorld:
         self._terrain_bodies = self._build_terrain(
             terrain, {**_TERRAIN_DEFAULTS, **(terrain_params or {})}, seed)
 
-        # Load high above the terrain so that the ground ray casts below never hit the robot.
+        # The links fixed to others merged into them (not the feet): fewer bodies, the same
+        # motion, a cheaper physics step (urdf_merge.py). Load high above the terrain so that
+        # the ground ray casts below never hit the robot.
+        urdf_path = merged_fixed_links(urdf_path, keep=foot_frames)
         self._robot = p.loadURDF(urdf_path, basePosition=[0.0, 0.0, 100.0],
                                  flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
         joints, links = {}, {}

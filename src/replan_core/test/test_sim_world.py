@@ -107,22 +107,49 @@ def test_any_robot_file_spawns_standing_with_its_feet_touching(name):
         w.close()
 
 
-@pytest.mark.parametrize('name', ['anymal_c', 'go1', 'b1'])
-def test_sim_mass_equals_the_model_mass(name):
-    """The sim's robot weighs what the controller's model (pinocchio) says: a link without an
-    <inertial> (ANYmal C's root) is massless in both. PyBullet's default for it, 1 kg and a
-    unit inertia, made ANYmal C's simulated trunk 1 kg heavier and far harder to turn."""
-    from replan_core.robot_file import load_robot_file, robot_facts
+@pytest.mark.parametrize('name', ['hyq', 'anymal_c', 'go1', 'b1'])
+def test_sim_mass_and_inertia_equal_the_model(name):
+    """The sim's robot weighs what the controller's model (pinocchio) says, and its links
+    merged (urdf_merge.py: ANYmal C 77 -> 16 PyBullet links) turn as the model does: the
+    mass, centre of mass and rotational inertia of the whole robot at its standing pose, about
+    the base origin, agree. A link without an <inertial> (ANYmal C's root) is massless in both;
+    PyBullet's default for it, 1 kg and a unit inertia, made ANYmal C's simulated trunk 1 kg
+    heavier and far harder to turn."""
+    from replan_core.robot_file import load_robot_file
     root = Path(__file__).resolve().parents[3]
     spec = load_robot_file(root / 'config' / 'robots' / f'{name}.yaml', root)
+    model = pin.buildModelFromUrdf(str(spec.urdf), pin.JointModelFreeFlyer())
+    data = model.createData()
+    q = pin.neutral(model)
+    for joint, angle in zip(spec.joints, spec.standing_pose, strict=True):
+        q[model.joints[model.getJointId(joint)].idx_q] = angle
+    mass_matrix = pin.crba(model, data, q)
+    pin.centerOfMass(model, data, q)
     w = SimWorld(str(spec.urdf), joint_names=spec.joints, foot_frames=spec.feet,
                  initial_joint_positions=spec.standing_pose, foot_offset=spec.foot_offset)
     try:
         p, robot = w._p, w._robot
-        masses = [p.getDynamicsInfo(robot, link)[0]
-                  for link in range(-1, p.getNumJoints(robot))]
-        assert sum(masses) == pytest.approx(robot_facts(spec).mass, abs=1e-4)
-        assert max(p.getDynamicsInfo(robot, -1)[2]) < 1.0     # kg m^2, not PyBullet's unit
+        assert p.getNumJoints(robot) == 16        # 12 moving links and the 4 feet
+        origin = w.base_state().position
+        masses, centres, inertias = [], [], []
+        for link in range(-1, p.getNumJoints(robot)):
+            mass, _, diagonal = p.getDynamicsInfo(robot, link)[:3]
+            if link == -1:
+                centre, quat = p.getBasePositionAndOrientation(robot)
+            else:
+                centre, quat = p.getLinkState(robot, link, computeForwardKinematics=True)[:2]
+            rotation = np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)
+            masses.append(mass)
+            centres.append(np.array(centre) - origin)        # base frame: spawned level
+            inertias.append(rotation @ np.diag(diagonal) @ rotation.T)
+        total = sum(masses)
+        about_origin = sum(i + m * (float(r @ r) * np.eye(3) - np.outer(r, r))
+                           for m, r, i in zip(masses, centres, inertias, strict=True))
+        assert total == pytest.approx(data.mass[0], abs=1e-4)
+        np.testing.assert_allclose(sum(m * r for m, r in zip(masses, centres, strict=True))
+                                   / total, data.com[0], atol=1e-5)
+        # The free-flyer's angular block of the mass matrix: the inertia about the base origin.
+        np.testing.assert_allclose(about_origin, mass_matrix[3:6, 3:6], atol=2e-5 * total)
     finally:
         w.close()
 
