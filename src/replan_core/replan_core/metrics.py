@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,6 +85,18 @@ def achieved_velocity(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray
     return vx, vy, wz
 
 
+def _cycle_leg(touchdowns: list[tuple[float, int]], start: float,
+               end: float) -> list[float]:
+    """The touchdown times within [start, end] (s) of the leg whose first to last touchdown
+    there spans the longest (the earliest leg on a tie); [] without any."""
+    best: list[float] = []
+    for leg in sorted({leg for _, leg in touchdowns}):
+        times = sorted(t for t, other in touchdowns if other == leg and start <= t <= end)
+        if len(times) >= 2 and (not best or times[-1] - times[0] > best[-1] - best[0]):
+            best = times
+    return best
+
+
 def whole_cycles(touchdowns: list[tuple[float, int]], start: float,
                  end: float) -> tuple[float, float, int] | None:
     """The longest span within [start, end] (s) from a touchdown of one leg to a later one of
@@ -95,21 +108,51 @@ def whole_cycles(touchdowns: list[tuple[float, int]], start: float,
     actual touchdowns, not contact edges: a stance foot whose load flickers around the
     threshold has edges too).
     """
-    best = None
-    for leg in sorted({leg for _, leg in touchdowns}):
-        times = sorted(t for t, other in touchdowns if other == leg and start <= t <= end)
-        if len(times) >= 2 and (best is None or times[-1] - times[0] > best[1] - best[0]):
-            best = (times[0], times[-1], len(times) - 1)
-    return best
+    times = _cycle_leg(touchdowns, start, end)
+    return (times[0], times[-1], len(times) - 1) if times else None
+
+
+def cycle_velocities(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
+                     touchdowns: list[tuple[float, int]], start: float,
+                     end: float) -> list[dict]:
+    """The mean body velocity over each whole crawl cycle within [start, end] (s), in time
+    order: ``{'start_s', 'end_s', 'velocity': [vx, vy, wz]}`` (m/s, rad/s), from one touchdown
+    of a leg to its next (the leg of ``whole_cycles``). After a set-point change the first
+    cycles show how the trunk gets to the new speed; the last ones are its steady state."""
+    cycle_times = _cycle_leg(touchdowns, start, end)
+    rows = []
+    for t0, t1 in itertools.pairwise(cycle_times):
+        v = achieved_velocity(times, positions, yaws, t0, t1)
+        if v is not None:
+            rows.append({'start_s': float(t0), 'end_s': float(t1),
+                         'velocity': [float(x) for x in v]})
+    return rows
+
+
+def steady_velocity(cycles: list[dict], last: int) -> list[float] | None:
+    """(vx, vy, wz) over the ``last`` whole cycles of ``cycle_velocities``' rows (the
+    duration-weighted mean, i.e. the velocity integrated over their span): the steady state
+    once the trunk has got to the speed; None with fewer cycles."""
+    if last < 1 or len(cycles) < last:
+        return None
+    tail = cycles[-last:]
+    weights = np.array([c['end_s'] - c['start_s'] for c in tail])
+    mean = np.average(np.array([c['velocity'] for c in tail]), axis=0, weights=weights)
+    return [float(x) for x in mean]
 
 
 def tracking_errors(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
                     segments: list[Segment], settle: float,
-                    touchdowns: list[tuple[float, int]] | None = None) -> list[dict]:
+                    touchdowns: list[tuple[float, int]] | None = None,
+                    steady_cycles: int = 2) -> list[dict]:
     """Per commanded segment: commanded and achieved velocity, after ``settle`` s. With the
     true ``touchdowns`` ((time s, leg), as ``whole_cycles``), also the velocity over the whole
     crawl cycles after the settling (``achieved_cycles``, its span ``cycles_span_s`` and
-    ``cycles``): the steady state without the cycle's sway."""
+    ``cycles``: the crawl's sway averaged out), the velocity of each whole cycle from the
+    segment's start (``cycle_velocities``) and the steady state over its last
+    ``steady_cycles`` cycles (``achieved_steady``; None with fewer). After a set-point change
+    the trunk takes a few cycles to get to the new speed (it falls behind its feet while it
+    accelerates); an average from ``settle`` s on keeps part of that."""
     rows = []
     for seg in segments:
         start = min(seg.start + settle, seg.start + 0.5 * (seg.end - seg.start))
@@ -119,9 +162,14 @@ def tracking_errors(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
         span = whole_cycles(touchdowns, start, seg.end) if touchdowns else None
         cycles = achieved_velocity(times, positions, yaws, span[0], span[1]) if span else None
         if touchdowns is not None:
+            per_cycle = cycle_velocities(times, positions, yaws, touchdowns, seg.start,
+                                         seg.end)
             row.update(achieved_cycles=list(cycles) if cycles else None,
                        cycles_span_s=[span[0], span[1]] if cycles else None,
-                       cycles=span[2] if cycles else 0)
+                       cycles=span[2] if cycles else 0,
+                       cycle_velocities=per_cycle,
+                       achieved_steady=steady_velocity(per_cycle, steady_cycles),
+                       steady_cycles=steady_cycles)
         if achieved is not None:
             err = np.subtract(achieved, seg.command)
             row['error'] = [float(e) for e in err]
@@ -403,7 +451,7 @@ def support_inradius_after(times: np.ndarray, feet: np.ndarray, in_contact: np.n
 
 def rise_time(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray, before: Segment,
               after: Segment, window: float = 1.0, fraction: float = 0.9,
-              settle: float = 2.0) -> float | None:
+              settle: float = 2.0, achieved_after=None) -> float | None:
     """Seconds from a set-point change until the velocity, averaged over the trailing
     ``window``, has covered ``fraction`` of the way from what was achieved before the change
     to what is achieved after it: how promptly the change is followed, apart from any
@@ -411,13 +459,16 @@ def rise_time(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray, before
     set-point changed must have got there (vx, vy in m/s, wz in rad/s); None if one never
     does before ``after`` ends, or if the achieved velocities cannot be measured.
 
-    Achieved before: the mean over the last ``settle`` s of ``before``; after: the mean from
-    ``settle`` s into ``after`` to its end.
+    Achieved before: the mean over the last ``settle`` s of ``before``; after:
+    ``achieved_after`` (vx, vy, wz) if given (the steady state over whole cycles,
+    ``tracking_errors``' ``achieved_steady``), else the mean from ``settle`` s into ``after``
+    to its end, which keeps part of the trunk's acceleration and so reads a lower target.
     """
     v0 = achieved_velocity(times, positions, yaws, max(before.start, before.end - settle),
                            before.end)
-    v1 = achieved_velocity(times, positions, yaws,
-                           min(after.start + settle, 0.5 * (after.start + after.end)), after.end)
+    v1 = (tuple(achieved_after) if achieved_after is not None else achieved_velocity(
+        times, positions, yaws, min(after.start + settle, 0.5 * (after.start + after.end)),
+        after.end))
     if v0 is None or v1 is None:
         return None
     changed = [k for k in range(3) if abs(after.command[k] - before.command[k]) > 1e-9]

@@ -3,11 +3,14 @@ import pytest
 
 from replan_core.metrics import (
     FallLimits,
+    Segment,
     achieved_velocity,
     command_segments,
     detect_fall,
     distance_travelled,
+    rise_time,
     roll_pitch_yaw,
+    steady_velocity,
     tracking_errors,
     whole_cycles,
 )
@@ -225,3 +228,40 @@ def test_rise_time_ignores_a_steady_offset():
     # at s = 0.5 ln(0.045 (e^2 - 1) / 0.009)
     assert rise == pytest.approx(0.5 * np.log(0.045 * (np.exp(2.0) - 1.0) / 0.009), abs=0.02)
     assert rise_time(times, positions, yaws, before, Segment(4.0, 12.0, (0.1, 0.0, 0.0))) is None
+
+
+def test_the_steady_state_is_the_last_whole_cycles_after_the_trunk_got_to_the_speed():
+    """A trunk that gets to 0.1 m/s sideways with a 3 s time constant (it falls behind its
+    feet while it accelerates) and sways with the 3.2 s crawl cycle: the whole cycles after
+    2 s of settling still hold part of the acceleration, the last two do not."""
+    dt, cycle, tau = 0.004, 3.2, 3.0
+    t = np.arange(0.0, 22.0, dt)
+    ramp = np.where(t < 1.0, 0.0, 1.0 - np.exp(-(t - 1.0) / tau))
+    vy = 0.1 * ramp + np.where(t < 1.0, 0.0, 0.03 * np.sin(2 * np.pi * (t - 1.0) / cycle))
+    pos = np.stack([np.zeros_like(t), np.concatenate([[0.0], np.cumsum(vy[:-1] * dt)])], 1)
+    yaw = np.zeros_like(t)
+    touchdowns = [(1.0 + cycle * (k + leg / 4.0), leg) for k in range(7) for leg in range(4)]
+    segs = command_segments([(1.0, (0.0, 0.1, 0.0))], end_time=22.0)
+    row, = [r for r in tracking_errors(t, pos, yaw, segs, settle=2.0, touchdowns=touchdowns)
+            if any(r['commanded'])]
+    per_cycle = row['cycle_velocities']
+    assert len(per_cycle) == 6                                   # leg 0: 1.0 to 20.2 s
+    assert [c['start_s'] for c in per_cycle] == pytest.approx([1.0 + cycle * k
+                                                               for k in range(6)])
+    assert np.all(np.diff([c['velocity'][1] for c in per_cycle]) > 0)   # getting to speed
+    assert row['steady_cycles'] == 2
+    assert row['achieved_steady'] == pytest.approx(
+        steady_velocity(per_cycle, 2), abs=1e-12)
+    # The mean over the last two cycles, against the exact mean of 0.1 * ramp over them.
+    t0, t1 = per_cycle[-2]['start_s'], per_cycle[-1]['end_s']
+    exact = 0.1 - 0.1 * tau * (np.exp(-(t0 - 1.0) / tau) - np.exp(-(t1 - 1.0) / tau)) / (t1 - t0)
+    assert row['achieved_steady'][1] == pytest.approx(exact, abs=2e-4)
+    assert row['achieved_steady'][1] > 0.098 > 0.095 > row['achieved_cycles'][1]
+    assert steady_velocity(per_cycle, 7) is None and steady_velocity([], 1) is None
+    # Rise to 90 % of the change: later against the steady state than against the mean that
+    # keeps the acceleration in.
+    before, after = command_segments([(1.0, (0.0, 0.1, 0.0))], end_time=22.0)
+    early = rise_time(t, pos, yaw, Segment(before.start, before.end, (0.0, 0.05, 0.0)), after)
+    late = rise_time(t, pos, yaw, Segment(before.start, before.end, (0.0, 0.05, 0.0)), after,
+                     achieved_after=row['achieved_steady'])
+    assert late > early

@@ -256,10 +256,10 @@ def _add_response_metrics(metrics: dict, contacts: dict, touchdown_times: np.nda
         settle = settle_time(times, pos, rpy[:, 2], seg) if seg else None
         row['settle_time_s'] = _round(settle) if settle is not None else None
         row['settle_steps'] = steps_within(seg.start, settle) if seg else None
-        # After a change of a non-zero set-point: how promptly it is followed, apart from the
-        # steady-state offset (replan_core.metrics.rise_time).
+        # After a change of a non-zero set-point: how promptly it gets to the steady state.
         if index and any(segments[index - 1].command):
-            rise = rise_time(times, pos, rpy[:, 2], segments[index - 1], seg)
+            rise = rise_time(times, pos, rpy[:, 2], segments[index - 1], seg,
+                             achieved_after=row.get('achieved_steady'))
             row['rise_time_s'] = _round(rise) if rise is not None else None
             row['rise_steps'] = steps_within(seg.start, rise)
     if not len(stamps):

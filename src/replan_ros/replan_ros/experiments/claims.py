@@ -64,6 +64,9 @@ def _summary(result: RunResult, **extra) -> dict:
         row.update(linear_error_mps=last.get('linear_error_mps'),
                    achieved=last.get('achieved'), commanded=last.get('commanded'),
                    achieved_cycles=last.get('achieved_cycles'), cycles=last.get('cycles'),
+                   achieved_steady=last.get('achieved_steady'),
+                   steady_cycles=last.get('steady_cycles'),
+                   cycle_velocities=last.get('cycle_velocities'),
                    settle_time_s=last.get('settle_time_s'), settle_steps=last.get('settle_steps'),
                    rise_time_s=last.get('rise_time_s'), rise_steps=last.get('rise_steps'),
                    yaw_rate_error_radps=last.get('yaw_rate_error_radps'))
@@ -86,7 +89,8 @@ def velocity_changes(ctx: Context, cfg: dict, world: str = 'realistic') -> list[
             doc = variant(runner.scenario(name), world=world, seed=seed,
                           duration=cfg.get('duration'))
             return _summary(runner.run(doc), scenario=name, seed=seed, world=world,
-                            prompt_steps=int(cfg.get('prompt_steps', 4)))
+                            prompt_steps=int(cfg.get('prompt_steps', 4)),
+                            steady_tolerance=float(cfg['steady_tolerance']))
         return make
     return _parallel([one(n, s) for n, s in specs])
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from replan_ros.experiments.stats import (
     compare_paired,
+    cycles_to_within,
     p_text,
     push_sign_test,
     steady_velocity,
@@ -24,8 +25,8 @@ def findings(page, name: str, data, results: dict) -> None:
             if not sel:
                 continue
             rise, settle = values(sel, 'rise_steps'), values(sel, 'settle_steps')
-            # The steady state over whole crawl cycles (the crawl's sway averaged out) where a
-            # run has one, else after the settling.
+            # The steady state over the last whole crawl cycles (the sway averaged out, the
+            # trunk at its speed) where a run has them, else after the settling.
             ratio = [np.hypot(*steady_velocity(r)[:2]) / np.hypot(*r['commanded'][:2])
                      for r in sel if r.get('achieved') and any(r['commanded'][:2])]
             label = scenario.removeprefix('exp_').replace('_', ' ')
@@ -39,9 +40,21 @@ def findings(page, name: str, data, results: dict) -> None:
                     f'after {np.mean(settle):.1f} touchdowns on average' if settle else
                     '; no run gets within 10 % of the set-point')
                 page.findings[-1] += (
-                    f'; the realistic robot walks at {np.mean(ratio) * 100:.0f} % of its '
-                    'set-point after the change (mean over the runs, over whole crawl '
-                    'cycles).')
+                    f'; the realistic robot walks at {np.mean(ratio) * 100:.1f} % of its '
+                    'set-point speed after the change (mean over the runs, over the last whole '
+                    'crawl cycles)')
+                tolerance = sel[0].get('steady_tolerance')
+                counts = [cycles_to_within(r, tolerance) for r in sel] if tolerance else []
+                known = [c for c in counts if c is not None]
+                if counts:
+                    page.findings[-1] += (
+                        f'; its velocity is within {tolerance * 100:.0f} % of the set-point '
+                        f'from whole cycle {np.mean(known) + 1:.1f} after the change on '
+                        f'(mean, {len(known)} of {len(counts)} runs)' if known else
+                        f'; no run is within {tolerance * 100:.0f} % of the set-point by its '
+                        'last whole cycle')
+                page.findings[-1] += '.'
+
     elif name == 'lateral_push':
         cfg, table = data['config'], data['settings']
         mass = data.get('robot_mass_kg')

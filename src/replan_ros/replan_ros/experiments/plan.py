@@ -11,7 +11,7 @@ import yaml
 
 # The keys each experiment reads: a misspelt one in the plan file is an error, not a default.
 PLAN_KEYS = {
-    'velocity_changes': {'scenarios', 'seeds', 'prompt_steps', 'duration'},
+    'velocity_changes': {'scenarios', 'seeds', 'prompt_steps', 'duration', 'steady_tolerance'},
     'lateral_push': {'scenario', 'phases', 'first_push', 'after_push', 'push_duration',
                      'direction', 'first_impulse', 'max_impulse', 'probes', 'seed', 'settings',
                      'duration'},
@@ -116,6 +116,9 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
         if unknown:
             raise ExperimentError(f'{path}: {section}.{where}: unknown keys {sorted(unknown)} '
                                   f'(known: {", ".join(sorted(keys))})')
+    if 'steady_tolerance' not in (plan.get('velocity_changes') or {'steady_tolerance': 0}):
+        raise ExperimentError(f'{path}: {section}.velocity_changes: steady_tolerance missing '
+                              '(the share of the set-point speed the steady state must be in)')
     bad = set(only) - set(plan)
     if bad:
         raise ExperimentError(f'--only: {sorted(bad)} not in the {section} plan '

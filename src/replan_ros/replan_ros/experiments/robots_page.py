@@ -61,8 +61,8 @@ from replan_ros.experiments.stats import steady_velocity
 
 def walk_row(result: RunResult, axis: str, commanded: float) -> dict:
     """Achieved against commanded on ``axis`` (mean body-frame velocity of the truth over the
-    whole crawl cycles after the metrics' settling, in the last segment with a set-point; after
-    the settling if it has no whole cycle: ``cycles`` 0), or the fall."""
+    last whole crawl cycles, ``stats.steady_velocity``, of the last segment with a set-point;
+    after the settling if it has none: ``cycles`` 0), or the fall."""
     row = {'run': result.key, 'ok': result.ok, 'fell': result.fell, 'commanded': commanded,
            'fall_time_s': result.metrics.get('fall_time_s'), 'achieved': None, 'cycles': 0}
     segments = [s for s in result.metrics.get('velocity_tracking') or []
@@ -70,7 +70,8 @@ def walk_row(result: RunResult, axis: str, commanded: float) -> dict:
     if segments and segments[-1].get('achieved') is not None:
         last = segments[-1]
         row['achieved'] = float(steady_velocity(last)[ROBOT_KEYS.index(axis)])
-        row['cycles'] = int(last.get('cycles') or 0) if last.get('achieved_cycles') else 0
+        row['cycles'] = (int(last['steady_cycles']) if last.get('achieved_steady') else
+                         int(last.get('cycles') or 0) if last.get('achieved_cycles') else 0)
     return row
 
 

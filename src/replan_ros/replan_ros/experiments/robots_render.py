@@ -169,10 +169,11 @@ def how_section(meta: dict) -> list[str]:
         '## How each figure is made', '',
         f'- **Set-points**: per robot in the plan. Each walk is its own run from standing '
         f'(`{tests["walk"]["scenario"]}`, {tests["walk"]["duration"]:g} s), achieved = the '
-        'mean body-frame velocity of the simulator\'s truth over the whole crawl cycles after '
-        '2 s of settling (from a leg\'s first true touchdown to its last: the crawl\'s sway '
-        'and surge average out; the run\'s `velocity_tracking`, `achieved_cycles`; yaw: the '
-        'turn rate).',
+        'mean body-frame velocity of the simulator\'s truth over the last whole crawl cycles '
+        '(each from a true touchdown of a leg to its next: the crawl\'s sway and surge '
+        'average out; the trunk takes a few cycles from standing to get to the speed, which '
+        'the steady state leaves out; the run\'s `velocity_tracking`, `achieved_steady`, '
+        '`cycle_velocities`; yaw: the turn rate).',
         f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s; '
         f'drift = the trunk\'s horizontal displacement on the truth from {stand["drift_from"]:g} '
         's to the end; touchdowns = true contact flags that rise more than one crawl cycle (the '

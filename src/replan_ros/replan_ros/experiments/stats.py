@@ -27,11 +27,38 @@ def values(rows: list[dict], key: str, **where) -> list[float]:
 
 
 def steady_velocity(row: dict) -> list | None:
-    """A velocity-tracking row's steady state (vx, vy, wz): the velocity over whole crawl
-    cycles where the row has one (``achieved_cycles``, ``cycles`` > 0: the crawl's sway
-    averaged out), else the one after the settling (``achieved``); None without either."""
+    """A velocity-tracking row's steady state (vx, vy, wz): over its last whole crawl cycles
+    (``achieved_steady``, replan_core.metrics.tracking_errors: the trunk has got to the speed
+    and the sway is averaged out); else over the whole cycles after the settling
+    (``achieved_cycles``, runs of older code), else after the settling (``achieved``); None
+    without any."""
+    if row.get('achieved_steady'):
+        return row['achieved_steady']
     whole = row.get('achieved_cycles') if row.get('cycles') else None
     return whole or row.get('achieved')
+
+
+def cycles_to_within(row: dict, tolerance: float) -> int | None:
+    """Whole crawl cycles from the start of a row's segment before every later cycle's mean
+    velocity (``cycle_velocities``) is within ``tolerance`` (a share) of the set-point: planar
+    speed error against the planar set-point (if any), yaw-rate error against a commanded yaw
+    rate (if any).
+    0: from the first cycle on; None: the last cycle is not within, or no cycles, or no
+    set-point."""
+    cycles = row.get('cycle_velocities') or []
+    vx, vy, wz = row['commanded']
+    speed = math.hypot(vx, vy)
+    if not cycles or (speed == 0.0 and wz == 0.0):
+        return None
+
+    def within(v) -> bool:
+        linear = speed == 0.0 or math.hypot(v[0] - vx, v[1] - vy) <= tolerance * speed
+        return linear and (wz == 0.0 or abs(v[2] - wz) <= tolerance * abs(wz))
+
+    outside = [k for k, c in enumerate(cycles) if not within(c['velocity'])]
+    if outside and outside[-1] == len(cycles) - 1:
+        return None
+    return outside[-1] + 1 if outside else 0
 
 
 def spread(xs: list[float], digits: int = 3, scale: float = 1.0) -> str:

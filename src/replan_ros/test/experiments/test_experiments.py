@@ -18,7 +18,7 @@ from replan_ros.experiments.plan import (
     variant,
 )
 from replan_ros.experiments.runs import Runner, RunResult, code_fingerprint, run_key
-from replan_ros.experiments.stats import compare, compare_paired, spread
+from replan_ros.experiments.stats import compare, compare_paired, cycles_to_within, spread
 
 CONFIG = Path(__file__).resolve().parents[4] / 'config'
 BASE = {'name': 'walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0.0, 0.0]}]}
@@ -148,6 +148,9 @@ def test_shipped_plan_loads_and_rejects_unknown_names(tmp_path):
     bad.write_text('full: {haptic: {seeds: [0], durration: 9.0}}\n')
     with pytest.raises(ExperimentError, match=r"full.haptic: unknown keys \['durration'\]"):
         load_plan(bad, False, [])
+    bad.write_text('full: {velocity_changes: {scenarios: [exp_velocity_step], seeds: [0]}}\n')
+    with pytest.raises(ExperimentError, match='velocity_changes: steady_tolerance missing'):
+        load_plan(bad, False, [])
     bad.write_text('full: {ideal_world: {haptic: {terains: [flat]}}}\n')
     with pytest.raises(ExperimentError, match=r"full.ideal_world.haptic: unknown keys"):
         load_plan(bad, False, [])
@@ -218,6 +221,49 @@ def test_page_from_results(tmp_path):
     assert '`x: exit 1`' in text
     assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
     assert (tmp_path / 'results_plots' / 'haptic_pitch.png').is_file()
+
+
+def _cycles(*speeds, cycle=3.0, start=8.4):
+    return [{'start_s': start + cycle * k, 'end_s': start + cycle * (k + 1),
+             'velocity': [0.0, v, 0.0]} for k, v in enumerate(speeds)]
+
+
+def test_cycles_to_within_counts_the_cycles_before_the_speed_stays_in_the_band():
+    row = {'commanded': [0.0, 0.1, 0.0]}
+    assert cycles_to_within({**row, 'cycle_velocities': _cycles(0.08, 0.095, 0.099, 0.1)},
+                            0.03) == 2
+    # A cycle out of the band after one within: counted to the last one out.
+    assert cycles_to_within({**row, 'cycle_velocities': _cycles(0.099, 0.09, 0.1)}, 0.03) == 2
+    assert cycles_to_within({**row, 'cycle_velocities': _cycles(0.1, 0.1)}, 0.03) == 0
+    assert cycles_to_within({**row, 'cycle_velocities': _cycles(0.1, 0.09)}, 0.03) is None
+    assert cycles_to_within({**row, 'cycle_velocities': []}, 0.03) is None
+    turning = {'commanded': [0.0, 0.0, 0.2], 'cycle_velocities': [
+        {'start_s': 0.0, 'end_s': 3.0, 'velocity': [0.01, 0.0, 0.15]},
+        {'start_s': 3.0, 'end_s': 6.0, 'velocity': [0.01, 0.0, 0.198]}]}
+    assert cycles_to_within(turning, 0.03) == 1          # a pure turn: the yaw rate alone
+
+
+def test_velocity_change_page_gives_the_steady_state_and_the_cycles_to_get_there(tmp_path):
+    rows = [_row(scenario='exp_straight_to_sideways', seed=s, prompt_steps=4,
+                 steady_tolerance=0.03, commanded=[0.0, 0.1, 0.0], settle_steps=5,
+                 settle_time_s=4.0, rise_steps=3, rise_time_s=2.0, achieved=[0.0, 0.09, 0.0],
+                 achieved_steady=[0.0, 0.1 - 0.002 * s, 0.0], steady_cycles=2,
+                 cycle_velocities=_cycles(0.085, 0.095, 0.1 - 0.002 * s, 0.1 - 0.002 * s))
+            for s in range(3)]
+    rows[2]['achieved_steady'] = [0.0, 0.095, 0.0]          # 5 % off: not within 3 %
+    rows[2]['cycle_velocities'] = _cycles(0.085, 0.095, 0.095, 0.095)
+    meta = {'command': 'c', 'machine': 'm', 'revision': 'r', 'date': 'd',
+            'wall_time_min': 1.0, 'runs': 3}
+    page = tmp_path / 'results.md'
+    write_page(page, {'velocity_changes': rows}, meta)
+    text = page.read_text()
+    assert ('| velocity change | straight to sideways | steady velocity error / set-point speed '
+            '(last 2 cycles), % | 2.3 ± 2.5 (0.0 to 5.0) | 3 | walks at the set-point, within '
+            '3 % (beyond the paper) | does not hold (1 of 3 runs off by more) |') in text
+    assert ('| velocity change | straight to sideways | whole cycles until every later one is '
+            'within 3 % | 2.0 ± 0.0 (2.0 to 2.0); 1 of 3 runs never | 3 |') in text
+    assert 'walks at 97.7 % of its set-point speed after the change' in text
+    assert 'from whole cycle 3.0 after the change on (mean, 2 of 3 runs)' in text
 
 
 class RecordingRunner:
