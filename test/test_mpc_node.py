@@ -18,7 +18,7 @@ from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from replan_core.bench.mpc_bench import HIP, crawl_plan
+from replan_core.bench.mpc_bench import bench_crawl, crawl_plan
 from replan_core.robot_model import RobotModel
 from replan_core.types import BaseState, JointState
 from replan_ros.messages.com_plan import com_plan_from_msg
@@ -32,8 +32,8 @@ from replan_ros.transport.qos import COMMAND, LATCHED, SENSOR
 BASE = np.array([0.0, 0.0, 0.6])
 # Standing pose, JOINT_NAMES order (haa, hfe, kfe per leg; front knees back, hind forward).
 Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
-FEET = np.column_stack([HIP + np.array([[0.0, 0.1], [0.0, -0.1], [0.0, 0.1], [0.0, -0.1]]),
-                        np.zeros(4)])
+LAYOUT = bench_crawl('hyq', CONFIG_DIR.parent).feet_xy     # m, HyQ's standing feet, base xy
+FEET = np.column_stack([LAYOUT, np.zeros(4)])
 N = 200
 
 
@@ -99,7 +99,8 @@ def test_plan_waits_for_the_state_of_its_stamp(graph, launcher):
     t0 = 2.0
     com, _ = expected_com(t0)
     feet = FEET + np.r_[com[:2], 0.0]
-    plan0 = crawl_plan(t0, com, 0.0, feet, 2, np.array([0.05, 0.0]), np.random.default_rng(0))
+    plan0 = crawl_plan(t0, com, 0.0, feet, 2, np.array([0.05, 0.0]), np.random.default_rng(0),
+                       layout=LAYOUT)
     graph.state(t0 - 0.004)
     graph.footholds(plan0)
     graph.probe.spin_for(1.0)
@@ -126,7 +127,8 @@ def test_plan_waits_for_the_state_of_its_stamp(graph, launcher):
     base1 = BASE + np.r_[p1[:2] - com[:2], 0.0]
     graph.state(t1, base=base1)
     com1, _ = expected_com(t1, base1)
-    plan1 = crawl_plan(t1, com1, 0.0, feet, 0, np.array([0.05, 0.0]), np.random.default_rng(1))
+    plan1 = crawl_plan(t1, com1, 0.0, feet, 0, np.array([0.05, 0.0]), np.random.default_rng(1),
+                       layout=LAYOUT)
     graph.footholds(plan1)
     assert graph.probe.spin_until(lambda: graph.plans_at(t1), timeout=10.0), launcher.logs()
     second = com_plan_from_msg(graph.plans_at(t1)[-1])
@@ -142,7 +144,7 @@ def test_bad_input_is_rejected_and_the_node_keeps_going(graph, launcher):
     t0 = 1.0
     com, _ = expected_com(t0)
     feet = FEET + np.r_[com[:2], 0.0]
-    bad = crawl_plan(t0, com, 0.0, feet, 2, np.zeros(2), np.random.default_rng(0))
+    bad = crawl_plan(t0, com, 0.0, feet, 2, np.zeros(2), np.random.default_rng(0), layout=LAYOUT)
     bad.steps[2].target = np.array([math.nan, 0.0, 0.0])
     graph.state(t0)
     graph.footholds(bad)                                   # rejected by the conversion
@@ -151,13 +153,13 @@ def test_bad_input_is_rejected_and_the_node_keeps_going(graph, launcher):
     graph.state(t0 + 0.5, q=nan_q)                         # rejected joint_states
     graph.probe.spin_for(0.5)
     assert not graph.plans
-    good = crawl_plan(t0, com, 0.0, feet, 2, np.zeros(2), np.random.default_rng(0))
+    good = crawl_plan(t0, com, 0.0, feet, 2, np.zeros(2), np.random.default_rng(0), layout=LAYOUT)
     graph.footholds(good)
     assert graph.probe.spin_until(lambda: graph.plans_at(t0), timeout=10.0), launcher.logs()
     # Two legs in the air: degenerate polygons -> the fallback plan, flagged, not a crash.
     t1 = 2.0
     graph.state(t1)
-    broken = crawl_plan(t1, com, 0.0, feet, 2, np.zeros(2), np.random.default_rng(2))
+    broken = crawl_plan(t1, com, 0.0, feet, 2, np.zeros(2), np.random.default_rng(2), layout=LAYOUT)
     broken.steps[1].liftoff_time = broken.steps[0].liftoff_time
     graph.footholds(broken)
     assert graph.probe.spin_until(lambda: graph.diag_at(t1), timeout=10.0), launcher.logs()

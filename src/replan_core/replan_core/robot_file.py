@@ -219,6 +219,7 @@ class RobotFacts:
     foot_height: float          # m, foot frame origins above that ground (mean of 4 feet)
     min_joint_inertia: float    # kg m^2, smallest diagonal entry of the joint-space inertia
     feet_about_hips: np.ndarray  # (4, 2) m, each foot about its hip (haa axis), base frame xy
+    feet_xy: np.ndarray         # (4, 2) m, each foot in the base frame xy
 
 
 def robot_facts(spec: RobotSpec) -> RobotFacts:
@@ -257,4 +258,5 @@ def robot_facts(spec: RobotSpec) -> RobotFacts:
                       com_height=float(com[2] - ground),
                       foot_height=float(feet[:, 2].mean() - ground),
                       min_joint_inertia=float(min(inertia[r, r] for r in joint_rows)),
-                      feet_about_hips=feet[:, :2] - abductions[:, :2])
+                      feet_about_hips=feet[:, :2] - abductions[:, :2],
+                      feet_xy=feet[:, :2] - q[:2])

@@ -1,11 +1,20 @@
 """The jerk QP eq. (6)-(7): optimality, feasibility, warm start, failures, interpolation."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from replan_core.bench.mpc_bench import CRAWL_ORDER, HIP, crawl_plan, velocity_profile
+from replan_core.bench.mpc_bench import (
+    CRAWL_ORDER,
+    FOUR_FEET,
+    SWING,
+    bench_crawl,
+    crawl_plan,
+    run,
+    velocity_profile,
+)
 from replan_core.gait import stand_plan
 from replan_core.lip import rollout
 from replan_core.mpc import (
@@ -24,7 +33,12 @@ from replan_core.mpc_working_set import _nnqp
 from replan_core.support import support_schedule
 from replan_core.types import FootholdPlan, Step
 
-FEET = np.column_stack([HIP, np.zeros(4)])
+# The bench crawl's standing feet (m, base frame xy): the project's reference robot, HyQ.
+ROOT = Path(__file__).resolve().parents[3]
+LAYOUT = bench_crawl('hyq', ROOT).feet_xy
+
+
+FEET = np.column_stack([LAYOUT, np.zeros(4)])
 
 
 def crawl(mpc: LipMpc, seed: int, replans: int, jitter: float = 0.03):
@@ -33,7 +47,7 @@ def crawl(mpc: LipMpc, seed: int, replans: int, jitter: float = 0.03):
     feet, com, vel, acc, t, leg = FEET.copy(), np.zeros(3), np.zeros(3), np.zeros(3), 0.0, 2
     for i in range(replans):
         v_ref = velocity_profile(i * 7 + seed)
-        plan = crawl_plan(t, com, 0.0, feet, leg, v_ref, rng)
+        plan = crawl_plan(t, com, 0.0, feet, leg, v_ref, rng, layout=LAYOUT)
         res = mpc.solve(t, com, vel, acc, plan, v_ref=v_ref)
         yield plan, res
         first = plan.steps[0]
@@ -97,13 +111,16 @@ def test_large_polygon_gives_zero_jerk():
 
 def test_velocity_weight_tracks_the_reference():
     v_ref = np.array([0.15, 0.05])
-    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, v_ref, np.random.default_rng(4))
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, v_ref, np.random.default_rng(4),
+                      layout=LAYOUT)
     errors = []
     for w in (0.0, 0.1, 10.0):
         res = LipMpc(MpcSettings(velocity_weight=w)).solve(
             0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan, v_ref=v_ref)
         assert res.status == STATUS_SOLVED
-        errors.append(np.linalg.norm(res.plan.velocity[1:, :2].mean(axis=0) - v_ref))
+        # The cost's own term, sum |v_k - v_ref|^2: at the optimum it cannot grow with its
+        # weight. The plan's mean velocity need not follow (with HyQ's standing feet it did not).
+        errors.append(float(np.sum((res.plan.velocity[1:, :2] - v_ref) ** 2)))
     assert errors[2] < errors[1] < errors[0]
 
 
@@ -120,7 +137,8 @@ def test_warm_and_cold_agree():
 
 
 def test_com_outside_returns_infeasible_status_and_relaxed_fallback():
-    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0))
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0),
+                      layout=LAYOUT)
     mpc = LipMpc()
     res = mpc.solve(0.0, np.array([1.5, 0.0, 0.55]), np.array([1.0, 0.0, 0.0]), np.zeros(3),
                     plan)
@@ -140,7 +158,8 @@ def test_degenerate_polygon_reports_the_sample():
 
 def test_nan_state_rejected_with_message_and_previous_plan_shifted():
     mpc = LipMpc()
-    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0))
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0),
+                      layout=LAYOUT)
     res = mpc.solve(0.0, np.array([math.nan, 0.0, 0.55]), np.zeros(3), np.zeros(3), plan)
     assert res.status == STATUS_REJECTED and 'com_pos' in res.reason and 'NaN' in res.reason
     assert res.fallback == FALLBACK_HOLD and res.plan is None
@@ -157,7 +176,7 @@ def test_nan_state_rejected_with_message_and_previous_plan_shifted():
 
 def test_plan_interpolation_is_exact():
     plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.array([0.1, 0.0]),
-                      np.random.default_rng(2))
+                      np.random.default_rng(2), layout=LAYOUT)
     res = LipMpc().solve(0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
     k, frac = 37, 0.3
     t = (k + frac) * 0.04
@@ -173,7 +192,7 @@ def test_plan_interpolation_is_exact():
 @pytest.mark.slow
 def test_full_formulations_agree(formulation):
     plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.array([0.1, 0.0]),
-                      np.random.default_rng(2))
+                      np.random.default_rng(2), layout=LAYOUT)
     ref = LipMpc().solve(0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
     other = LipMpc(MpcSettings(formulation=formulation, eps_abs=1e-7, max_iter=2000)).solve(
         0.0, np.zeros(3), np.zeros(3), np.zeros(3), plan)
@@ -291,7 +310,8 @@ def test_infeasible_replan_fails_fast_to_the_relaxed_plan():
     """The infeasible problem of test_bad_input.py: the exact dual reports it (unbounded or
     dependent rows) within the iteration budget instead of handing it to proxsuite, which
     iterated for seconds on it."""
-    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0))
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2), np.random.default_rng(0),
+                      layout=LAYOUT)
     mpc = LipMpc()
     res = mpc.solve(0.0, np.array([1.5, 0.0, 0.55]), np.array([1.0, 0.0, 0.0]), np.zeros(3),
                     plan)
@@ -305,7 +325,8 @@ def test_solve_reports_its_cpu_time_next_to_its_wall_time():
     results = [res for _, res in crawl(mpc, 4, 5)]
     results.append(mpc.solve(0.0, np.full(3, np.nan), np.zeros(3), np.zeros(3),
                              crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.zeros(2),
-                                        np.random.default_rng(0))))     # a rejected input
+                                        np.random.default_rng(0),
+                                        layout=LAYOUT)))     # a rejected input
     for res in results:
         assert math.isfinite(res.solve_cpu_ms) and res.solve_cpu_ms > 0.0
         # One thread: it cannot use more CPU than wall time (the CPU clock's span is a few
@@ -316,12 +337,28 @@ def test_solve_reports_its_cpu_time_next_to_its_wall_time():
 def test_bench_idle_modes_solve_the_same_problems():
     """The benchmark's idle modes change only what happens between re-plans, not the problems
     solved; an unknown mode is refused."""
-    from replan_core.bench.mpc_bench import run
 
-    results = [run(MpcSettings(), replans=4, idle=0.002, idle_mode=mode)
+    results = [run(MpcSettings(), bench_crawl('hyq', ROOT), replans=4, idle=0.002, idle_mode=mode)
                for mode in ('sleep', 'spin', 'evict')]
     assert [r['idle_mode'] for r in results] == ['sleep', 'spin', 'evict']
     for key in ('n_variables', 'triangle_samples_first_plan', 'quad_samples_first_plan'):
         assert len({r[key] for r in results}) == 1, key
     with pytest.raises(ValueError, match='idle_mode'):
-        run(MpcSettings(), replans=2, idle=0.001, idle_mode='nap')
+        run(MpcSettings(), bench_crawl('hyq', ROOT), replans=2, idle=0.001, idle_mode='nap')
+
+
+def test_the_bench_crawl_is_the_robot_files():
+    """mpc_bench --robot: the crawl of a robot file, scaled from the reference's; a bad name is
+    a one-line error."""
+    hyq, go1 = bench_crawl('hyq', ROOT), bench_crawl('go1', ROOT)
+    assert hyq.com_height is None and (hyq.swing, hyq.four_feet, hyq.speed_scale) == (
+        SWING, FOUR_FEET, 1.0)
+    # Go1's legs are 0.61 of HyQ's: its pendulum time and Froude speed 0.78 of HyQ's.
+    assert 0.6 < go1.swing / SWING < 0.85
+    assert go1.swing / SWING == pytest.approx(go1.four_feet / FOUR_FEET)
+    assert 0.6 < go1.speed_scale < 0.85 and 0.2 < go1.com_height < 0.3
+    assert np.all(np.abs(go1.feet_xy) < np.abs(hyq.feet_xy))
+    result = run(MpcSettings(com_height=go1.com_height), go1, replans=6)
+    assert result['statuses'] == {'solved': 6} and result['max_zmp_violation_m'] < 1e-6
+    with pytest.raises(ValueError, match="unknown robot 'nosuch'"):
+        bench_crawl('nosuch', ROOT)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from replan_core.bench.mpc_bench import CRAWL_ORDER, HIP, velocity_profile
+from replan_core.bench.mpc_bench import CRAWL_ORDER, bench_crawl, velocity_profile
 from replan_core.bench.mpc_bench import crawl_plan as mpc_crawl_plan
 from replan_core.bench.wbc_bench import crawl_plan
 from replan_core.mpc import LipMpc, MpcSettings
@@ -23,6 +23,10 @@ from replan_core.proxqp import (
 from replan_core.robot_model import RobotModel
 from replan_core.sim_world import SimWorld
 from replan_core.wbc import PlanFollower, WholeBodyController
+
+# The bench crawl's standing feet (m, base frame xy): the project's reference robot, HyQ.
+LAYOUT = bench_crawl('hyq', Path(__file__).resolve().parents[3]).feet_xy
+
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -145,12 +149,12 @@ def test_replans_are_bit_exact_under_heap_noise(formulation):
     def plans(noise: HeapNoise) -> list[np.ndarray]:
         mpc = LipMpc(MpcSettings(horizon=2.4, formulation=formulation))
         rng = np.random.default_rng(3)
-        feet, com, leg, t = np.column_stack([HIP, np.zeros(4)]), np.zeros(3), 2, 0.0
+        feet, com, leg, t = np.column_stack([LAYOUT, np.zeros(4)]), np.zeros(3), 2, 0.0
         out = []
         for i in range(6):
             noise.stir()
             v_ref = velocity_profile(i)
-            plan = mpc_crawl_plan(t, com, 0.0, feet, leg, v_ref, rng)
+            plan = mpc_crawl_plan(t, com, 0.0, feet, leg, v_ref, rng, layout=LAYOUT)
             res = mpc.solve(t, com, np.zeros(3), np.zeros(3), plan, v_ref=v_ref)
             out.append(res.plan.position.copy())
             first = plan.steps[0]

@@ -1,13 +1,18 @@
 """Support polygons as half-spaces, eq. (7) rows."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from replan_core.bench.mpc_bench import HIP, crawl_plan
+from replan_core.bench.mpc_bench import bench_crawl, crawl_plan
 from replan_core.support import MAX_ROWS, convex_hull, polygon, stance_at, support_schedule
 from replan_core.types import FootholdPlan, Step
+
+# The bench crawl's standing feet (m, base frame xy): the project's reference robot, HyQ.
+LAYOUT = bench_crawl('hyq', Path(__file__).resolve().parents[3]).feet_xy
+
 
 SQUARE = np.array([[0.37, 0.21], [0.37, -0.21], [-0.37, 0.21], [-0.37, -0.21]])
 
@@ -49,9 +54,9 @@ def test_degenerate_polygons_are_flagged_not_raised():
 
 
 def test_schedule_of_a_crawl():
-    feet = np.column_stack([HIP, np.zeros(4)])
+    feet = np.column_stack([LAYOUT, np.zeros(4)])
     plan = crawl_plan(0.0, np.zeros(3), 0.0, feet, 2, np.array([0.1, 0.0]),
-                      np.random.default_rng(0))
+                      np.random.default_rng(0), layout=LAYOUT)
     sched = support_schedule(plan, 0.0, 0.04, 200, margin=0.01)
     assert sched.A.shape == (200, MAX_ROWS, 2) and not sched.degenerate.any()
     assert set(np.unique(sched.n_feet)) == {3, 4}
@@ -103,9 +108,9 @@ def test_implied_velocity_is_the_stride_rate_not_the_catch_up():
 def test_schedule_matches_the_per_sample_stance_everywhere(shift):
     """Every sample (runs of one stance written as slices) against ``stance_at`` + ``polygon``,
     including horizons that start exactly one sample before a lift-off (closed swing interval)."""
-    feet = np.column_stack([HIP, np.zeros(4)])
+    feet = np.column_stack([LAYOUT, np.zeros(4)])
     plan = crawl_plan(0.0, np.zeros(3), 0.0, feet, 2, np.array([0.1, 0.02]),
-                      np.random.default_rng(5))
+                      np.random.default_rng(5), layout=LAYOUT)
     t0 = plan.steps[1].liftoff_time - 0.04 if shift == -1 else shift
     sched = support_schedule(plan, t0, 0.04, 120, margin=0.02)
     assert len(sched.polygons) == 120

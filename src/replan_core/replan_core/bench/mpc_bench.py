@@ -8,6 +8,11 @@ set-point that changes over the run. The crawl is built here on purpose (no depe
 ``replan_core.gait``). The last printed line is one JSON object.
 
     python -m replan_core.bench.mpc_bench [--formulation sparse|dense] [--replans 200] ...
+                                          [--robot NAME|FILE --root DIR]
+
+The crawl is a robot's (``--robot``, a robot file; HyQ's by default): its feet in the standing
+pose, the bench's swing and four-feet times scaled by its pendulum time sqrt(l / g), the
+set-points by sqrt(g l) and the LIP height its CoM height (``config/robots/scaling.yaml``).
 
 ``median_iter``/``max_iter`` count the QP iterations of a re-plan: active-set iterations of the
 working-set dual by default, proxsuite's with ``--proxsuite-dual`` or a full formulation.
@@ -17,25 +22,62 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
 from replan_core.mpc import LipMpc, MpcSettings
+from replan_core.robot_file import load_robot_file, robot_facts, robot_file_path
+from replan_core.robot_scaling import SCALES
 from replan_core.types import FootholdPlan, Step
 
 CRAWL_ORDER = (2, 0, 3, 1)                 # lh, lf, rh, rf
-HIP = np.array([[0.37, 0.21], [0.37, -0.21], [-0.37, 0.21], [-0.37, -0.21]])   # m, base frame
+SWING, FOUR_FEET = 0.6, 0.4                # s, the reference robot's bench crawl
+REFERENCE_ROBOT = 'hyq'                    # config/robots/scaling.yaml's reference
+
+
+@dataclass(frozen=True)
+class BenchCrawl:
+    """The robot the bench plans for: its standing feet (4, 2) (m, base frame xy), one swing
+    and the four-feet phase before it (s), the factor of the set-points and the LIP height
+    (m)."""
+
+    feet_xy: np.ndarray
+    swing: float = SWING
+    four_feet: float = FOUR_FEET
+    speed_scale: float = 1.0
+    com_height: float | None = None     # None: the MPC settings' (the reference robot's)
+
+
+def bench_crawl(robot: str, root: Path) -> BenchCrawl:
+    """The crawl of robot file ``robot`` (a name of ``root``/config/robots/ or a path):
+    timing and set-points scaled from the reference robot's by sqrt(l / g) and sqrt(g l).
+    ValueError (RobotFileError) names the file and key of a bad robot file."""
+    path = robot_file_path(robot, root / 'config')
+    reference = robot_file_path(REFERENCE_ROBOT, root / 'config')
+    facts = robot_facts(load_robot_file(path, root))
+    ref = robot_facts(load_robot_file(reference, root))
+    time_scale = SCALES['time'](facts) / SCALES['time'](ref)
+    # The reference keeps its tuned LIP height (config/mpc.yaml), as the launcher does.
+    same = Path(path).resolve() == Path(reference).resolve()
+    return BenchCrawl(feet_xy=np.asarray(facts.feet_xy, dtype=float), swing=SWING * time_scale,
+                      four_feet=FOUR_FEET * time_scale,
+                      speed_scale=SCALES['speed'](facts) / SCALES['speed'](ref),
+                      com_height=None if same else float(facts.com_height))
 
 
 def crawl_plan(t0: float, com: np.ndarray, yaw: float, feet: np.ndarray, first_leg: int,
-               v_ref: np.ndarray, rng: np.random.Generator, n_steps: int = 8,
-               swing: float = 0.6, four_feet: float = 0.4, noise: float = 0.01,
-               ) -> FootholdPlan:
+               v_ref: np.ndarray, rng: np.random.Generator, *, layout: np.ndarray,
+               n_steps: int = 8, swing: float = SWING, four_feet: float = FOUR_FEET,
+               noise: float = 0.01) -> FootholdPlan:
     """A crawl FootholdPlan from ``t0``: four-feet phase, then ``n_steps`` swings in crawl order.
 
     Footholds are placed about the CoM reference ``com + v_ref (t - t0)`` at touchdown, a half
-    cycle ahead (foothold correction about the actual CoM), plus seeded noise (m).
+    cycle ahead (foothold correction about the actual CoM), at the standing ``layout`` (4, 2)
+    (m, base frame), plus seeded noise (m).
     """
     k0 = CRAWL_ORDER.index(first_leg)
     cycle = len(CRAWL_ORDER) * (swing + four_feet)
@@ -47,7 +89,7 @@ def crawl_plan(t0: float, com: np.ndarray, yaw: float, feet: np.ndarray, first_l
         leg = CRAWL_ORDER[(k0 + j) % 4]
         td = t + swing
         ref = com[:2] + v_ref * (td - t0) + v_ref * cycle / 2.0
-        xy = ref + rot @ HIP[leg] + rng.normal(0.0, noise, 2)
+        xy = ref + rot @ layout[leg] + rng.normal(0.0, noise, 2)
         steps.append(Step(leg=leg, liftoff_time=t, touchdown_time=td,
                           target=np.array([xy[0], xy[1], 0.0]), step_height=0.1,
                           haptic=True, replan=(j == 0), yaw=yaw))
@@ -74,10 +116,10 @@ def _idle(seconds: float, mode: str, sweep: np.ndarray | None) -> None:
             sweep += 1.0
 
 
-def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float = 0.03,
-        pos_noise: float = 0.003, vel_noise: float = 0.01, idle: float = 0.0,
-        idle_mode: str = 'sleep') -> dict:
-    """Run the crawl and return the figures (times in ms). ``idle`` (wall s) before each
+def run(settings: MpcSettings, crawl: BenchCrawl, replans: int = 200, seed: int = 0,
+        jitter: float = 0.03, pos_noise: float = 0.003, vel_noise: float = 0.01,
+        idle: float = 0.0, idle_mode: str = 'sleep') -> dict:
+    """Run ``crawl``'s robot and return the figures (times in ms). ``idle`` (wall s) before each
     re-plan (not timed), as the mpc node idles between touchdowns in the graph; ``idle_mode``
     says how: ``sleep`` (the core is free: as in the graph), ``spin`` (a busy loop that
     touches little memory: the core never idles, the caches keep the solver's data) or
@@ -90,7 +132,7 @@ def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float 
     t_build = time.perf_counter()
     mpc = LipMpc(settings)
     build_ms = (time.perf_counter() - t_build) * 1e3
-    feet = np.column_stack([HIP, np.zeros(4)])
+    feet = np.column_stack([crawl.feet_xy, np.zeros(4)])
     com = np.zeros(3)
     vel = np.zeros(3)
     acc = np.zeros(3)
@@ -100,8 +142,9 @@ def run(settings: MpcSettings, replans: int = 200, seed: int = 0, jitter: float 
     cpu_times = []
     end_speed = []
     for i in range(replans):
-        v_ref = velocity_profile(i)
-        plan = crawl_plan(t, com, 0.0, feet, leg, v_ref, rng)
+        v_ref = velocity_profile(i) * crawl.speed_scale
+        plan = crawl_plan(t, com, 0.0, feet, leg, v_ref, rng, layout=crawl.feet_xy,
+                          swing=crawl.swing, four_feet=crawl.four_feet)
         if idle > 0.0:
             _idle(idle, idle_mode, sweep)
         t0 = time.perf_counter()
@@ -190,7 +233,15 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument('--proxsuite-dual', action='store_true',
                     help='working set: solve the dual with proxsuite (+ KKT polish) instead of '
                          'the exact active-set method')
+    ap.add_argument('--robot', default=REFERENCE_ROBOT,
+                    help='a robot file: a name of config/robots/ (go1) or a path (default hyq)')
+    ap.add_argument('--root', default='.', help='the project (its config/ and urdf/)')
     args = ap.parse_args(argv)
+    try:
+        crawl = bench_crawl(args.robot, Path(args.root))
+    except ValueError as err:            # RobotFileError: one line naming file and key
+        print(f'config error: {err}', file=sys.stderr)
+        raise SystemExit(2) from None
     settings = MpcSettings(formulation=args.formulation, eps_abs=args.eps_abs,
                            max_iter=args.max_iter, jerk_weight=args.jerk_weight,
                            velocity_weight=args.velocity_weight, zmp_margin=args.zmp_margin,
@@ -199,8 +250,10 @@ def main(argv: list[str] | None = None) -> None:
                            drop_inactive=not args.keep_inactive,
                            add_peaks_only=not args.add_all_violated,
                            exact_dual=not args.proxsuite_dual)
-    print(json.dumps(run(settings, args.replans, args.seed, idle=args.idle,
-                         idle_mode=args.idle_mode)))
+    if crawl.com_height is not None:
+        settings = replace(settings, com_height=crawl.com_height)
+    print(json.dumps({'robot': args.robot, **run(settings, crawl, args.replans, args.seed,
+                                                  idle=args.idle, idle_mode=args.idle_mode)}))
 
 
 if __name__ == '__main__':

@@ -45,6 +45,7 @@ from pathlib import Path
 
 import yaml
 
+from replan_core.bench.mpc_bench import REFERENCE_ROBOT, bench_crawl
 from replan_core.bench.mpc_bench import run as mpc_bench_run
 from replan_core.bench.sim_bench import physics_rtf
 from replan_core.mpc import MpcSettings
@@ -392,8 +393,9 @@ def main(argv: list[str] | None = None) -> int:
             log(f'round {k}: {setup}: real-time factor {result["real_time_factor"]}, '
                 f'tick {result.get("tick_ms_mean")} ms, mpc {result["mpc"]}')
         rounds.append({'physics': physics, 'graph': graph})
-    mpc_bench = mpc_bench_run(MpcSettings(), 200, 0)
-    mpc_idle = mpc_bench_run(MpcSettings(), MPC_IDLE_REPLANS, 0, idle=MPC_IDLE)
+    crawl = bench_crawl(REFERENCE_ROBOT, ROOT)          # the graph's robot
+    mpc_bench = mpc_bench_run(MpcSettings(), crawl, 200, 0)
+    mpc_idle = mpc_bench_run(MpcSettings(), crawl, MPC_IDLE_REPLANS, 0, idle=MPC_IDLE)
     rows, summary = summarise(rounds, mpc_bench, mpc_idle)
     print(f'bench_speed: {args.runs} rounds, forward walk {args.duration:g} sim s, '
           f'{os.cpu_count()} CPUs ({out})')

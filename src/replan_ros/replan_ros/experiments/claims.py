@@ -11,6 +11,7 @@ import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import yaml
@@ -288,9 +289,9 @@ def qp_timing(ctx: Context, cfg: dict) -> dict:
         with ctx.runner.machine_lock():
             proc = subprocess.run(
                 [sys.executable, '-m', 'replan_core.bench.mpc_bench', '--formulation',
-                 formulation,
-                 '--replans', str(cfg['replans'])], env=env, capture_output=True, text=True,
-                timeout=1800)
+                 formulation, '--replans', str(cfg['replans']),
+                 '--root', str(Path(ctx.runner.config_dir).parent)],
+                env=env, capture_output=True, text=True, timeout=1800)
         lines = proc.stdout.strip().splitlines()
         try:
             out[formulation] = json.loads(lines[-1])

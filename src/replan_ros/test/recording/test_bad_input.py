@@ -136,11 +136,14 @@ def test_an_infeasible_mpc_problem_gives_a_reason_and_a_safe_plan():
     import os
     import time
 
-    from replan_core.bench.mpc_bench import HIP, crawl_plan
+    from replan_core.bench.mpc_bench import bench_crawl, crawl_plan
     from replan_core.mpc import FALLBACK_RELAXED, STATUS_INFEASIBLE, LipMpc
+    from replan_ros.params.robot import project_root
 
-    feet = np.column_stack([HIP, np.zeros(4)])
-    plan = crawl_plan(0.0, np.zeros(3), 0.0, feet, 2, np.zeros(2), np.random.default_rng(0))
+    layout = bench_crawl('hyq', project_root()).feet_xy       # m, HyQ's standing feet
+    feet = np.column_stack([layout, np.zeros(4)])
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, feet, 2, np.zeros(2), np.random.default_rng(0),
+                      layout=layout)
     mpc = LipMpc()
     start = time.perf_counter()
     res = mpc.solve(0.0, np.array([1.5, 0.0, 0.55]), np.array([1.0, 0.0, 0.0]), np.zeros(3),
