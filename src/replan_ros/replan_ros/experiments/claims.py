@@ -96,9 +96,9 @@ def velocity_changes(ctx: Context, cfg: dict, world: str = 'realistic') -> list[
     return _parallel([one(n, s) for n, s in specs])
 
 
-def bisect_impulse(runner: Runner, base: dict, cfg: dict, setting: dict, push_time: float
-                   ) -> dict:
-    """Largest lateral impulse survived at one push time: the first probe at
+def bisect_impulse(runner: Runner, base: dict, cfg: dict, setting: dict, push_time: float,
+                   seed: int, world: str = 'realistic') -> dict:
+    """Largest lateral impulse survived at one push time and seed: the first probe at
     ``first_impulse``, then bisection between the largest survived and the smallest fallen
     (``max_impulse`` standing in for the latter until one falls)."""
     direction = np.asarray(cfg['direction'], dtype=float)
@@ -110,7 +110,7 @@ def bisect_impulse(runner: Runner, base: dict, cfg: dict, setting: dict, push_ti
     for i in range(int(cfg['probes'])):
         force = direction * impulse / cfg['push_duration']
         duration = cfg.get('duration') or push_time + float(cfg['after_push'])
-        doc = variant(base, params=setting, seed=cfg['seed'], duration=duration,
+        doc = variant(base, params=setting, seed=seed, duration=duration, world=world,
                       push=(push_time, (force[0], force[1], 0.0), cfg['push_duration']))
         result = runner.run(doc)
         if not result.ok:
@@ -131,22 +131,52 @@ def bisect_impulse(runner: Runner, base: dict, cfg: dict, setting: dict, push_ti
             'probes': probes, 'first': first, 'complete': len(probes) == int(cfg['probes'])}
 
 
-def lateral_push(ctx: Context, cfg: dict) -> dict:
+def second_push(runner: Runner, base: dict, cfg: dict, setting: dict, push_time: float,
+                seed: int, step_period: float, world: str = 'realistic') -> dict | None:
+    """Two pushes of ``second_push.impulse`` N s each, the second ``second_push.after_steps``
+    steps (of ``step_period`` s) after the first: whether the robot falls (issue 31: the
+    support the first push left must still hold the second). None if the run failed."""
+    direction = np.asarray(cfg['direction'], dtype=float)
+    direction /= np.linalg.norm(direction)
+    spec = cfg['second_push']
+    impulse, length = float(spec['impulse']), float(cfg['push_duration'])
+    later = push_time + float(spec['after_steps']) * step_period
+    force = direction * impulse / length
+    doc = variant(base, params=setting, seed=seed, world=world,
+                  duration=later + float(cfg['after_push']),
+                  pushes=[(t, (force[0], force[1], 0.0), length) for t in (push_time, later)])
+    result = runner.run(doc)
+    if not result.ok:
+        return None
+    return {'impulse_ns': impulse, 'second_time_s': later, 'fell': bool(result.fell),
+            'fall_time_s': result.metrics.get('fall_time_s'), 'run': result.key}
+
+
+def lateral_push(ctx: Context, cfg: dict, world: str = 'realistic') -> dict:
+    """Per setting, phase of the crawl cycle and seed (paired across the settings): the
+    largest impulse survived (``bisect_impulse``) and, with ``second_push``, whether two
+    pushes a few steps apart are survived. Entries in phase-major, seed-minor order in every
+    setting, so that index k pairs them."""
     base = ctx.runner.scenario(cfg['scenario'])
     phases = int(cfg['phases'])
     cycle = ctx.settings['crawl_cycle_s']
+    step_period = cycle / 4.0
     times = [cfg['first_push'] + cycle * k / phases for k in range(phases)]
     jobs, keys = [], []
     for name, setting in cfg['settings'].items():
         for k, t in enumerate(times):
-            keys.append((name, k, t))
-            jobs.append(lambda s=setting, t=t: bisect_impulse(ctx.runner, base, cfg, s, t))
+            for seed in cfg['seeds']:
+                keys.append((name, k, t, seed))
+                jobs.append(lambda s=setting, t=t, seed=seed: {
+                    **bisect_impulse(ctx.runner, base, cfg, s, t, seed, world),
+                    'second': (second_push(ctx.runner, base, cfg, s, t, seed, step_period,
+                                           world) if cfg.get('second_push') else None)})
     outcomes = _parallel(jobs)
     table: dict = {name: [] for name in cfg['settings']}
-    for (name, k, t), outcome in zip(keys, outcomes, strict=True):
-        table[name].append({'phase': k, 'phase_fraction': k / phases, 'push_time_s': t,
-                            **outcome})
-    return {'settings': table, 'config': {**cfg, 'cycle': cycle},
+    for (name, k, t, seed), outcome in zip(keys, outcomes, strict=True):
+        table[name].append({'phase': k, 'seed': seed, 'phase_fraction': k / phases,
+                            'push_time_s': t, **outcome})
+    return {'settings': table, 'config': {**cfg, 'cycle': cycle}, 'world': world,
             'robot_mass_kg': _robot_mass(ctx.runner)}
 
 
@@ -332,6 +362,9 @@ def ideal_world(ctx: Context, cfg: dict, plan: dict) -> dict:
     if 'velocity_changes' in cfg and 'velocity_changes' in plan:
         makers['velocity_changes'] = lambda: velocity_changes(
             ctx, {**plan['velocity_changes'], **cfg['velocity_changes']}, world='ideal')
+    if 'lateral_push' in cfg and 'lateral_push' in plan:
+        makers['lateral_push'] = lambda: lateral_push(
+            ctx, {**plan['lateral_push'], **cfg['lateral_push']}, world='ideal')
     return dict(zip(makers, _parallel(list(makers.values())), strict=True))
 
 

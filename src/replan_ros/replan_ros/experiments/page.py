@@ -20,7 +20,9 @@ from replan_ros.experiments.stats import (
     compare_paired,
     cycles_to_within,
     p_text,
+    push_resolution,
     push_sign_test,
+    sign_test,
     spread,
     values,
 )
@@ -218,25 +220,32 @@ def _steady_rows(page: Page, setting: str, sel: list[dict]) -> None:
 def _lateral_push(page: Page, data: dict, _all) -> None:
     cfg = data['config']
     table = data['settings']
+    ideal = data.get('world') == 'ideal'
+    suffix = ' (ideal)' if ideal else ''
     target = 30.0
-    res = float(cfg['max_impulse']) / 2 ** int(cfg['probes'])
-    lines = ['## Lateral pushes and foothold correction', '',
+    res = push_resolution(cfg)
+    seeds = cfg.get('seeds') or [cfg.get('seed')]
+    second = cfg.get('second_push')
+    lines = [f'## Lateral pushes and foothold correction{suffix}', '',
              f'Walking at 0.1 m/s, one push to the left of {cfg["push_duration"]} s at '
              f'{cfg["phases"]} phases of the crawl cycle ({cfg["cycle"]} s from '
-             f'{cfg["first_push"]} s). Per phase, the largest impulse survived (no fall within '
-             f'{cfg["after_push"]} s of the push) by bisection: first '
-             f'{cfg["first_impulse"]} N s, then halving towards {cfg["max_impulse"]} N s, '
-             f'{cfg["probes"]} runs (resolution about '
-             f'{res:.0f} N s; the figure is a lower bound). The degeneration of the support '
-             'polygon: the least inradius of the three-foot support triangles over the 3 steps '
-             f'after the {cfg["first_impulse"]} N s push, divided by the same over the 3 steps '
-             'before it.', '']
-    mins = {}
-    for name, phases in table.items():
-        survived = [p['survived_ns'] for p in phases]
-        mins[name] = survived
+             f'{cfg["first_push"]} s), each with the sim noise seeds {seeds} (the same seeds '
+             'in every setting: the runs pair by phase and seed). Per phase and seed, the '
+             f'largest impulse survived (no fall within {cfg["after_push"]} s of the push) by '
+             f'bisection: first {cfg["first_impulse"]} N s, then halving towards '
+             f'{cfg["max_impulse"]} N s, {cfg["probes"]} runs (resolution {res:.0f} N s; the '
+             'figure is a lower bound, and where no probe fell it is censored: the robot '
+             'survived the most that was tried). The degeneration of the support polygon: the '
+             'least inradius of the three-foot support triangles over the 3 steps after the '
+             f'{cfg["first_impulse"]} N s push, divided by the same over the 3 steps before '
+             'it.' + (f' Second push: two pushes of {second["impulse"]:g} N s each, the '
+                      f'second {second["after_steps"]:g} steps after the first, at the same '
+                      'phases and seeds.' if second else ''), '']
+    for name, entries in table.items():
+        label = name.replace('_', ' ') + suffix
+        survived = [p['survived_ns'] for p in entries]
         ratios = [p['first']['support_inradius_min_m'] / p['first']['support_inradius_before_m']
-                  for p in phases if p.get('first') and not p['first']['fell']
+                  for p in entries if p.get('first') and not p['first']['fell']
                   and p['first'].get('support_inradius_min_m')
                   and p['first'].get('support_inradius_before_m')]
         on = name != 'correction_off'
@@ -245,35 +254,54 @@ def _lateral_push(page: Page, data: dict, _all) -> None:
             verdict = ('target met' if survived and min(survived) >= target else
                        f'target not met (min {min(survived):.0f} < {target:.0f} N s)'
                        if survived else '-')
-        page.row('lateral push', name.replace('_', ' '),
-                 'impulse survived, min over phases (N s)',
+        page.row('lateral push', label, 'impulse survived, min over phases and seeds (N s)',
                  f'{min(survived):.1f}' if survived else '-', len(survived),
                  f'pushes absorbed; target ≥ {target:.0f} N s at every phase', verdict)
-        page.row('lateral push', name.replace('_', ' '), 'impulse survived, over phases (N s)',
-                 spread(survived, 1), len(survived), '', '')
-        dv = [p['first']['velocity_change_mps'] for p in phases if p.get('first')
+        censored = sum(1 for p in entries if p['fallen_ns'] is None)
+        page.row('lateral push', label, 'impulse survived, over phases and seeds (N s)',
+                 spread(survived, 1) + (f'; {censored} censored' if censored else ''),
+                 len(survived), '', '')
+        dv = [p['first']['velocity_change_mps'] for p in entries if p.get('first')
               and p['first'].get('velocity_change_mps') is not None]
         mass = data.get('robot_mass_kg')
-        page.row('lateral push', name.replace('_', ' '),
+        page.row('lateral push', label,
                  f'base velocity left by a {cfg["first_impulse"]:.0f} N s push (m/s)',
                  spread(dv, 3), len(dv),
                  f'a free body: {cfg["first_impulse"] / mass:.3f} m/s' if mass else '', '')
-        page.row('lateral push', name.replace('_', ' '),
+        page.row('lateral push', label,
                  f'support inradius after / before a {cfg["first_impulse"]:.0f} N s push',
                  spread(ratios, 2), len(ratios),
                  'correction prevents the degeneration' if on else '', '')
-        lines.append(f'- {name}: per phase ' + ', '.join(
-            f'{p["survived_ns"]:.1f}' + ('' if p['fallen_ns'] is not None else '+')
-            for p in phases) + ' N s (+: none of the probes fell).')
-    if 'correction_off' in mins:
-        for name, survived in mins.items():
-            if name == 'correction_off' or len(survived) != len(mins['correction_off']):
+        doubles = [p['second'] for p in entries if p.get('second')]
+        if doubles:
+            page.row('lateral push', label,
+                     f'two pushes of {second["impulse"]:g} N s survived',
+                     f'{sum(not d["fell"] for d in doubles)} of {len(doubles)}', len(doubles),
+                     'the support after a push still holds a second one', '')
+        for k in sorted({p['phase'] for p in entries}):
+            lines.append(f'- {label}, phase {k}: ' + ', '.join(
+                f'{p["survived_ns"]:.1f}' + ('' if p['fallen_ns'] is not None else '+')
+                for p in entries if p['phase'] == k) + ' N s over the seeds (+: censored).')
+    if 'correction_off' in table:
+        off = table['correction_off']
+        for name, entries in table.items():
+            if name == 'correction_off' or len(entries) != len(off):
                 continue
+            label = f'{name.replace("_", " ")} vs off{suffix}'
             diff, verdict = push_sign_test(table, name, res)
-            page.row('lateral push', f'{name.replace("_", " ")} vs off',
-                     'impulse survived, on minus off, per phase (N s)', spread(diff, 1),
+            page.row('lateral push', label,
+                     'impulse survived, on minus off, per phase and seed (N s)', spread(diff, 1),
                      len(diff), 'foothold correction helps against pushes', verdict)
-        link = page.plot('push_impulse.png', lambda plt: _plot_push(plt, table))
+            pairs = [(a['second'], b['second']) for a, b in zip(entries, off, strict=True)
+                     if a.get('second') and b.get('second')]
+            if pairs:
+                both = [float(b['fell']) - float(a['fell']) for a, b in pairs]   # +1: on only
+                page.row('lateral push', label, 'two pushes: survived with on, not with off '
+                         '(+1) or the reverse (-1), per phase and seed', spread(both, 2),
+                         len(both), 'foothold correction helps against a second push',
+                         sign_test(both, None, unit='pairs'))
+        link = page.plot('push_impulse.png' if not ideal else 'push_impulse_ideal.png',
+                         lambda plt: _plot_push(plt, table))
         lines += ['', f'![largest impulse survived per phase]({link})']
     page.section('\n'.join(lines))
 
@@ -281,11 +309,16 @@ def _lateral_push(page: Page, data: dict, _all) -> None:
 def _plot_push(plt, table: dict):
     fig, ax = plt.subplots(figsize=(8, 3.6))
     width = 0.8 / max(len(table), 1)
-    for i, (name, phases) in enumerate(table.items()):
-        x = np.arange(len(phases)) + i * width
-        ax.bar(x, [p['survived_ns'] for p in phases], width, label=name.replace('_', ' '))
+    for i, (name, entries) in enumerate(table.items()):
+        phases = sorted({p['phase'] for p in entries})
+        values = [[p['survived_ns'] for p in entries if p['phase'] == k] for k in phases]
+        mean = np.array([np.mean(v) for v in values])
+        low = mean - np.array([min(v) for v in values])
+        high = np.array([max(v) for v in values]) - mean
+        ax.bar(np.arange(len(phases)) + i * width, mean, width, yerr=[low, high], capsize=2,
+               label=name.replace('_', ' '))
     ax.axhline(30.0, color='tab:red', lw=0.8, label='target 30 N s')
-    ax.set_xlabel(f'push phase (1/{len(next(iter(table.values()), []))} of the crawl cycle)')
+    ax.set_xlabel('push phase (mean over the seeds, bars from the least to the most)')
     ax.set_ylabel('largest impulse survived [N s]')
     ax.legend(fontsize=7)
     return fig
@@ -592,3 +625,5 @@ def _ideal_world(page: Page, data: dict, results: dict) -> None:
         _haptic(page, data['haptic'], results, world='ideal')
     if 'velocity_changes' in data:
         _velocity_changes(page, data['velocity_changes'], results)
+    if 'lateral_push' in data:
+        _lateral_push(page, data['lateral_push'], results)

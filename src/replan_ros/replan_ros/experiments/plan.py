@@ -13,8 +13,8 @@ import yaml
 PLAN_KEYS = {
     'velocity_changes': {'scenarios', 'seeds', 'prompt_steps', 'duration', 'steady_tolerance'},
     'lateral_push': {'scenario', 'phases', 'first_push', 'after_push', 'push_duration',
-                     'direction', 'first_impulse', 'max_impulse', 'probes', 'seed', 'settings',
-                     'duration'},
+                     'direction', 'first_impulse', 'max_impulse', 'probes', 'seeds', 'settings',
+                     'duration', 'second_push'},
     'replan_window': {'scenario', 'windows', 'seeds', 'setpoints', 'duration'},
     'haptic': {'scenario', 'seeds', 'duration', 'durations', 'terrains'},
     'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration', 'step_scenario'},
@@ -22,7 +22,7 @@ PLAN_KEYS = {
                        'horizon', 'duration', 'seeds', 'settings'},
     'qp_timing': {'replans', 'formulations'},
     'fastest_crawl': {'scenario', 'setpoints', 'velocity_clamp', 'seed'},
-    'ideal_world': {'replan_window', 'haptic', 'velocity_changes'},
+    'ideal_world': {'replan_window', 'haptic', 'velocity_changes', 'lateral_push'},
 }
 EXPERIMENTS = tuple(PLAN_KEYS)
 
@@ -34,10 +34,12 @@ class ExperimentError(ValueError):
 def variant(base: dict, *, params: dict | None = None,
             world: str = 'realistic', seed: int | None = None, terrain: dict | None = None,
             setpoint: tuple[float, float, float] | None = None, duration: float | None = None,
-            push: tuple[float, tuple[float, float, float], float] | None = None) -> dict:
+            push: tuple[float, tuple[float, float, float], float] | None = None,
+            pushes: tuple = ()) -> dict:
     """A copy of scenario ``base`` with the experiment's changes: parameter overrides (per
     node), the world profile, the seed (sim ``noise_seed``; the terrain seed too), the terrain,
-    the first set-point, the duration and one push (t, force, duration)."""
+    the first set-point, the duration and pushes (t, force, duration): ``push`` and each of
+    ``pushes``."""
     doc = json.loads(json.dumps(base))
     doc['profile'] = world
     merged: dict = doc.get('params') or {}
@@ -58,8 +60,7 @@ def variant(base: dict, *, params: dict | None = None,
     if duration is not None:
         doc['duration'] = float(duration)
         events = [e for e in events if e['t'] <= duration]
-    if push is not None:
-        t, force, length = push
+    for t, force, length in ([push] if push is not None else []) + list(pushes):
         events.append({'t': round(float(t), 4), 'push': {
             'force': [round(float(f), 4) for f in force], 'duration': float(length)}})
     doc['events'] = events
@@ -75,7 +76,8 @@ def planned_runs(plan: dict, selected: list[str]) -> int:
         if name == 'velocity_changes':
             n += len(cfg['scenarios']) * len(cfg['seeds'])
         elif name == 'lateral_push':
-            n += len(cfg['settings']) * int(cfg['phases']) * int(cfg['probes'])
+            n += (len(cfg['settings']) * int(cfg['phases']) * len(cfg['seeds'])
+                  * (int(cfg['probes']) + bool(cfg.get('second_push'))))
         elif name == 'replan_window':
             n += len(cfg['windows']) * len(cfg['seeds']) * len(cfg['setpoints'])
         elif name == 'haptic':

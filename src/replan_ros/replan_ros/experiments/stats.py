@@ -133,32 +133,44 @@ def p_text(p: float | None) -> str:
     return '' if p is None else f', p = {p:.2g}'
 
 
-def sign_test(diff, resolution: float) -> str:
-    """Paired comparison over the phases: a phase counts as better or worse only if the two
-    settings differ; the verdict needs the sign test (two-sided, p < P_VALUE) over those."""
+def sign_test(diff, resolution: float | None, unit: str = 'phases') -> str:
+    """Paired comparison: a pair counts as better or worse only if the two settings differ;
+    the verdict needs the sign test (two-sided, p < P_VALUE) over those. ``resolution``: N s,
+    the smallest difference a bisection sees (None: a yes/no outcome); ``unit``: what a pair
+    is, for the text."""
     from scipy.stats import binomtest
     better, worse = int(np.sum(np.asarray(diff) > 0)), int(np.sum(np.asarray(diff) < 0))
-    counts = f'better at {better}, worse at {worse}, equal at {len(diff) - better - worse} phases'
+    counts = (f'better at {better}, worse at {worse}, equal at {len(diff) - better - worse} '
+              f'{unit}')
     if better + worse == 0:
         return f'not resolved ({counts})'
     p = float(binomtest(better, better + worse).pvalue)
     if p >= P_VALUE:
-        return (f'not resolved ({counts}; a difference is one bisection step, '
-                f'{resolution:.0f} N s, or more)')
+        step = (f'; a difference is one bisection step, {resolution:.0f} N s, or more'
+                if resolution is not None else '')
+        return f'not resolved ({counts}{step}, p = {p:.2g})'
     return ('holds' if better > worse else 'does not hold') + f' ({counts}, p = {p:.2g})'
 
 
+def push_resolution(cfg: dict) -> float:
+    """N s, the bisection's last step: after a first probe that survived, the interval from
+    ``first_impulse`` to ``max_impulse`` halved at each of the other probes."""
+    return (float(cfg['max_impulse']) - float(cfg['first_impulse'])) / 2 ** max(
+        int(cfg['probes']) - 1, 0)
+
+
 def push_sign_test(table: dict, name: str, resolution: float) -> tuple[list[float], str]:
-    """Setting ``name`` against ``correction_off`` over the phases of the impulse-push table:
-    the per-phase differences of the impulse survived and the sign test's verdict. A phase
-    where no probe fell in either setting is censored (both figures are lower bounds, their
-    difference unknown, not zero): left out, and the verdict says how many were."""
+    """Setting ``name`` against ``correction_off`` over the impulse-push table's pairs (phase
+    and seed, index k in both): the differences of the impulse survived and the sign test's
+    verdict. A pair where no probe fell in either setting is censored (both figures are lower
+    bounds, their difference unknown, not zero): left out, and the verdict says how many
+    were."""
     on, off = table[name], table['correction_off']
     censored = [k for k in range(len(on))
                 if on[k]['fallen_ns'] is None and off[k]['fallen_ns'] is None]
     diff = [on[k]['survived_ns'] - off[k]['survived_ns'] for k in range(len(on))
             if k not in censored]
-    verdict = sign_test(diff, resolution) + (
-        f'; {len(censored)} phases censored (no probe fell in either setting: left out)'
+    verdict = sign_test(diff, resolution, unit='pairs (phase, seed)') + (
+        f'; {len(censored)} pairs censored (no probe fell in either setting: left out)'
         if censored else '')
     return diff, verdict

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from replan_ros.experiments.claims import bisect_impulse
+from replan_ros.experiments.claims import bisect_impulse, second_push
 from replan_ros.experiments.page import write_page
 from replan_ros.experiments.plan import (
     ExperimentError,
@@ -89,13 +89,30 @@ class ThresholdRunner:
                                                      (100.0, 82.5, None)])
 def test_bisection_brackets_the_largest_impulse_survived(limit, survived, fallen):
     cfg = {'direction': [0.0, 1.0], 'first_impulse': 30.0, 'max_impulse': 90.0, 'probes': 4,
-           'push_duration': 0.25, 'seed': 0, 'after_push': 3.5}
+           'push_duration': 0.25, 'after_push': 3.5}
     runner = ThresholdRunner(limit)
-    out = bisect_impulse(runner, BASE, cfg, {}, 5.0)
+    out = bisect_impulse(runner, BASE, cfg, {}, 5.0, seed=3)
     assert runner.impulses[0] == 30.0 and len(runner.impulses) == 4
     assert out['survived_ns'] == pytest.approx(survived)
     assert out['fallen_ns'] == (pytest.approx(fallen) if fallen else None)
     assert out['survived_ns'] <= limit and (fallen is None or out['fallen_ns'] > limit)
+
+
+def test_a_second_push_comes_the_given_steps_after_the_first():
+    cfg = {'direction': [0.0, 2.0], 'push_duration': 0.25, 'after_push': 3.5,
+           'second_push': {'impulse': 45.0, 'after_steps': 2}}
+    runner = ThresholdRunner(100.0)
+    docs = []
+    runner.run = lambda doc, run=runner.run: docs.append(doc) or run(doc)
+    out = second_push(runner, BASE, cfg, {'gait': {'haptic': True}}, 5.0, seed=4,
+                      step_period=0.75)
+    pushes = [e for e in docs[0]['events'] if 'push' in e]
+    assert [e['t'] for e in pushes] == [5.0, 6.5]
+    assert all(e['push']['force'] == [0.0, 180.0, 0.0] for e in pushes)    # 45 N s / 0.25 s
+    assert docs[0]['duration'] == pytest.approx(10.0)
+    assert docs[0]['params']['sim']['noise_seed'] == 4
+    assert out == {'impulse_ns': 45.0, 'second_time_s': 6.5, 'fell': False,
+                   'fall_time_s': None, 'run': 'k'}
 
 
 def test_paired_comparison_sees_a_consistent_difference_the_spread_hides():
@@ -297,27 +314,47 @@ def test_every_run_of_the_plan_passes_the_scenario_checks(quick):
 
 
 def test_censored_push_phases_are_left_out_of_the_sign_test(tmp_path):
-    """A phase where no probe fell in either setting has two lower bounds: not 'equal'."""
-    cfg = {'push_duration': 0.25, 'phases': 4, 'cycle': 3.0, 'first_push': 4.5,
-           'after_push': 3.5, 'first_impulse': 30.0, 'max_impulse': 90.0, 'probes': 3}
+    """A pair (phase, seed) where no probe fell in either setting has two lower bounds: not
+    'equal'. The runs pair by phase and seed; two pushes a few steps apart are counted and
+    compared pair by pair."""
+    cfg = {'push_duration': 0.25, 'phases': 2, 'cycle': 3.0, 'first_push': 4.5,
+           'after_push': 3.5, 'first_impulse': 30.0, 'max_impulse': 90.0, 'probes': 3,
+           'seeds': [0, 1], 'second_push': {'impulse': 45.0, 'after_steps': 2}}
 
-    def phase(survived, fallen):
-        return {'survived_ns': survived, 'fallen_ns': fallen,
+    def entry(k, seed, survived, fallen, second_fell):
+        return {'phase': k, 'seed': seed, 'survived_ns': survived, 'fallen_ns': fallen,
                 'first': {'fell': False, 'velocity_change_mps': 0.3,
-                          'support_inradius_min_m': 0.1, 'support_inradius_before_m': 0.1}}
-    table = {'correction_off': [phase(75.0, None), phase(75.0, None), phase(45.0, 60.0),
-                                phase(30.0, 45.0)],
-             'correction_thresholded': [phase(75.0, None), phase(75.0, None),
-                                        phase(75.0, None), phase(60.0, 75.0)]}
+                          'support_inradius_min_m': 0.1, 'support_inradius_before_m': 0.1},
+                'second': {'impulse_ns': 45.0, 'fell': second_fell}}
+    table = {'correction_off': [entry(0, 0, 75.0, None, True), entry(0, 1, 75.0, None, True),
+                                entry(1, 0, 45.0, 60.0, True), entry(1, 1, 30.0, 45.0, False)],
+             'correction_thresholded': [entry(0, 0, 75.0, None, False),
+                                        entry(0, 1, 75.0, None, False),
+                                        entry(1, 0, 75.0, None, False),
+                                        entry(1, 1, 60.0, 75.0, False)]}
     page = tmp_path / 'results.md'
-    write_page(page, {'lateral_push': {'config': cfg, 'settings': table,
-                                       'robot_mass_kg': 92.0}},
-               {'command': 'x', 'machine': 't', 'revision': 'r', 'date': 'd',
-                'wall_time_min': 1.0, 'runs': 8, 'failures': []})
+    results = {'lateral_push': {'config': cfg, 'settings': table, 'robot_mass_kg': 92.0},
+               'ideal_world': {'lateral_push': {'config': cfg, 'settings': table,
+                                                'world': 'ideal', 'robot_mass_kg': 92.0}}}
+    write_page(page, results, {'command': 'x', 'machine': 't', 'revision': 'r', 'date': 'd',
+                               'wall_time_min': 1.0, 'runs': 8, 'failures': []})
     text = page.read_text()
-    assert ('not resolved (better at 2, worse at 0, equal at 0 phases; a difference is one '
-            'bisection step, 11 N s, or more); 2 phases censored (no probe fell in either '
-            'setting: left out)') in text
+    assert ('not resolved (better at 2, worse at 0, equal at 0 pairs (phase, seed); a '
+            'difference is one bisection step, 15 N s, or more, p = 0.5); 2 pairs censored (no '
+            'probe fell in either setting: left out)') in text
+    assert ('| lateral push | correction off | impulse survived, over phases and seeds (N s) | '
+            '56.2 ± 22.5 (30.0 to 75.0); 2 censored | 4 |') in text
+    assert ('| lateral push | correction thresholded | two pushes of 45 N s survived | 4 of 4 | '
+            '4 | the support after a push still holds a second one |') in text
+    assert ('| lateral push | correction thresholded vs off | two pushes: survived with on, not '
+            'with off (+1) or the reverse (-1), per phase and seed | 0.75 ± 0.50 (0.00 to 1.00) '
+            '| 4 | foothold correction helps against a second push | not resolved (better at 3, '
+            'worse at 0, equal at 1 pairs, p = 0.25) |') in text
+    assert '- correction off, phase 1: 45.0, 30.0 N s over the seeds (+: censored).' in text
+    assert '## Lateral pushes and foothold correction (ideal)' in text
+    assert '| lateral push | correction thresholded vs off (ideal) |' in text
+    assert 'survived 4 of 4 times with it, 1 of 4 without.' in text
+    assert (tmp_path / 'results_plots' / 'push_impulse_ideal.png').is_file()
 
 
 def test_experiments_robot_option_names_the_robot_in_every_document(tmp_path):
