@@ -17,6 +17,9 @@ import numpy as np
 from replan_ros.experiments.findings import findings
 from replan_ros.experiments.stats import (
     P_VALUE,
+    PAPER_QP_MS,
+    PAPER_QP_STD_MS,
+    against_paper,
     compare_paired,
     cycles_to_within,
     p_text,
@@ -26,6 +29,9 @@ from replan_ros.experiments.stats import (
     spread,
     values,
 )
+
+_PAPER_QP = f'{PAPER_QP_MS:.0f} ± {PAPER_QP_STD_MS:.0f} ms'
+
 
 # -- the page --------------------------------------------------------------------------------
 
@@ -552,22 +558,23 @@ def _qp_timing(page: Page, data: dict, results: dict) -> None:
              'The re-planner alone (`replan_core.bench.mpc_bench`: 8 s horizon, 40 ms samples, '
              '8 footholds, consecutive re-plans of a crawl), single-threaded, before any graph '
              'runs; and the solve times the MPC node reported inside the graph, over all '
-             'realistic runs of this page. The paper: 58 ± 6 ms per QP (2016 hardware). The '
+             'realistic runs of this page. The paper: ' + _PAPER_QP + ' per QP (2016 hardware). '
+             'The '
              'realistic profile\'s planning latency is fixed at the paper\'s 58 ms '
              '(`wbc.plan_latency`), not at our solve time, so the experiments keep the paper\'s '
              'delay.', '']
     for name, bench in data.items():
         if 'error' in bench:
-            page.row('QP timing', name, 'solve time (ms)', bench['error'], 0, '58 ± 6 ms', '-')
+            page.row('QP timing', name, 'solve time (ms)', bench['error'], 0, _PAPER_QP, '-')
             continue
         med, p99 = bench.get('median_ms'), bench.get('p99_ms')
         mean, std = bench.get('mean_ms'), bench.get('std_ms')
         value = (f'median {med:.2f}, p99 {p99:.2f}' if med is not None else '-')
         if mean is not None and std is not None:
             value = f'{mean:.2f} ± {std:.2f}; ' + value
-        verdict = _against_paper(mean) if mean else '-'
+        verdict = against_paper(mean) if mean else '-'
         page.row('QP timing', f'{name} (bench)', 'solve time (ms)', value,
-                 bench.get('replans', 0), '58 ± 6 ms at 8 s / 40 ms', verdict)
+                 bench.get('replans', 0), _PAPER_QP + ' at 8 s / 40 ms', verdict)
     graph = []
     for key in ('replan_window', 'velocity_term', 'haptic', 'velocity_changes'):
         for r in results.get(key) or []:
@@ -576,7 +583,7 @@ def _qp_timing(page: Page, data: dict, results: dict) -> None:
     if graph:
         page.row('QP timing', 'in the graph (realistic runs)', 'per-run median solve (ms)',
                  spread(values(graph, 'mpc_solve_ms_median'), 2), len(graph),
-                 '58 ± 6 ms', '')
+                 _PAPER_QP, '')
         page.row('QP timing', 'in the graph (realistic runs)', 'per-run p99 solve (ms)',
                  spread(values(graph, 'mpc_solve_ms_p99'), 2), len(graph), '', '')
     page.section('\n'.join(lines))
@@ -604,18 +611,6 @@ def _fastest_crawl(page: Page, data: dict, _all) -> None:
                  'faster needs a shorter cycle (swing_duration, four_feet_duration), which these '
                  'runs keep at the paper\'s crawl timing.')
     page.section(text)
-
-
-def _against_paper(mean_ms: float, paper_ms: float = 58.0, paper_std_ms: float = 6.0) -> str:
-    """A solve time against the paper's 58 +- 6 ms: faster or slower beyond its spread (by how
-    much), else as fast."""
-    def times(ratio: float) -> str:
-        return f'{ratio:.0f}x' if ratio >= 10 else f'{ratio:.1f}x'
-    if mean_ms < paper_ms - paper_std_ms:
-        return f'faster than the paper ({times(paper_ms / mean_ms)})'
-    if mean_ms > paper_ms + paper_std_ms:
-        return f'slower than the paper ({times(mean_ms / paper_ms)})'
-    return f'as fast as the paper (within its ± {paper_std_ms:.0f} ms)'
 
 
 def _ideal_world(page: Page, data: dict, results: dict) -> None:

@@ -174,3 +174,20 @@ def push_sign_test(table: dict, name: str, resolution: float) -> tuple[list[floa
         f'; {len(censored)} pairs censored (no probe fell in either setting: left out)'
         if censored else '')
     return diff, verdict
+
+
+PAPER_QP_MS = 58.0       # ms per QP in the paper (VI), on 2016 hardware
+PAPER_QP_STD_MS = 6.0    # ms, its spread
+
+
+def against_paper(mean_ms: float, paper_ms: float = PAPER_QP_MS,
+                  paper_std_ms: float = PAPER_QP_STD_MS) -> str:
+    """A solve time against the paper's 58 +- 6 ms: faster or slower beyond its spread (by how
+    much), else as fast."""
+    def times(ratio: float) -> str:
+        return f'{ratio:.0f}x' if ratio >= 10 else f'{ratio:.1f}x'
+    if mean_ms < paper_ms - paper_std_ms:
+        return f'faster than the paper ({times(paper_ms / mean_ms)})'
+    if mean_ms > paper_ms + paper_std_ms:
+        return f'slower than the paper ({times(mean_ms / paper_ms)})'
+    return f'as fast as the paper (within its ± {paper_std_ms:.0f} ms)'
