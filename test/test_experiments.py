@@ -26,10 +26,18 @@ def test_quick_experiments_write_the_results_page(quick_experiments, ros_domain)
     assert '**Quick run**' in page
     data = json.loads(quick_experiments.results)
     assert data['meta']['failures'] == []
-    runs = [json.loads(p.read_text()) for p in (out / 'runs').glob('*/metrics.json')]
+    folders = [p.parent for p in (out / 'runs').glob('*/metrics.json')]
+    runs = [json.loads((f / 'metrics.json').read_text()) for f in folders]
     assert len(runs) == data['meta']['runs'] >= 7
     assert all(r['completed'] and r['profile'] == 'realistic' for r in runs)
-    assert all(r['bag'] is None for r in runs)                # --no-bag: analysed, then gone
+    # --no-bag (analysed, then gone) but where the page reads the bag: the velocity term's
+    # runs, how their trunk travels (motion_effects.json beside the bag).
+    with_bag = {f for f in folders if (f / 'bag').is_dir()}
+    assert with_bag == {f for f in folders if (f / 'motion_effects.json').is_file()}
+    assert len(with_bag) == 2                                 # on and off, one seed
+    assert all(json.loads((f / 'motion_effects.json').read_text())['effects'][
+        'swing_travel_share'] is not None for f in with_bag)
+    assert '| velocity term | straight walks: on vs off | share of the travel made' in page
     pushed = [r for r in runs if r['pushes']]
     assert pushed and all(r['pushes'][0]['support_inradius_before_m'] > 0 for r in pushed)
     assert (out / 'results_plots' / 'replan_window.png').is_file()

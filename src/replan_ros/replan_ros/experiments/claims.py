@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from replan_ros.experiments.motion_effects import cached_motion_effects
 from replan_ros.experiments.plan import node_settings, variant
 from replan_ros.experiments.push_effects import cached_push_effects
 from replan_ros.experiments.runs import Runner, RunResult
@@ -286,10 +287,13 @@ def _terrain_end(terrain: dict) -> float | None:
 def velocity_term(ctx: Context, cfg: dict) -> list[dict]:
     """Straight walks at each set-point with the MPC's velocity term on and off (the steady
     speed), and with ``step_scenario`` the same set-point step in both settings (how fast a
-    new set-point is reached: the paper's "faster motion"), paired by seed."""
+    new set-point is reached: the paper's "faster motion"), paired by seed. Every run keeps its
+    bag: how the trunk travels between the footholds (``motion_effects``) is read from it, in
+    a straight walk from ``motion_after`` s, in a step from the change, to the run's end."""
     runner = ctx.runner
     base = runner.scenario(cfg['scenario'])
     step = runner.scenario(cfg['step_scenario']) if cfg.get('step_scenario') else None
+    motion_after = float(cfg['motion_after'])
     jobs = []
     for on in (True, False):
         params = None if on else {'mpc': {'velocity_weight': 0.0}}
@@ -298,16 +302,31 @@ def velocity_term(ctx: Context, cfg: dict) -> list[dict]:
                 def make(on=on, seed=seed, v=v, params=params):
                     doc = variant(base, seed=seed, setpoint=(v, 0.0, 0.0),
                                   duration=cfg.get('duration'), params=params)
-                    return _summary(runner.run(doc), velocity_term=on, seed=seed, setpoint=v)
+                    result = runner.run(doc, bag=True)
+                    return _summary(result, velocity_term=on, seed=seed, setpoint=v,
+                                    **_motion(result, doc, motion_after))
                 jobs.append(make)
             if step is not None:
                 def make_step(on=on, seed=seed, params=params):
-                    result = runner.run(variant(step, seed=seed, params=params))
+                    doc = variant(step, seed=seed, params=params)
+                    result = runner.run(doc, bag=True)
+                    change = max(e['t'] for e in doc['events'] if 'cmd_vel' in e)
                     return _summary(result, velocity_term=on, seed=seed, setpoint='step',
                                     step_period_s=(result.metrics.get('step_period_s')
-                                                   or {}).get('median'))
+                                                   or {}).get('median'),
+                                    **_motion(result, doc, change))
                 jobs.append(make_step)
     return _parallel(jobs)
+
+
+def _motion(result: RunResult, doc: dict, start: float) -> dict:
+    """How the trunk travelled along the last set-point from ``start`` s to the end of a run
+    that neither fell nor failed (``motion_effects``); empty otherwise."""
+    if not result.ok or result.fell:
+        return {}
+    command = [e['cmd_vel'] for e in doc['events'] if 'cmd_vel' in e][-1]
+    return cached_motion_effects(result.folder, start, float(doc['duration']),
+                                 (float(command[0]), float(command[1]))) or {}
 
 
 def qp_timing(ctx: Context, cfg: dict) -> dict:

@@ -186,6 +186,7 @@ def findings(page, name: str, data, results: dict) -> None:
                 f'same footholds (the gait\'s strides and the velocity feedback), so this '
                 f'steady-state figure does not test the paper\'s "faster motion"; the rise '
                 f'time after a set-point step (table) does.')
+        _trunk_travel_finding(page, steady)
     elif name == 'qp_timing':
         bench = data.get('working_set') or {}
         graph = []
@@ -204,3 +205,26 @@ def findings(page, name: str, data, results: dict) -> None:
                 f'Inside the graph the per-run median is {np.median(med):.1f} ms: the other '
                 'nodes (and here, other work on the machine) share the 2 cores. The realistic '
                 'profile applies the paper\'s 58 ms as planning latency regardless.')
+
+
+def _trunk_travel_finding(page, steady: list[dict]) -> None:
+    """The velocity term's effect on how the trunk travels through the swings, from the
+    straight walks' ``motion_effects``: computed, or nothing."""
+    def mean(on: bool, key: str) -> float | None:
+        xs = [r[key] for r in steady if r['velocity_term'] == on and r.get(key) is not None]
+        return float(np.mean(xs)) if xs else None
+    share_on, share_off = mean(True, 'swing_travel_share'), mean(False, 'swing_travel_share')
+    time_on, time_off = mean(True, 'swing_time_share'), mean(False, 'swing_time_share')
+    back_on, back_off = mean(True, 'backward_travel_m'), mean(False, 'backward_travel_m')
+    stride_on, stride_off = mean(True, 'stride_length_m'), mean(False, 'stride_length_m')
+    if None in (share_on, share_off, time_on, time_off, back_on, back_off):
+        return
+    page.finding(
+        f'Velocity term, how the trunk travels (straight walks): a foot swings '
+        f'{time_on * 100:.0f} % of the time with the term and {time_off * 100:.0f} % without; '
+        f'the trunk makes {share_on * 100:.0f} % of its travel then with the term and '
+        f'{share_off * 100:.0f} % without, and moves back {back_on * 1000:.1f} mm against '
+        f'{back_off * 1000:.1f} mm over a run'
+        + (f'; the strides are {stride_on:.3f} and {stride_off:.3f} m'
+           if stride_on is not None and stride_off is not None else '')
+        + '. The table\'s paired test says whether the share differs beyond the runs\' spread.')

@@ -479,6 +479,7 @@ def _velocity_term(page: Page, rows: list[dict], _all) -> None:
              f'{np.mean(err_on):.3f} vs {np.mean(err_off):.3f}' if err_on and err_off else '-',
              len(err_on) + len(err_off), 'the velocity term tracks the set-point',
              verdict + p_text(p))
+    _trunk_travel(page, steady, ('seed', 'setpoint'), 'straight walks')
     text = ('## Velocity-tracking term\n\nThe same runs with the MPC\'s velocity weight at its '
             'default and at 0 (eq. 6 without the optional term): straight walks (the steady '
             'speed)')
@@ -499,9 +500,44 @@ def _velocity_term(page: Page, rows: list[dict], _all) -> None:
                  f'{np.mean(rise_on):.2f} vs {np.mean(rise_off):.2f}' if rise_on and rise_off
                  else '-', len(on) + len(off), 'the velocity term gives faster motion',
                  verdict + p_text(p))
+        _trunk_travel(page, steps, ('seed',), 'set-point step')
         text += (' and the set-point step of the velocity-change experiment (how promptly a '
                  'new set-point is reached, the paper\'s "faster motion"), paired by seed')
-    page.section(text + '.')
+    page.section(text + '. How the trunk travels between the footholds is read from each '
+                 'run\'s bag (`replan_ros/experiments/motion_effects.py`), on the truth, along '
+                 'the set-point: the share of the travel made while a foot is off the ground '
+                 '(against the share of the time a foot is: a trunk that kept its speed through '
+                 'the swings would make that share), the travel backwards, and the stride (the '
+                 'distance between successive touchdowns of a foot); in a straight walk from '
+                 'its `motion_after` s to its end, in a step from the change to the end.')
+
+
+_TRAVEL_METRICS = (
+    ('swing_travel_share', 'share of the travel made while a foot swings', 1.0, 3),
+    ('swing_time_share', 'share of the time a foot swings', 1.0, 3),
+    ('backward_travel_m', 'travel backwards (mm)', 1000.0, 1),
+    ('stride_length_m', 'stride (m)', 1.0, 3))
+
+
+def _trunk_travel(page: Page, rows: list[dict], by: tuple[str, ...], label: str) -> None:
+    """The trunk-travel rows of the velocity term's runs (``motion_effects``), per setting,
+    and the paired test of the share of travel made while a foot swings."""
+    on = [r for r in rows if r['velocity_term']]
+    off = [r for r in rows if not r['velocity_term']]
+    if not values(on + off, 'swing_travel_share'):
+        return
+    for name, runs in (('on', on), ('off', off)):
+        for key, metric, scale, digits in _TRAVEL_METRICS:
+            page.row('velocity term', f'{label}, {name}', metric,
+                     spread(values(runs, key), digits, scale), len(values(runs, key)), '', '')
+    verdict, p = compare_paired(on, off, 'swing_travel_share', by, 'higher')
+    share_on, share_off = values(on, 'swing_travel_share'), values(off, 'swing_travel_share')
+    page.row('velocity term', f'{label}: on vs off',
+             'share of the travel made while a foot swings',
+             f'{np.mean(share_on):.3f} vs {np.mean(share_off):.3f}' if share_on and share_off
+             else '-', len(share_on) + len(share_off),
+             'the velocity term gives faster motion (the trunk moves through the swings)',
+             verdict + p_text(p))
 
 
 _SUSTAINED_METRICS = (

@@ -17,7 +17,8 @@ PLAN_KEYS = {
                      'duration', 'second_push'},
     'replan_window': {'scenario', 'windows', 'seeds', 'setpoints', 'duration'},
     'haptic': {'scenario', 'seeds', 'duration', 'durations', 'terrains'},
-    'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration', 'step_scenario'},
+    'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration', 'step_scenario',
+                      'motion_after'},
     'sustained_push': {'scenario', 'push_start', 'push_duration', 'forces', 'direction',
                        'horizon', 'duration', 'seeds', 'settings'},
     'qp_timing': {'replans', 'formulations'},
@@ -25,6 +26,13 @@ PLAN_KEYS = {
     'ideal_world': {'replan_window', 'haptic', 'velocity_changes', 'lateral_push'},
 }
 EXPERIMENTS = tuple(PLAN_KEYS)
+# Keys without a default, and what each says: a plan without one is refused.
+REQUIRED_KEYS = {
+    'velocity_changes': {'steady_tolerance': 'the share of the set-point speed the steady '
+                                             'state must be in'},
+    'velocity_term': {'motion_after': 's into a straight walk where its trunk travel is '
+                                      'measured from'},
+}
 
 
 class ExperimentError(ValueError):
@@ -118,9 +126,10 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
         if unknown:
             raise ExperimentError(f'{path}: {section}.{where}: unknown keys {sorted(unknown)} '
                                   f'(known: {", ".join(sorted(keys))})')
-    if 'steady_tolerance' not in (plan.get('velocity_changes') or {'steady_tolerance': 0}):
-        raise ExperimentError(f'{path}: {section}.velocity_changes: steady_tolerance missing '
-                              '(the share of the set-point speed the steady state must be in)')
+    for name, required in REQUIRED_KEYS.items():
+        for key, meaning in required.items():
+            if name in plan and key not in (plan[name] or {}):
+                raise ExperimentError(f'{path}: {section}.{name}: {key} missing ({meaning})')
     bad = set(only) - set(plan)
     if bad:
         raise ExperimentError(f'--only: {sorted(bad)} not in the {section} plan '

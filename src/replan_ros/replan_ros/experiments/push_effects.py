@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -110,7 +111,16 @@ def cached_push_effects(folder: Path, push_start: float, push_duration: float,
     """``push_effects`` of the run in ``folder`` (its bag in ``folder/bag``), kept in
     ``folder/push_effects.json`` for the same push and horizon; None without a bag."""
     key = {'push_start': push_start, 'push_duration': push_duration, 'horizon': horizon}
-    cache = folder / 'push_effects.json'
+    return cached_from_bag(folder, 'push_effects.json', key,
+                           lambda bag: push_effects(bag, push_start, push_duration, horizon))
+
+
+def cached_from_bag(folder: Path, name: str, key: dict,
+                    compute: Callable[[Path], dict | None]) -> dict | None:
+    """What ``compute`` reads from the bag of the run in ``folder`` (``folder/bag``), kept in
+    ``folder/name`` with ``key`` (what it was computed for) and read from there while the key
+    is the same; None without a bag."""
+    cache = folder / name
     if cache.exists():
         try:
             stored = json.loads(cache.read_text())
@@ -121,6 +131,6 @@ def cached_push_effects(folder: Path, push_start: float, push_duration: float,
     bag = folder / 'bag'
     if not bag.exists():
         return None
-    effects = push_effects(bag, push_start, push_duration, horizon)
+    effects = compute(bag)
     cache.write_text(json.dumps({'key': key, 'effects': effects}))
     return effects

@@ -68,27 +68,42 @@ def mismatch(node: dict, code: str, revision: str) -> str | None:
             'scripts/setup.sh --with-ray')
 
 
-def _alive(pid: int) -> bool:
+_OWNER = '.owner'     # in a run folder: the lock its worker holds while the run lasts
+
+
+def _unowned(owner: Path) -> bool:
+    """Whether nobody holds the lock of ``owner``: its worker is gone."""
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
+        with open(owner, 'a') as handle:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+    except OSError:         # held (BlockingIOError), or removed by its worker meanwhile
         return False
-    except PermissionError:
-        return True
-    return True
 
 
-def work_folder(base: Path | None = None) -> Path:
-    """A fresh folder for one run on this node, in ``base`` (default /tmp/replan-ray-runs).
-    Folders of runs whose worker was killed (no clean-up ran) are removed here: their name
-    starts with that worker's pid."""
+@contextlib.contextmanager
+def work_folder(base: Path | None = None):
+    """A fresh folder for one run on this node, in ``base`` (default /tmp/replan-ray-runs),
+    removed on leaving. Its worker holds an flock on the folder's ``.owner`` file while it is
+    in use; the folders of runs whose worker was killed (no clean-up ran, the kernel dropped
+    the lock) are removed here. A lock and not a pid says who is alive: workers of two
+    clusters on one machine may live in PID namespaces of their own (``unshare --pid``), where
+    the other's pids do not exist, and must not remove each other's runs."""
     base = base or Path(tempfile.gettempdir()) / 'replan-ray-runs'
     base.mkdir(exist_ok=True)
     for old in base.iterdir():
-        pid = old.name.split('-')[0]
-        if pid.isdigit() and not _alive(int(pid)):
+        # Without an owner file it is being made (its lock is taken before it is named).
+        if (old / _OWNER).is_file() and _unowned(old / _OWNER):
             shutil.rmtree(old, ignore_errors=True)
-    return Path(tempfile.mkdtemp(prefix=f'{os.getpid()}-', dir=base))
+    folder = Path(tempfile.mkdtemp(prefix=f'{os.getpid()}-', dir=base))
+    taking = folder / (_OWNER + '.new')
+    with open(taking, 'w') as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        taking.rename(folder / _OWNER)      # named only once locked: never seen free
+        try:
+            yield folder
+        finally:
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 @contextlib.contextmanager
@@ -132,11 +147,12 @@ def _unblock_signals() -> None:
 
 
 def read_back(folder: Path, bag: bool) -> dict[str, bytes]:
-    """The run folder's files (relative path -> bytes), without the bag unless ``bag``."""
+    """The run folder's files (relative path -> bytes), without the bag unless ``bag`` and
+    without the worker's lock."""
     files = {}
     for path in sorted(folder.rglob('*')):
         rel = path.relative_to(folder).as_posix()
-        if path.is_file() and (bag or not rel.startswith('bag/')):
+        if path.is_file() and rel != _OWNER and (bag or not rel.startswith('bag/')):
             files[rel] = path.read_bytes()
     return files
 
@@ -150,8 +166,7 @@ def make_run(input_yaml: str, code: str, revision: str, options: list[str],
     refused = mismatch(node, code, revision)
     if refused:
         return {'refused': refused}
-    folder = work_folder()
-    try:
+    with work_folder() as folder:
         (folder / 'input.yaml').write_text(input_yaml)
         # The graph ends with the worker: a worker killed by the test or the OOM killer must
         # not leave its graph running while Ray makes the run again elsewhere.
@@ -167,8 +182,6 @@ def make_run(input_yaml: str, code: str, revision: str, options: list[str],
                 preexec_fn=_unblock_signals, timeout=RUN_TIMEOUT_S).returncode
         return {'exit': exit_code, 'folder': str(folder), 'host': node['host'],
                 'files': read_back(folder, '--no-bag' not in options)}
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _import_ray():

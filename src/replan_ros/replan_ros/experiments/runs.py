@@ -35,6 +35,7 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
                 'replan_ros/experiments/claims.py', 'replan_ros/experiments/plan.py',
                 'replan_ros/experiments/runner.py', 'replan_ros/experiments/runs.py',
                 'replan_ros/experiments/push_effects.py', 'replan_ros/experiments/stats.py',
+                'replan_ros/experiments/motion_effects.py',
                 'replan_ros/experiments/findings.py', 'replan_ros/experiments/ray_runs.py',
                 'config/robots_page.yaml', 'replan_ros/experiments/robots_page.py',
                 'replan_ros/experiments/robots_plan.py', 'replan_ros/experiments/robots_render.py',
@@ -158,23 +159,22 @@ class Runner:
 
     def run(self, doc: dict, bag: bool = False) -> RunResult:
         """The run of scenario ``doc``: made now, or read if made before or under way.
-        ``bag``: keep its bag (in its folder's ``bag/``); a run made before without one is
-        made again."""
+        ``bag``: keep its bag (in its folder's ``bag/``); a run made before without one, in an
+        earlier call or in this one (two experiments can share a run), is made again."""
         key = run_key(doc, self.code)
-        with self.lock:
-            entry = self.results.get(key)
-            if entry is None:
-                self.results[key] = threading.Event()
-        if isinstance(entry, RunResult):
-            if self.progress:
-                self.progress.update(reused=1)
-            return entry
-        if isinstance(entry, threading.Event):
-            entry.wait()
-            if self.progress:
-                self.progress.update(reused=1)
-            return self.results[key]
-        event = self.results[key]
+        while True:
+            with self.lock:
+                entry = self.results.get(key)
+                if entry is None or (isinstance(entry, RunResult) and bag
+                                     and not (entry.folder / 'bag').is_dir()):
+                    event = threading.Event()
+                    self.results[key] = event
+                    break
+            if isinstance(entry, RunResult):
+                if self.progress:
+                    self.progress.update(reused=1)
+                return entry
+            entry.wait()            # under way: look again when it is done
         try:
             result = self._make(key, doc, bag)
         except (OSError, subprocess.SubprocessError, ValueError) as err:

@@ -168,6 +168,9 @@ def test_shipped_plan_loads_and_rejects_unknown_names(tmp_path):
     bad.write_text('full: {velocity_changes: {scenarios: [exp_velocity_step], seeds: [0]}}\n')
     with pytest.raises(ExperimentError, match='velocity_changes: steady_tolerance missing'):
         load_plan(bad, False, [])
+    bad.write_text('full: {velocity_term: {scenario: exp_walk, seeds: [0], setpoints: [0.1]}}\n')
+    with pytest.raises(ExperimentError, match='velocity_term: motion_after missing'):
+        load_plan(bad, False, [])
     bad.write_text('full: {ideal_world: {haptic: {terains: [flat]}}}\n')
     with pytest.raises(ExperimentError, match=r"full.ideal_world.haptic: unknown keys"):
         load_plan(bad, False, [])
@@ -200,7 +203,9 @@ def test_page_from_results(tmp_path):
             for name in ('correction_off', 'correction_thresholded') for s in range(5)],
         'velocity_term': (
             [_row(velocity_term=on, seed=s, setpoint=0.15, achieved=[0.15 - 0.001 * s, 0, 0],
-                  commanded=[0.15, 0, 0]) for on in (True, False) for s in range(3)]
+                  commanded=[0.15, 0, 0], swing_travel_share=(0.6 if on else 0.5) + 0.01 * s,
+                  swing_time_share=0.667, backward_travel_m=0.002 if on else 0.004,
+                  stride_length_m=0.45) for on in (True, False) for s in range(3)]
             + [_row(velocity_term=on, seed=s, setpoint='step', step_period_s=0.79,
                     rise_time_s=(1.0 if on else 1.5) + 0.3 * s, achieved=[0.2, 0, 0],
                     commanded=[0.2, 0, 0]) for on in (True, False) for s in range(3)]),
@@ -235,6 +240,15 @@ def test_page_from_results(tmp_path):
     assert ('| velocity term | set-point step: on vs off | seconds until 90 % of the achieved '
             'change | 1.30 vs 1.80 | 6 | the velocity term gives faster motion | holds (3 pairs)'
             ) in text
+    # How the trunk travels (motion_effects), per setting and paired; the finding computed.
+    assert ('| velocity term | straight walks, on | share of the travel made while a foot '
+            'swings | 0.610 ± 0.010 (0.600 to 0.620) | 3 |') in text
+    assert '| velocity term | straight walks, off | travel backwards (mm) | 4.0 ± 0.0' in text
+    assert ('| velocity term | straight walks: on vs off | share of the travel made while a '
+            'foot swings | 0.610 vs 0.510 | 6 | the velocity term gives faster motion (the '
+            'trunk moves through the swings) | holds (3 pairs)') in text
+    assert ('the trunk makes 61 % of its travel then with the term and 51 % without, and moves '
+            'back 2.0 mm against 4.0 mm over a run; the strides are 0.450 and 0.450 m') in text
     assert '`x: exit 1`' in text
     assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
     assert (tmp_path / 'results_plots' / 'haptic_pitch.png').is_file()
@@ -365,3 +379,37 @@ def test_experiments_robot_option_names_the_robot_in_every_document(tmp_path):
     assert go1.scenario('exp_walk') == {**plain.scenario('exp_walk'), 'robot': 'go1'}
     assert node_settings(CONFIG)['crawl_cycle_s'] == pytest.approx(3.0)
     assert node_settings(CONFIG, 'go1')['crawl_cycle_s'] == pytest.approx(2.347, abs=1e-3)
+
+
+class FolderRunner(Runner):
+    """A Runner whose runs write their folder at once (no graph): what each made, and with a
+    bag or not."""
+
+    def __init__(self, out_dir: Path) -> None:
+        super().__init__(out_dir, CONFIG)
+        self.made: list[bool] = []
+
+    def _execute(self, folder: Path, bag: bool) -> int:
+        self.made.append(bag)
+        (folder / 'metrics.json').write_text('{"sim_time_s": 8.0, "fell": false}')
+        if bag:
+            (folder / 'bag').mkdir()
+        return 0
+
+
+def test_a_run_shared_without_its_bag_is_made_again_when_one_is_asked_for(tmp_path):
+    """Two experiments can ask for the same run (a straight walk of the replan window is one of
+    the velocity term's); the one that reads its bag must get it, whichever asked first, in
+    this call or in a later one."""
+    runner = FolderRunner(tmp_path)
+    doc = variant(runner.scenario('exp_walk'), seed=0, setpoint=(0.15, 0.0, 0.0))
+    first = runner.run(doc)
+    assert runner.made == [False] and not (first.folder / 'bag').exists()
+    assert (runner.run(doc, bag=True).folder / 'bag').is_dir()
+    assert runner.made == [False, True]
+    runner.run(doc)
+    runner.run(doc, bag=True)
+    assert runner.made == [False, True]                 # with its bag it serves both
+    later = FolderRunner(tmp_path)
+    later.run(doc, bag=True)
+    assert later.made == []                             # read back, bag and all

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 from replan_ros.experiments.ray_runs import (
     DOMAIN_POOL,
@@ -79,10 +80,24 @@ def test_the_bag_comes_back_only_when_asked(tmp_path):
     assert read_back(tmp_path, bag=True)['bag/bag_0.mcap'] == b'\x89MCAP'
 
 
-def test_a_dead_workers_folder_is_removed(tmp_path):
-    dead = subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'],
-                          capture_output=True, text=True).stdout.strip()
-    (tmp_path / f'{dead}-old').mkdir()
-    mine = work_folder(tmp_path)
-    assert mine.is_dir() and not (tmp_path / f'{dead}-old').exists()
-    assert work_folder(tmp_path) != mine and mine.exists()     # a live worker's stays
+def test_a_dead_workers_folder_is_removed_a_live_ones_never(tmp_path):
+    """Who is alive is a lock, not a pid: a worker in another PID namespace (a second cluster
+    on the machine, as CI's and a developer's) has pids this one cannot see."""
+    # A killed worker's folder: its owner lock was dropped with the process.
+    killed = subprocess.run(
+        [sys.executable, '-c', 'import sys; from pathlib import Path; '
+         'from replan_ros.experiments.ray_runs import work_folder; '
+         'ctx = work_folder(Path(sys.argv[1])); print(ctx.__enter__()); sys.stdout.flush(); '
+         'import os; os._exit(0)', str(tmp_path)],
+        capture_output=True, text=True, check=True).stdout.strip()
+    assert Path(killed).is_dir()
+    # A folder whose worker lives, with a pid that means nothing here (another namespace).
+    with work_folder(tmp_path) as other:
+        alive = other.rename(tmp_path / '999999999-other')
+        with work_folder(tmp_path) as mine:
+            assert mine.is_dir() and not Path(killed).exists()
+            assert alive.is_dir()                               # its lock is held: it stays
+            with work_folder(tmp_path) as second:
+                assert second != mine and mine.is_dir()
+            assert not second.exists()                          # removed on leaving
+            assert '.owner' not in read_back(mine, bag=True)
