@@ -1,0 +1,161 @@
+"""The planner alone in a closed loop: the gait's footholds (``gait.compute_footholds``) and the
+LIP MPC, re-planned at every planned touchdown from the state of the MPC's own plan there (the
+trunk exactly on the plan: no dynamics, no controller, no sensing, no DDS). A 26 s walk takes
+seconds, so a planner setting can be tried before the graph runs it.
+
+    scripts/planner_loop.sh [--robot NAME|FILE] [--profile realistic|ideal]
+                            [--at T VX VY WZ ...] [--duration S] [--late S]
+                            [--set node.key=VALUE ...] [--json]
+
+Prints the mean velocity of each whole crawl cycle (four touchdowns) from the last set-point
+change on, body frame of the start (vx, vy m/s; wz rad/s). What it leaves out, on purpose:
+the velocity feedback and step timing of the gait node (they act on measured velocity and
+touchdowns), the trunk's lag behind its plan and the controller (the graph's ``scenario.sh``
+has them). ``--late S`` makes every touchdown S seconds later than planned, as the haptic
+touchdown does on the realistic robot; the strides are stretched for it as the gait node's
+step timing would. Used in docs/gait.md ("The way to a new speed takes cycles").
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from replan_ros.params.robot import project_root
+
+
+def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], duration: float,
+         overrides: dict[str, dict] | None = None, late: float = 0.0,
+         root: Path | None = None) -> list[tuple[float, np.ndarray, float]]:
+    """(t, CoM xy (m, world), yaw (rad)) at the start and at every touchdown of a walk from the
+    robot's standing feet. ``schedule``: (t, (vx, vy, wz)) set-points in force from t on;
+    ``overrides``: node -> {key: value} on top of the run's parameters (gait, mpc)."""
+    from replan_core.gait import compute_footholds
+    from replan_core.mpc import LipMpc
+    from replan_core.robot_file import robot_facts
+    from replan_core.robot_model import RobotModel
+    from replan_core.support import implied_velocity
+    from replan_ros.launch.param_files import check_run_files, profile_file, robot_parameters
+    from replan_ros.params.convert import gait_params, mpc_settings
+
+    config = (root or project_root()) / 'config'
+    # The parameters as the launcher gives them to a run of this robot and profile.
+    profile_path = profile_file(config, profile)
+    layer = robot_parameters(config, robot, profile_path)
+    run = check_run_files(config, [profile_path, layer.derived, layer.overrides]).values
+    values = {node: dict(run[node], **(overrides or {}).get(node, {})) for node in ('gait', 'mpc')}
+    unknown = {f'{node}.{key}' for node, keys in (overrides or {}).items()
+               for key in keys if node not in values or key not in run[node]}
+    if unknown:
+        raise ValueError(f'unknown parameters {sorted(unknown)} (gait.* and mpc.* only)')
+    spec = layer.spec
+    model = RobotModel(str(spec.urdf), spec.joints, spec.feet)
+    gait = replace(gait_params(values['gait']),
+                   hip_offsets=tuple((float(x), float(y)) for x, y in model.hip_offsets[:, :2]))
+    mpc = LipMpc(mpc_settings(values['mpc']))
+    facts = robot_facts(spec)
+    feet = np.column_stack([np.asarray(facts.feet_xy, dtype=float), np.zeros(4)])
+
+    def setpoint(t: float) -> np.ndarray:
+        now = [v for start, v in schedule if start <= t + 1e-9]
+        return np.asarray(now[-1] if now else np.zeros(3), dtype=float)
+
+    t, yaw = 0.0, 0.0
+    com = np.array([0.0, 0.0, float(values['mpc']['com_height'])])
+    vel, acc = np.zeros(3), np.zeros(3)
+    scale = (gait.step_period + late) / gait.step_period
+    plan = compute_footholds(setpoint(t), feet, com, yaw, None, gait.sequence[0], t, gait,
+                             delay=float(values['gait']['start_delay']))
+    log = [(t, com[:2].copy(), yaw)]
+    while t < duration:
+        result = mpc.solve(t, com, vel, acc, plan, v_ref=implied_velocity(plan))
+        first = plan.steps[0]
+        t = first.touchdown_time + late
+        com, vel, acc = result.plan.sample(t)
+        feet = feet.copy()
+        feet[first.leg] = first.target
+        yaw = float(first.yaw)
+        log.append((t, com[:2].copy(), yaw))
+        following = gait.sequence[(gait.sequence.index(first.leg) + 1) % len(gait.sequence)]
+        plan = compute_footholds(setpoint(t), feet, com, yaw, None, following, t, gait,
+                                 stride_time_scale=scale)
+    return log
+
+
+def cycle_velocities(log: list[tuple[float, np.ndarray, float]], start: float,
+                     legs: int = 4) -> list[list[float]]:
+    """The mean (vx, vy, wz) of each whole cycle (``legs`` touchdowns) from the first touchdown
+    at or after ``start``: vx, vy in the body frame of the cycle's mean heading."""
+    times = np.array([t for t, _, _ in log])
+    i = int(np.searchsorted(times, start - 1e-9))
+    out = []
+    while i + legs < len(log):
+        (t0, p0, y0), (t1, p1, y1) = log[i], log[i + legs]
+        heading = 0.5 * (y0 + y1)
+        c, s = np.cos(heading), np.sin(heading)
+        d = (p1 - p0) / (t1 - t0)
+        out.append([float(c * d[0] + s * d[1]), float(-s * d[0] + c * d[1]),
+                    float((y1 - y0) / (t1 - t0))])
+        i += legs
+    return out
+
+
+def _overrides(items: list[str]) -> dict[str, dict]:
+    out: dict[str, dict] = {}
+    for item in items:
+        name, sep, text = item.partition('=')
+        node, dot, key = name.partition('.')
+        if not sep or not dot or not key:
+            raise ValueError(f'--set {item!r}: expected node.key=VALUE')
+        out.setdefault(node, {})[key] = yaml.safe_load(text)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog='scripts/planner_loop.sh',
+        description='The planner alone in a closed loop (footholds and MPC, the trunk on the '
+                    'plan): the mean velocity of each crawl cycle after the last set-point '
+                    'change.')
+    parser.add_argument('--robot', default='hyq', help='robot name or file (default hyq)')
+    parser.add_argument('--profile', default='realistic', help='parameter profile')
+    parser.add_argument('--at', nargs=4, type=float, action='append', default=[],
+                        metavar=('T', 'VX', 'VY', 'WZ'),
+                        help='set-point (m/s, m/s, rad/s) from T s on; repeatable '
+                             '(default: 0.15 0 0 from 0.5 s)')
+    parser.add_argument('--duration', type=float, default=26.0, help='s of walk (default 26)')
+    parser.add_argument('--late', type=float, default=0.0,
+                        help='s each touchdown comes after its plan (default 0)')
+    parser.add_argument('--set', action='append', default=[], metavar='NODE.KEY=VALUE',
+                        help='a gait or mpc parameter for this walk; repeatable')
+    parser.add_argument('--json', action='store_true', help='one JSON line instead of text')
+    args = parser.parse_args(argv)
+    schedule = sorted((a[0], np.array(a[1:])) for a in args.at) or [
+        (0.5, np.array([0.15, 0.0, 0.0]))]
+    try:
+        log = walk(args.robot, args.profile, schedule, args.duration, _overrides(args.set),
+                   args.late)
+    except (ValueError, KeyError, OSError) as err:
+        print(f'config error: planner_loop: {err}', file=sys.stderr)
+        return 2
+    cycles = cycle_velocities(log, schedule[-1][0])
+    if args.json:
+        print(json.dumps({'setpoint': schedule[-1][1].tolist(), 'from_s': schedule[-1][0],
+                          'cycle_velocities': cycles}))
+        return 0
+    target = ', '.join(f'{v:g}' for v in schedule[-1][1])
+    print(f'set-point ({target}) from {schedule[-1][0]:g} s; mean velocity per crawl cycle '
+          '(vx m/s, vy m/s, wz rad/s):')
+    for k, v in enumerate(cycles, 1):
+        print(f'  cycle {k}: ({v[0]:+.4f}, {v[1]:+.4f}, {v[2]:+.4f})')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

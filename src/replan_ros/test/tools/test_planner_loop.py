@@ -1,0 +1,37 @@
+"""planner_loop: the planner alone in a closed loop (footholds and the MPC, no graph)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from replan_ros.tools.planner_loop import cycle_velocities, main, walk
+
+SIDEWAYS = [(0.5, np.array([0.0, 0.1, 0.0]))]
+
+
+def test_the_walk_reaches_its_set_point_and_correction_shortens_the_first_cycle():
+    """The planner alone walks at the set-point within three cycles; the foothold correction
+    places the first strides about the hips after the walk-off, which the foot-relative
+    placement (correction off) does not: docs/gait.md, "The way to a new speed"."""
+    on = cycle_velocities(walk('hyq', 'realistic', SIDEWAYS, 14.0), 0.5)
+    off = cycle_velocities(walk('hyq', 'realistic', SIDEWAYS, 14.0,
+                                {'gait': {'foothold_correction': False}}), 0.5)
+    for cycles in (on, off):
+        assert len(cycles) >= 3
+        assert cycles[2][1] == pytest.approx(0.1, abs=0.002)
+        assert abs(cycles[2][0]) < 0.002 and abs(cycles[2][2]) < 1e-6
+    assert on[0][1] < off[0][1] - 0.005
+
+
+def test_a_turning_walk_is_measured_in_the_body_frame():
+    cycles = cycle_velocities(walk('hyq', 'realistic', [(0.5, np.array([0.1, 0.0, 0.15]))],
+                                   14.0), 0.5)
+    assert cycles[2][0] == pytest.approx(0.1, abs=0.01)
+    assert cycles[2][2] == pytest.approx(0.15, abs=1e-3)
+
+
+def test_a_misspelt_parameter_is_a_config_error(capsys):
+    assert main(['--set', 'gait.foothold_corection=false', '--duration', '4']) == 2
+    assert 'config error: planner_loop: unknown parameters' in capsys.readouterr().err
+    assert main(['--set', 'foothold_correction', '--duration', '4']) == 2
