@@ -19,6 +19,7 @@ from replan_ros.experiments.stats import (
     P_VALUE,
     PAPER_QP_MS,
     PAPER_QP_STD_MS,
+    POWER,
     against_paper,
     compare_paired,
     cycles_to_within,
@@ -114,8 +115,9 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         'when the difference has the paper\'s sign and a t-test puts it beyond the spread of '
         'the runs: the paired one where the runs pair (the same seed and set-point in both '
         f'settings, "n pairs"), else Welch\'s (p < {P_VALUE}); **not resolved** when the runs '
-        'cannot tell the '
-        'settings apart.',
+        'cannot tell the settings apart, and then, for paired runs, how many pairs would resolve '
+        f'a difference as large as the runs\' mean one at their spread ({POWER:.0%} power of the '
+        'paired t-test; an estimate: if the true difference is smaller, more).',
         '',
         '| Experiment | Setting | Metric | Mean ± spread (min to max) | Runs | Paper\'s claim '
         '| Holds? |',

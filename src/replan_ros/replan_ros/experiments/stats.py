@@ -125,8 +125,40 @@ def compare_paired(a_rows: list[dict], b_rows: list[dict], key: str, by: tuple[s
         p = 0.0
     better = diff.mean() < 0 if a_better == 'lower' else diff.mean() > 0
     if p >= P_VALUE:
-        return f'not resolved (within the spread, {note})', p
+        return f'not resolved (within the spread, {note}; {_would_resolve(diff)})', p
     return ('holds' if better else 'does not hold (the opposite)') + f' ({note})', p
+
+
+POWER = 0.8          # the chance a test of that many pairs resolves a difference that is real
+MAX_PAIRS = 10000
+
+
+def pairs_to_resolve(diff) -> int | None:
+    """The fewest pairs whose paired t-test (two-sided, p < P_VALUE) resolves a true mean
+    difference and spread equal to those of ``diff`` with probability ``POWER``; None above
+    ``MAX_PAIRS`` or for no difference. An estimate from the runs: their own mean and spread
+    stand for the true ones."""
+    from scipy.stats import nct, t
+    d = np.asarray(diff, dtype=float)
+    mean, sd = float(d.mean()), float(d.std(ddof=1)) if len(d) > 1 else 0.0
+    if mean == 0.0 or not sd > 0.0:
+        return None
+    effect = abs(mean) / sd
+    for n in range(2, MAX_PAIRS + 1):
+        crit = t.ppf(1.0 - P_VALUE / 2.0, n - 1)
+        shift = effect * math.sqrt(n)
+        if nct.sf(crit, n - 1, shift) + nct.cdf(-crit, n - 1, shift) >= POWER:
+            return n
+    return None
+
+
+def _would_resolve(diff) -> str:
+    """What more runs would do for an unresolved paired comparison, computed."""
+    n = pairs_to_resolve(diff)
+    if n is None:
+        return f'more than {MAX_PAIRS} pairs would be needed at this difference and spread'
+    return (f'at this mean difference and spread about {n} pairs would resolve it '
+            f'({POWER:.0%} power)')
 
 
 def p_text(p: float | None) -> str:

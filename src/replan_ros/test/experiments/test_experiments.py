@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -18,7 +19,13 @@ from replan_ros.experiments.plan import (
     variant,
 )
 from replan_ros.experiments.runs import Runner, RunResult, code_fingerprint, run_key
-from replan_ros.experiments.stats import compare, compare_paired, cycles_to_within, spread
+from replan_ros.experiments.stats import (
+    compare,
+    compare_paired,
+    cycles_to_within,
+    pairs_to_resolve,
+    spread,
+)
 
 CONFIG = Path(__file__).resolve().parents[4] / 'config'
 BASE = {'name': 'walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0.0, 0.0]}]}
@@ -413,3 +420,19 @@ def test_a_run_shared_without_its_bag_is_made_again_when_one_is_asked_for(tmp_pa
     later = FolderRunner(tmp_path)
     later.run(doc, bag=True)
     assert later.made == []                             # read back, bag and all
+
+
+def test_an_unresolved_paired_comparison_says_how_many_pairs_would_resolve_it():
+    """The sample size of a two-sided paired t-test at 80 % power, as the textbooks give it
+    (Cohen's d 0.2, 0.5, 0.8: 199, 34, 15 pairs), from the runs' own mean and spread."""
+    half = 1.0 / np.sqrt(2.0)            # two differences with a spread of exactly 1
+    assert [pairs_to_resolve([d + half, d - half]) for d in (0.2, 0.5, 0.8)] == [199, 34, 15]
+    assert pairs_to_resolve([0.3, -0.3]) is None                  # no mean difference
+    assert pairs_to_resolve([0.2, 0.2, 0.2]) is None              # no spread: nothing to add
+    on = [{'seed': s, 'x': 1.0 + 0.1 * s} for s in range(4)]
+    off = [{'seed': s, 'x': 1.0 + 0.1 * s + (0.05 if s % 2 else -0.03)} for s in range(4)]
+    verdict, p = compare_paired(on, off, 'x', ('seed',), 'lower')
+    assert p >= 0.05
+    assert verdict.startswith('not resolved (within the spread, 4 pairs; at this mean '
+                              'difference and spread about ')
+    assert verdict.endswith(' pairs would resolve it (80% power))')
