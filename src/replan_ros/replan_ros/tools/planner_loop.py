@@ -136,6 +136,9 @@ def main(argv: list[str] | None = None) -> int:
                         help='a gait or mpc parameter for this walk; repeatable')
     parser.add_argument('--json', action='store_true', help='one JSON line instead of text')
     args = parser.parse_args(argv)
+    if not args.duration > 0 or not args.late >= 0:
+        parser.error(f'--duration must be > 0 and --late >= 0 (s), got {args.duration} and '
+                     f'{args.late}')
     schedule = sorted((a[0], np.array(a[1:])) for a in args.at) or [
         (0.5, np.array([0.15, 0.0, 0.0]))]
     try:

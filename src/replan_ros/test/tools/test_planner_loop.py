@@ -35,3 +35,10 @@ def test_a_misspelt_parameter_is_a_config_error(capsys):
     assert main(['--set', 'gait.foothold_corection=false', '--duration', '4']) == 2
     assert 'config error: planner_loop: unknown parameters' in capsys.readouterr().err
     assert main(['--set', 'foothold_correction', '--duration', '4']) == 2
+
+
+@pytest.mark.parametrize('argv', [['--late', '-0.1'], ['--duration', '0']])
+def test_a_negative_lateness_or_no_duration_is_refused(argv):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
