@@ -8,7 +8,10 @@ seconds, so a planner setting can be tried before the graph runs it.
                             [--set node.key=VALUE ...] [--json]
 
 Prints the mean velocity of each whole crawl cycle (four touchdowns) from the last set-point
-change on, body frame of the start (vx, vy m/s; wz rad/s). What it leaves out, on purpose:
+change on, body frame of the cycle's mean heading (vx, vy m/s; wz rad/s), and where the trunk
+stood over its feet: the centre of the four feet minus the CoM at the cycle's touchdowns (body
+frame, m, their mean). The MPC has no position target, so nothing but the foothold correction
+brings a trunk that fell beside its feet back over them. What it leaves out, on purpose:
 the velocity feedback and step timing of the gait node (they act on measured velocity and
 touchdowns), the trunk's lag behind its plan and the controller (the graph's ``scenario.sh``
 has them). ``--late S`` makes every touchdown S seconds later than planned, as the haptic
@@ -32,10 +35,11 @@ from replan_ros.params.robot import project_root
 
 def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], duration: float,
          overrides: dict[str, dict] | None = None, late: float = 0.0,
-         root: Path | None = None) -> list[tuple[float, np.ndarray, float]]:
-    """(t, CoM xy (m, world), yaw (rad)) at the start and at every touchdown of a walk from the
-    robot's standing feet. ``schedule``: (t, (vx, vy, wz)) set-points in force from t on;
-    ``overrides``: node -> {key: value} on top of the run's parameters (gait, mpc)."""
+         root: Path | None = None) -> list[tuple[float, np.ndarray, float, np.ndarray]]:
+    """(t, CoM xy (m, world), yaw (rad), centre of the four feet xy (m, world)) at the start
+    and at every touchdown of a walk from the robot's standing feet. ``schedule``: (t, (vx, vy,
+    wz)) set-points in force from t on; ``overrides``: node -> {key: value} on top of the
+    run's parameters (gait, mpc)."""
     from replan_core.gait import compute_footholds
     from replan_core.mpc import LipMpc
     from replan_core.robot_file import robot_facts
@@ -72,7 +76,7 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
     scale = (gait.step_period + late) / gait.step_period
     plan = compute_footholds(setpoint(t), feet, com, yaw, None, gait.sequence[0], t, gait,
                              delay=float(values['gait']['start_delay']))
-    log = [(t, com[:2].copy(), yaw)]
+    log = [(t, com[:2].copy(), yaw, feet[:, :2].mean(axis=0))]
     while t < duration:
         result = mpc.solve(t, com, vel, acc, plan, v_ref=implied_velocity(plan))
         first = plan.steps[0]
@@ -81,27 +85,46 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
         feet = feet.copy()
         feet[first.leg] = first.target
         yaw = float(first.yaw)
-        log.append((t, com[:2].copy(), yaw))
+        log.append((t, com[:2].copy(), yaw, feet[:, :2].mean(axis=0)))
         following = gait.sequence[(gait.sequence.index(first.leg) + 1) % len(gait.sequence)]
         plan = compute_footholds(setpoint(t), feet, com, yaw, None, following, t, gait,
                                  stride_time_scale=scale)
     return log
 
 
-def cycle_velocities(log: list[tuple[float, np.ndarray, float]], start: float,
+def cycle_velocities(log: list[tuple[float, np.ndarray, float, np.ndarray]], start: float,
                      legs: int = 4) -> list[list[float]]:
     """The mean (vx, vy, wz) of each whole cycle (``legs`` touchdowns) from the first touchdown
     at or after ``start``: vx, vy in the body frame of the cycle's mean heading."""
-    times = np.array([t for t, _, _ in log])
+    times = np.array([entry[0] for entry in log])
     i = int(np.searchsorted(times, start - 1e-9))
     out = []
     while i + legs < len(log):
-        (t0, p0, y0), (t1, p1, y1) = log[i], log[i + legs]
+        (t0, p0, y0, _), (t1, p1, y1, _) = log[i], log[i + legs]
         heading = 0.5 * (y0 + y1)
         c, s = np.cos(heading), np.sin(heading)
         d = (p1 - p0) / (t1 - t0)
         out.append([float(c * d[0] + s * d[1]), float(-s * d[0] + c * d[1]),
                     float((y1 - y0) / (t1 - t0))])
+        i += legs
+    return out
+
+
+def trunk_offsets(log: list[tuple[float, np.ndarray, float, np.ndarray]], start: float,
+                  legs: int = 4) -> list[list[float]]:
+    """Where the trunk stood over its feet in each whole cycle, as ``cycle_velocities`` cuts
+    them: the mean over the cycle's ``legs`` touchdowns of the centre of the four feet minus
+    the CoM, in the body frame of each touchdown (x, y m)."""
+    times = np.array([entry[0] for entry in log])
+    i = int(np.searchsorted(times, start - 1e-9))
+    out = []
+    while i + legs < len(log):
+        offsets = []
+        for _, com, yaw, centre in log[i + 1:i + legs + 1]:
+            c, s = np.cos(yaw), np.sin(yaw)
+            d = centre - com
+            offsets.append((c * d[0] + s * d[1], -s * d[0] + c * d[1]))
+        out.append([float(v) for v in np.mean(offsets, axis=0)])
         i += legs
     return out
 
@@ -148,15 +171,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f'config error: planner_loop: {err}', file=sys.stderr)
         return 2
     cycles = cycle_velocities(log, schedule[-1][0])
+    offsets = trunk_offsets(log, schedule[-1][0])
     if args.json:
         print(json.dumps({'setpoint': schedule[-1][1].tolist(), 'from_s': schedule[-1][0],
-                          'cycle_velocities': cycles}))
+                          'cycle_velocities': cycles, 'feet_centre_minus_com_m': offsets}))
         return 0
     target = ', '.join(f'{v:g}' for v in schedule[-1][1])
-    print(f'set-point ({target}) from {schedule[-1][0]:g} s; mean velocity per crawl cycle '
-          '(vx m/s, vy m/s, wz rad/s):')
-    for k, v in enumerate(cycles, 1):
-        print(f'  cycle {k}: ({v[0]:+.4f}, {v[1]:+.4f}, {v[2]:+.4f})')
+    print(f'set-point ({target}) from {schedule[-1][0]:g} s; per crawl cycle the mean velocity '
+          '(vx m/s, vy m/s, wz rad/s) and the centre of the feet minus the CoM (x, y m, body):')
+    for k, (v, d) in enumerate(zip(cycles, offsets, strict=True), 1):
+        print(f'  cycle {k}: ({v[0]:+.4f}, {v[1]:+.4f}, {v[2]:+.4f})  '
+              f'feet centre - CoM ({d[0]:+.3f}, {d[1]:+.3f})')
     return 0
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from replan_ros.tools.planner_loop import cycle_velocities, main, walk
+from replan_ros.tools.planner_loop import cycle_velocities, main, trunk_offsets, walk
 
 SIDEWAYS = [(0.5, np.array([0.0, 0.1, 0.0]))]
 
@@ -22,6 +22,31 @@ def test_the_walk_reaches_its_set_point_and_correction_shortens_the_first_cycle(
         assert cycles[2][1] == pytest.approx(0.1, abs=0.002)
         assert abs(cycles[2][0]) < 0.002 and abs(cycles[2][2]) < 1e-6
     assert on[0][1] < off[0][1] - 0.005
+
+
+def test_without_the_correction_the_trunk_stays_beside_its_feet():
+    """The MPC has no position target: walking off forward, the trunk drifts sideways in the
+    first cycle and, with the footholds placed about the feet (correction off), stays there
+    (9.8 cm measured); the foothold correction brings it back over them (1.5 cm)."""
+    forward = [(0.5, np.array([0.15, 0.0, 0.0]))]
+    on = trunk_offsets(walk('hyq', 'realistic', forward, 14.0), 0.5)
+    off = trunk_offsets(walk('hyq', 'realistic', forward, 14.0,
+                             {'gait': {'foothold_correction': False}}), 0.5)
+    assert len(on) >= 3 and len(off) == len(on)
+    assert abs(off[2][1]) > 0.05 and abs(off[3][1] - off[2][1]) < 0.005   # it stays
+    assert abs(on[2][1]) < 0.03
+
+
+def test_trunk_offsets_of_a_known_walk():
+    """A trunk heading along world +y with the centre of its feet at world -x from it: the
+    centre is on the trunk's left, (0, +0.1) m in its body frame."""
+    yaw = np.pi / 2
+    log = [(float(k), np.array([0.0, k * 0.1]), yaw, np.array([-0.1, k * 0.1]))
+           for k in range(9)]
+    offsets = trunk_offsets(log, 0.0)
+    assert len(offsets) == 2
+    for x, y in offsets:
+        assert x == pytest.approx(0.0, abs=1e-12) and y == pytest.approx(0.1)
 
 
 def test_a_turning_walk_is_measured_in_the_body_frame():
