@@ -92,21 +92,32 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
     return log
 
 
+def _to_body(vector: np.ndarray, yaw: float) -> tuple[float, float]:
+    """A world xy ``vector`` in the body frame of heading ``yaw`` (rad)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return float(c * vector[0] + s * vector[1]), float(-s * vector[0] + c * vector[1])
+
+
+def _whole_cycles(log: list[tuple[float, np.ndarray, float, np.ndarray]], start: float,
+                  legs: int):
+    """The entries of each whole cycle (``legs`` touchdowns) from the first touchdown at or
+    after ``start``: ``legs + 1`` entries each, the first the last of the cycle before."""
+    times = np.array([entry[0] for entry in log])
+    i = int(np.searchsorted(times, start - 1e-9))
+    while i + legs < len(log):
+        yield log[i:i + legs + 1]
+        i += legs
+
+
 def cycle_velocities(log: list[tuple[float, np.ndarray, float, np.ndarray]], start: float,
                      legs: int = 4) -> list[list[float]]:
     """The mean (vx, vy, wz) of each whole cycle (``legs`` touchdowns) from the first touchdown
     at or after ``start``: vx, vy in the body frame of the cycle's mean heading."""
-    times = np.array([entry[0] for entry in log])
-    i = int(np.searchsorted(times, start - 1e-9))
     out = []
-    while i + legs < len(log):
-        (t0, p0, y0, _), (t1, p1, y1, _) = log[i], log[i + legs]
-        heading = 0.5 * (y0 + y1)
-        c, s = np.cos(heading), np.sin(heading)
-        d = (p1 - p0) / (t1 - t0)
-        out.append([float(c * d[0] + s * d[1]), float(-s * d[0] + c * d[1]),
-                    float((y1 - y0) / (t1 - t0))])
-        i += legs
+    for cycle in _whole_cycles(log, start, legs):
+        (t0, p0, y0, _), (t1, p1, y1, _) = cycle[0], cycle[-1]
+        vx, vy = _to_body((p1 - p0) / (t1 - t0), 0.5 * (y0 + y1))
+        out.append([vx, vy, float((y1 - y0) / (t1 - t0))])
     return out
 
 
@@ -115,18 +126,9 @@ def trunk_offsets(log: list[tuple[float, np.ndarray, float, np.ndarray]], start:
     """Where the trunk stood over its feet in each whole cycle, as ``cycle_velocities`` cuts
     them: the mean over the cycle's ``legs`` touchdowns of the centre of the four feet minus
     the CoM, in the body frame of each touchdown (x, y m)."""
-    times = np.array([entry[0] for entry in log])
-    i = int(np.searchsorted(times, start - 1e-9))
-    out = []
-    while i + legs < len(log):
-        offsets = []
-        for _, com, yaw, centre in log[i + 1:i + legs + 1]:
-            c, s = np.cos(yaw), np.sin(yaw)
-            d = centre - com
-            offsets.append((c * d[0] + s * d[1], -s * d[0] + c * d[1]))
-        out.append([float(v) for v in np.mean(offsets, axis=0)])
-        i += legs
-    return out
+    return [[float(v) for v in np.mean([_to_body(centre - com, yaw)
+                                        for _, com, yaw, centre in cycle[1:]], axis=0)]
+            for cycle in _whole_cycles(log, start, legs)]
 
 
 def _overrides(items: list[str]) -> dict[str, dict]:
