@@ -1,6 +1,16 @@
 """Speed of the lock-step graph against its targets, every figure from one run of one command.
 
-``scripts/bench_speed.sh [--runs N] [--duration S] [--out DIR] [--json]``
+``scripts/bench_speed.sh [--runs N] [--duration S] [--robot NAME|FILE] [--out DIR] [--json]
+[--page FILE]``
+
+Every part runs the robot of ``--robot`` (a name of ``config/robots/`` or a robot file; default
+hyq, docs/robot_files.md): physics alone with its model, its PD gains and realistic payload
+scaled from HyQ's (``sim_bench.bench_robot``), the graph with its derived parameters (the
+launcher's, ``Graph(robot=...)``; the ``forward`` set-point stays 0.15 m/s, as in
+``bench_graph.sh``, within the robot's gait limits), the MPC benchmark with its crawl
+(``mpc_bench.bench_crawl``: its standing feet, timing and set-points scaled, its CoM height as
+the LIP height). A robot that cannot be used stops the bench with one ``config error:`` line
+before anything runs.
 
 Each round (default 3, interleaved so that a ratio is measured under one load) runs:
 
@@ -41,24 +51,33 @@ import statistics
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
 
-from replan_core.bench.mpc_bench import REFERENCE_ROBOT, bench_crawl
+from replan_core.bench.mpc_bench import REFERENCE_ROBOT, BenchCrawl, bench_crawl
 from replan_core.bench.mpc_bench import run as mpc_bench_run
-from replan_core.bench.sim_bench import physics_rtf
 from replan_core.mpc import MpcSettings
+from replan_core.robot_file import load_robot_file, robot_file_path
 from replan_ros.benchmarks.tick_table import read_budgets, table
 from replan_ros.experiments.analysis import read_messages, replan_wall_latency
 from replan_ros.experiments.runner import git_revision, machine_description
 from replan_ros.experiments.scenario import load_scenario, params_document, scenario_inputs
-from replan_ros.launch.graph import Graph, run_graph
+from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
+from replan_ros.launch.launch_graph import add_robot_option
+from replan_ros.launch.param_files import DEFAULT_ROBOT, profile_file, robot_parameters
 from replan_ros.nodes.mpc_node import SOLVE_TIMES_LOG
+from replan_ros.params import ConfigError
 from replan_ros.view.live_client import WatchEverything, free_port
 
+if TYPE_CHECKING:
+    from replan_core.bench.sim_bench import BenchRobot
+
 ROOT = Path(__file__).resolve().parents[4]
-SCENARIO = ROOT / 'config' / 'scenarios' / 'forward.yaml'
+CONFIG = ROOT / 'config'
+SCENARIO = CONFIG / 'scenarios' / 'forward.yaml'
 # name -> (profile, recorder, live view with a viewer)
 SETUPS = {
     'ideal': ('ideal', False, False),
@@ -78,6 +97,44 @@ MPC_IDLE = 0.3              # wall s between two re-plans of the idle MPC benchm
 MPC_IDLE_REPLANS = 40
 
 
+@dataclass(frozen=True)
+class SpeedRobot:
+    """The robot of a run as each part of the bench takes it."""
+
+    name: str               # the robot file's name (go1): the table's, the JSON's, the page's
+    given: str              # as --robot gave it (a name or a file): what the graph's launcher reads
+    physics: BenchRobot     # physics alone: its model, gains and payload scaled from HyQ's
+    crawl: BenchCrawl       # the MPC benchmark's crawl
+
+
+def speed_robot(robot: str) -> SpeedRobot:
+    """``robot`` (a name of config/robots/ or a robot file) for every part of the bench, each
+    through the project's own resolution: the launcher's parameters in every profile of
+    ``SETUPS`` (``param_files.robot_parameters``, what ``Graph`` does again per run),
+    ``sim_bench.bench_robot`` and ``mpc_bench.bench_crawl``. ConfigError with one line for an
+    unknown name or a robot file that does not fit its model, before anything runs."""
+    try:
+        layers = [robot_parameters(CONFIG, robot, profile_file(CONFIG, profile))
+                  for profile in dict.fromkeys(profile for profile, _, _ in SETUPS.values())]
+        reference = load_robot_file(robot_file_path(REFERENCE_ROBOT, CONFIG), ROOT)
+        crawl = bench_crawl(robot, ROOT)
+    except ValueError as err:           # ConfigError, RobotFileError: one line each
+        raise ConfigError(str(err)) from None
+    # PyBullet prints its banner on import: only once the robot is known to be usable.
+    from replan_core.bench.sim_bench import bench_robot
+
+    spec = layers[0].spec
+    return SpeedRobot(spec.name, robot, bench_robot(spec, reference), crawl)
+
+
+def mpc_settings(crawl: BenchCrawl) -> MpcSettings:
+    """The MPC benchmark's settings for ``crawl``: the defaults, with the robot's CoM height as
+    the LIP height (the reference keeps its tuned one), as ``mpc_bench.main`` sets them."""
+    if crawl.com_height is None:
+        return MpcSettings()
+    return MpcSettings(com_height=crawl.com_height)
+
+
 @contextlib.contextmanager
 def _native_stdout_to_stderr():
     """PyBullet's C code prints its banner on file descriptor 1: keep stdout for the table."""
@@ -91,17 +148,29 @@ def _native_stdout_to_stderr():
         os.close(saved)
 
 
-def graph_run(setup: str, out: Path, duration: float, log) -> dict:
-    """One headless run of ``setup``: real-time factor, mean tick, MPC solve times."""
+def physics_alone(robot: BenchRobot) -> dict:
+    """Physics alone (``sim_bench.physics_rtf``, best of 3): sim s per wall s of ``robot``'s
+    bare world, ideal and with every realism element on."""
+    from replan_core.bench.sim_bench import physics_rtf
+
+    with _native_stdout_to_stderr():
+        return {profile: round(physics_rtf(robot.urdf, realistic=realistic, robot=robot)[0], 2)
+                for profile, realistic in (('ideal', False), ('realistic', True))}
+
+
+def graph_run(setup: str, out: Path, duration: float, log, robot: str = DEFAULT_ROBOT) -> dict:
+    """One headless run of ``setup`` with ``robot`` (as ``--robot`` gives it): real-time
+    factor, mean tick, MPC solve times."""
     profile, record, live = SETUPS[setup]
     scenario = load_scenario(SCENARIO)
     out.mkdir(parents=True, exist_ok=True)
     params_file = out / 'params.yaml'
     params_file.write_text(yaml.safe_dump(params_document(scenario), sort_keys=False))
     port = free_port() if live else None
-    graph = Graph(out, config_dir=ROOT / 'config', profile=profile, param_files=[params_file],
+    graph = Graph(out, config_dir=CONFIG, profile=profile, param_files=[params_file],
                   record_dir=out / 'bag' if record else None, respawn=False,
-                  log=lambda text: log(text, quiet=True), live_port=port, stop_time=duration)
+                  log=lambda text: log(text, quiet=True), live_port=port, stop_time=duration,
+                  robot=robot)
     inputs = scenario_inputs(scenario)
     viewer = WatchEverything(port) if live else None
 
@@ -262,20 +331,20 @@ def render_page(rows, summary: dict, rounds: list[dict], mpc_bench: dict,
                 mpc_idle: dict | None, meta: dict) -> str:
     """The speed page (Markdown) of one run: ``rows`` and ``summary`` from ``summarise``, the
     rounds' raw figures, the MPC benchmarks and ``meta`` (command, date, machine, revision,
-    duration)."""
+    duration, robot)."""
     setups = list(SETUPS)
     physics = [r['physics'][k] for r in rounds for k in ('ideal', 'realistic')]
     lines = [
         '# Speed of the lock-step graph',
         '',
-        f'Generated by `{meta["command"]}` on {meta["date"]} ({meta["machine"]}, revision '
-        f'{meta["revision"]}): {len(rounds)} rounds, each physics alone and then the graph '
-        f'walking the `forward` set-point for {meta["duration"]:g} s of sim time in '
-        f'{len(setups)} set-ups, interleaved so that every ratio is measured under one load; '
-        'then the MPC benchmark. Do not edit by hand: every figure below comes from that run '
-        '(`replan_ros/benchmarks/bench_speed.py`). The targets are issue 17\'s; why the unmet '
-        'ones are not met, and what was tried: [ARCHITECTURE.md, "Speed targets"]'
-        '(ARCHITECTURE.md#speed-targets).',
+        f'Robot **{meta["robot"]}**. Generated by `{meta["command"]}` on {meta["date"]} '
+        f'({meta["machine"]}, revision {meta["revision"]}): {len(rounds)} rounds, each physics '
+        f'alone and then the graph walking the `forward` set-point for {meta["duration"]:g} s '
+        f'of sim time in {len(setups)} set-ups, interleaved so that every ratio is measured '
+        f'under one load; then the MPC benchmark on {meta["robot"]}\'s crawl. Do not edit by '
+        'hand: every figure below comes from that run (`replan_ros/benchmarks/bench_speed.py`). '
+        'The targets are issue 17\'s; why the unmet ones are not met, and what was tried: '
+        '[ARCHITECTURE.md, "Speed targets"](ARCHITECTURE.md#speed-targets).',
         '',
         'Speed differs between machines and, on a shared virtual machine, between minutes: '
         f'physics alone ran at {min(physics):.1f} to {max(physics):.1f} x real time in this '
@@ -356,13 +425,15 @@ def render_page(rows, summary: dict, rounds: list[dict], mpc_bench: dict,
     return '\n'.join(lines) + '\n'
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line (usage errors exit 2 through argparse)."""
     parser = argparse.ArgumentParser(
         prog='bench_speed.sh', description=__doc__.split('\n\n')[0],
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--runs', type=int, default=3, help='rounds (default 3)')
     parser.add_argument('--duration', type=float, default=22.0,
                         help='sim s of each graph run (default 22)')
+    add_robot_option(parser)
     parser.add_argument('--out', type=Path, help='run folder (default: a temporary one)')
     parser.add_argument('--json', action='store_true', help='also one JSON line of everything')
     parser.add_argument('--page', type=Path, metavar='FILE',
@@ -370,48 +441,66 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.runs < 1 or args.duration <= 1.0:
         parser.error('--runs must be >= 1 and --duration > 1 s (the walk starts at 1 s)')
+    return args
+
+
+def header(robot: str, runs: int, duration: float, out: Path) -> str:
+    """The table's first line: the robot, the rounds, the walk, the machine, the run folder."""
+    return (f'bench_speed: robot {robot}, {runs} rounds, forward walk {duration:g} sim s, '
+            f'{os.cpu_count()} CPUs ({out})')
+
+
+def json_line(robot: str, summary: dict, rounds: list[dict], mpc_bench: dict,
+              mpc_idle: dict) -> str:
+    """``--json``: one line of everything, the robot first."""
+    return json.dumps({'robot': robot, 'summary': summary, 'rounds': rounds,
+                       'mpc_bench': {k: mpc_bench[k] for k in ('median_ms', 'p99_ms',
+                                                                'cpu_median_ms')},
+                       'mpc_bench_idle': {k: mpc_idle[k] for k in (
+                           'idle_s', 'median_ms', 'p99_ms', 'cpu_median_ms')}})
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:                # a wrong robot stops here, in one line, before anything runs
+        robot = speed_robot(args.robot)
+    except ConfigError as err:
+        print(f'config error: {err}', file=sys.stderr)
+        return EXIT_CONFIG
     out = args.out or Path(tempfile.mkdtemp(prefix='bench_speed_'))
-    urdf = os.environ.get('REPLAN_URDF') or str(ROOT / 'urdf' / 'hyq.urdf')
 
     def log(text: str, quiet: bool = False) -> None:
         if not quiet:
             print(text, file=sys.stderr, flush=True)
 
-    log(f'bench_speed: {args.runs} rounds, {len(SETUPS)} graph set-ups of {args.duration:g} '
-        f'sim s each, in {out}')
+    log(f'bench_speed: robot {robot.name}, {args.runs} rounds, {len(SETUPS)} graph set-ups of '
+        f'{args.duration:g} sim s each, in {out}')
     # The code measured: the revision when the run starts (docs edited meanwhile do not count).
     revision = git_revision(ROOT)
     rounds = []
     for k in range(1, args.runs + 1):
-        with _native_stdout_to_stderr():
-            physics = {'ideal': round(physics_rtf(urdf)[0], 2),
-                       'realistic': round(physics_rtf(urdf, realistic=True)[0], 2)}
+        physics = physics_alone(robot.physics)
         graph = {}
         for setup in SETUPS:
-            result = graph_run(setup, out / f'{setup}_{k}', args.duration, log)
+            result = graph_run(setup, out / f'{setup}_{k}', args.duration, log, robot.given)
             graph[setup] = result
             log(f'round {k}: {setup}: real-time factor {result["real_time_factor"]}, '
                 f'tick {result.get("tick_ms_mean")} ms, mpc {result["mpc"]}')
         rounds.append({'physics': physics, 'graph': graph})
-    crawl = bench_crawl(REFERENCE_ROBOT, ROOT)          # the graph's robot
-    mpc_bench = mpc_bench_run(MpcSettings(), crawl, 200, 0)
-    mpc_idle = mpc_bench_run(MpcSettings(), crawl, MPC_IDLE_REPLANS, 0, idle=MPC_IDLE)
+    settings = mpc_settings(robot.crawl)                # the graph's robot's crawl
+    mpc_bench = mpc_bench_run(settings, robot.crawl, 200, 0)
+    mpc_idle = mpc_bench_run(settings, robot.crawl, MPC_IDLE_REPLANS, 0, idle=MPC_IDLE)
     rows, summary = summarise(rounds, mpc_bench, mpc_idle)
-    print(f'bench_speed: {args.runs} rounds, forward walk {args.duration:g} sim s, '
-          f'{os.cpu_count()} CPUs ({out})')
+    print(header(robot.name, args.runs, args.duration, out))
     print_rows(rows)
     if args.json:
-        print(json.dumps({'summary': summary, 'rounds': rounds,
-                          'mpc_bench': {k: mpc_bench[k] for k in ('median_ms', 'p99_ms',
-                                                                   'cpu_median_ms')},
-                          'mpc_bench_idle': {k: mpc_idle[k] for k in (
-                              'idle_s', 'median_ms', 'p99_ms', 'cpu_median_ms')}}))
+        print(json_line(robot.name, summary, rounds, mpc_bench, mpc_idle))
     if args.page:
         meta = {'command': 'scripts/bench_speed.sh ' + shlex.join(argv if argv is not None
                                                                   else sys.argv[1:]),
                 'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
                 'machine': machine_description(), 'revision': revision,
-                'duration': args.duration}
+                'duration': args.duration, 'robot': robot.name}
         args.page.parent.mkdir(parents=True, exist_ok=True)
         args.page.write_text(render_page(rows, summary, rounds, mpc_bench, mpc_idle, meta))
         log(f'bench_speed: page written to {args.page}')
