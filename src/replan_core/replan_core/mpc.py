@@ -75,6 +75,19 @@ class MpcSettings:
     gravity: float = 9.81             # m/s^2
     jerk_weight: float = 1.0          # R of eq. (6)
     velocity_weight: float = 0.0      # weight of sum |v_k - v_ref|^2; 0 disables the term
+    # weight (1/m^2 against R) of sum |p_k - c_k|^2, c_k the centre of the four feet at sample
+    # k (SupportSchedule.centres); 0 disables the term. Not in the paper: its QP has no
+    # position target, so the CoM stays wherever the support left it (docs/mpc.md).
+    position_weight: float = 0.0
+    # the position term's reference between the centre of the four feet (0) and the centroid
+    # of the feet in stance (1: the CoM pulled into each support triangle, a sway)
+    position_sway: float = 0.0
+
+    def position_reference(self, sched: SupportSchedule) -> np.ndarray:
+        """(N, 2) m: the CoM position the position term pulls to at each sample."""
+        if self.position_sway == 0.0:
+            return sched.centres
+        return sched.centres + self.position_sway * (sched.stance_centres - sched.centres)
     zmp_margin: float = 0.0           # m, inward safety margin of every polygon
     terminal_capture_point: bool = True   # capture point at N inside the last polygon
     formulation: str = 'working_set'  # 'working_set' (default), 'sparse' or 'dense', see above

@@ -40,15 +40,20 @@ class FullQp:
         self.nv = nv
         xi = [8 * k for k in range(n + 1)]                    # first state entry of sample k
 
-        # Cost eq. (6): 1/2 R |u|^2 (+ 1/2 w_v |v - v_ref|^2 over samples 1..N).
+        # Cost eq. (6): 1/2 R |u|^2 (+ 1/2 w_v |v - v_ref|^2 + 1/2 w_p |p - c|^2 over samples
+        # 1..N).
         diag = np.zeros(nv)
         for k in range(n):
             diag[xi[k] + 6:xi[k] + 8] = s.jerk_weight
         if s.velocity_weight > 0.0:
             for k in range(1, n + 1):
                 diag[[xi[k] + 1, xi[k] + 4]] = s.velocity_weight
+        if s.position_weight > 0.0:
+            for k in range(1, n + 1):
+                diag[[xi[k] + 0, xi[k] + 3]] = s.position_weight
         self._H = sp.diags(diag).tocsc()
         self._vel_idx = np.array([[xi[k] + 1, xi[k] + 4] for k in range(1, n + 1)])
+        self._pos_idx = self._vel_idx - 1
         self._jerk_idx = np.array([[xi[k] + 6, xi[k] + 7] for k in range(n)])
         self._state_idx = np.array([xi[k] + np.arange(6) for k in range(n + 1)])
 
@@ -98,6 +103,8 @@ class FullQp:
         Hax = s.jerk_weight * np.eye(n)
         if s.velocity_weight > 0.0:
             Hax = Hax + s.velocity_weight * L.Vu.T @ L.Vu
+        if s.position_weight > 0.0:
+            Hax = Hax + s.position_weight * L.Pu.T @ L.Pu
         # Aligned and written in place by _fill: proxsuite reads them where they are
         # (proxqp.py).
         self._H = aligned_empty((2 * n, 2 * n))
@@ -118,6 +125,7 @@ class FullQp:
     def _fill(self, sched: SupportSchedule, x0: np.ndarray, v_ref: np.ndarray) -> None:
         """Write the polygon rows, bounds and initial state of this re-plan into the QP data."""
         s, n, hg = self.settings, self.n, self._hg
+        ref = s.position_reference(sched) if s.position_weight > 0.0 else None
         act = sched.active
         ax = np.where(act, sched.A[:, :, 0], 0.0)           # (N, 4)
         ay = np.where(act, sched.A[:, :, 1], 0.0)
@@ -139,6 +147,9 @@ class FullQp:
                 self._g[:] = 0.0
                 self._g[self._vel_idx[:, 0]] = -s.velocity_weight * v_ref[0]
                 self._g[self._vel_idx[:, 1]] = -s.velocity_weight * v_ref[1]
+            if s.position_weight > 0.0:
+                self._g[self._pos_idx[:, 0]] = -s.position_weight * ref[:, 0]
+                self._g[self._pos_idx[:, 1]] = -s.position_weight * ref[:, 1]
         else:
             L = self.lifted
             C = self._C
@@ -156,10 +167,14 @@ class FullQp:
                 C[MAX_ROWS * n:, :n] = axt[:, None] * cp_u[None, :]
                 C[MAX_ROWS * n:, n:] = ayt[:, None] * cp_u[None, :]
                 lt = np.where(act[-1], lt - axt * (cp_0 @ x0[:3]) - ayt * (cp_0 @ x0[3:]), -_INF)
-            if s.velocity_weight > 0.0:
+            if s.velocity_weight > 0.0 or s.position_weight > 0.0:
                 for a in range(2):
-                    self._g[a * n:(a + 1) * n] = s.velocity_weight * L.Vu.T @ (
-                        L.V0 @ x0[3 * a:3 * a + 3] - v_ref[a])
+                    xa, ga = x0[3 * a:3 * a + 3], np.zeros(n)
+                    if s.velocity_weight > 0.0:
+                        ga += s.velocity_weight * L.Vu.T @ (L.V0 @ xa - v_ref[a])
+                    if s.position_weight > 0.0:
+                        ga += s.position_weight * L.Pu.T @ (L.P0 @ xa - ref[:, a])
+                    self._g[a * n:(a + 1) * n] = ga
         self._l[:MAX_ROWS * n] = l_rows.reshape(-1)
         if self.n_terminal:
             self._l[MAX_ROWS * n:] = lt

@@ -37,6 +37,8 @@ class WorkingSetDual:
         H = s.jerk_weight * np.eye(n)
         if s.velocity_weight > 0.0:
             H = H + s.velocity_weight * L.Vu.T @ L.Vu
+        if s.position_weight > 0.0:
+            H = H + s.position_weight * L.Pu.T @ L.Pu
         self._Hinv = np.linalg.inv(H)
         w = 1.0 / self._omega
         self._Zext = np.vstack([L.Zu, L.Pu[-1] + w * L.Vu[-1]])          # (N+1, N)
@@ -95,10 +97,14 @@ class WorkingSetDual:
         arows = Ab.reshape(-1, 2)                        # (n_in, 2): a of every row
         ks = self._row_sample
         u_free = np.zeros((n, 2))
-        if s.velocity_weight > 0.0:
+        if s.velocity_weight > 0.0 or s.position_weight > 0.0:
             L = self.lifted
             x03 = x0.reshape(2, 3).T                                      # (3, 2)
-            g = s.velocity_weight * L.Vu.T @ (L.V0 @ x03 - v_ref[None, :])
+            g = np.zeros((n, 2))
+            if s.velocity_weight > 0.0:
+                g += s.velocity_weight * L.Vu.T @ (L.V0 @ x03 - v_ref[None, :])
+            if s.position_weight > 0.0:
+                g += s.position_weight * L.Pu.T @ (L.P0 @ x03 - s.position_reference(sched))
             u_free = -self._Hinv @ g
         zf = self._Z0ext @ x0.reshape(2, 3).T + self._Zext @ u_free        # (N+1, 2)
 

@@ -208,6 +208,11 @@ class SupportSchedule:
     degenerate: np.ndarray                 # (N,) bool
     reasons: list[str] = field(default_factory=list)   # per degenerate sample: why
     polygons: list[SupportPolygon] = field(default_factory=list)
+    # (N, 2) m: centre of the four feet at each sample, a swinging foot halfway between its
+    # lift-off point and its target, and centroid of the stance feet (the position term's
+    # references, MpcSettings.position_weight and position_sway)
+    centres: np.ndarray | None = None
+    stance_centres: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -244,11 +249,13 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     # src[k, leg]: -1 = initial foot, j = target of step j; swing[k, leg]: in the air.
     src = np.full((n, nleg), -1, dtype=np.int64)
     swing = np.zeros((n, nleg), dtype=bool)
+    swing_step = np.full((n, nleg), -1, dtype=np.int64)   # the step in the air, if any
     if plan.steps:                      # times ascend: the comparisons become index ranges
         i_lo = np.searchsorted(times, [st.liftoff_time for st in plan.steps], 'left').tolist()
         i_td = np.searchsorted(times, [st.touchdown_time for st in plan.steps], 'right').tolist()
         for j, st in enumerate(plan.steps):
             swing[i_lo[j]:i_td[j], st.leg] = True      # liftoff <= t <= touchdown
+            swing_step[i_lo[j]:i_td[j], st.leg] = j
             src[i_td[j]:, st.leg] = j                    # t > touchdown
     code = np.where(swing, -2, src)                      # what defines each leg's contribution
     # Runs of samples with the same stance: [bounds[i], bounds[i + 1]).
@@ -256,6 +263,13 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     bounds = [0, *bounds.tolist(), n]
     feet_xy = feet0[:, :2].tolist()
     targets_xy = [(float(st.target[0]), float(st.target[1])) for st in plan.steps]
+    # Where each step's foot lifts off from: the leg's previous target, or its initial foot.
+    starts_xy, last = [], list(feet_xy)
+    for st, target in zip(plan.steps, targets_xy, strict=True):
+        starts_xy.append(last[st.leg])
+        last[st.leg] = target
+    centres = np.zeros((n, 2))
+    stance_centres = np.zeros((n, 2))
     A = np.zeros((n, MAX_ROWS, 2))
     b = np.zeros((n, MAX_ROWS))
     active = np.zeros((n, MAX_ROWS), dtype=bool)
@@ -274,6 +288,11 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
             poly = _polygon(list(pts), margin)
             cache[key] = poly
         polys.extend([poly] * (k1 - k0))
+        legs_xy = [feet_xy[leg] if c == -1 else targets_xy[c] if c >= 0 else
+                   np.add(starts_xy[swing_step[k0, leg]], targets_xy[swing_step[k0, leg]]) / 2
+                   for leg, c in enumerate(row)]
+        centres[k0:k1] = np.mean(legs_xy, axis=0)
+        stance_centres[k0:k1] = np.mean(pts, axis=0)
         m = min(len(poly.offsets), MAX_ROWS)
         A[k0:k1, :m] = poly.normals[:m]
         b[k0:k1, :m] = poly.offsets[:m]
@@ -283,7 +302,8 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
             degenerate[k0:k1] = True
             reasons += [f'sample {k + 1} (t={times[k]:.3f} s): {poly.reason}'
                         for k in range(k0, k1)]
-    return SupportSchedule(times, A, b, active, n_feet, degenerate, reasons, polys)
+    return SupportSchedule(times, A, b, active, n_feet, degenerate, reasons, polys, centres,
+                           stance_centres)
 
 
 def implied_velocity(plan: FootholdPlan) -> np.ndarray:

@@ -124,6 +124,50 @@ def test_velocity_weight_tracks_the_reference():
     assert errors[2] < errors[1] < errors[0]
 
 
+def test_position_weight_pulls_the_com_over_its_feet():
+    """A CoM 8 cm beside the standing feet stays there without the term (the QP of eq. (6)
+    has no position target) and is brought over the feet with it, the ZMP still inside."""
+    plan = stand_plan(FEET, 0.0, 0.0, None, None)
+    offset = np.array([0.0, 0.08, 0.0])
+    centre = np.r_[FEET[:, :2].mean(axis=0), 0.0]
+    ends = []
+    for w in (0.0, 100.0):
+        settings = MpcSettings(zmp_margin=0.02, position_weight=w)
+        res = LipMpc(settings).solve(0.0, centre + offset, np.zeros(3), np.zeros(3), plan)
+        assert res.status == STATUS_SOLVED
+        assert zmp_violation(res, plan, settings) <= 1e-4
+        ends.append(float(np.linalg.norm(res.plan.position[-1, :2] - centre[:2])))
+    assert ends[0] == pytest.approx(0.08, abs=1e-6)
+    assert ends[1] < 0.005
+
+
+def test_position_sway_moves_the_reference_into_the_support_triangles():
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.array([0.1, 0.0]),
+                      np.random.default_rng(6), layout=LAYOUT)
+    sched = support_schedule(plan, 0.0, 0.04, 200)
+    for sway, want in ((0.0, sched.centres), (1.0, sched.stance_centres),
+                       (0.25, 0.75 * sched.centres + 0.25 * sched.stance_centres)):
+        got = MpcSettings(position_sway=sway).position_reference(sched)
+        np.testing.assert_allclose(got, want, atol=1e-12)
+    assert np.abs(sched.stance_centres - sched.centres).max() > 0.05   # the triangles' sway
+
+
+@pytest.mark.parametrize('formulation', ['dense', 'sparse'])
+def test_full_formulations_agree_with_the_position_term(formulation):
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.array([0.1, 0.05]),
+                      np.random.default_rng(5), layout=LAYOUT)
+    com = np.array([0.02, 0.05, 0.0])
+    v_ref = np.array([0.1, 0.05])
+    ref = LipMpc(MpcSettings(position_weight=30.0, position_sway=0.5,
+                             velocity_weight=300.0)).solve(
+        0.0, com, np.zeros(3), np.zeros(3), plan, v_ref=v_ref)
+    other = LipMpc(MpcSettings(position_weight=30.0, position_sway=0.5, velocity_weight=300.0,
+                               formulation=formulation, eps_abs=1e-7, max_iter=2000)).solve(
+        0.0, com, np.zeros(3), np.zeros(3), plan, v_ref=v_ref)
+    assert ref.status == other.status == STATUS_SOLVED
+    np.testing.assert_allclose(other.plan.position, ref.plan.position, atol=1e-3)
+
+
 def test_warm_and_cold_agree():
     warm = LipMpc(MpcSettings(zmp_margin=0.02))
     cold = LipMpc(MpcSettings(zmp_margin=0.02, warm_start=False))

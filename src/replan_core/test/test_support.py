@@ -74,6 +74,25 @@ def test_schedule_of_a_crawl():
     assert support_schedule(plan, 0.0, 0.04, 210).n_feet[-10:].tolist() == [4] * 10
 
 
+def test_schedule_centres_are_the_four_feet_with_a_swinging_foot_halfway():
+    feet = np.column_stack([LAYOUT, np.zeros(4)])
+    plan = crawl_plan(0.0, np.zeros(3), 0.0, feet, 2, np.array([0.1, 0.05]),
+                      np.random.default_rng(3), layout=LAYOUT)
+    sched = support_schedule(plan, 0.0, 0.04, 200)
+    for k in range(0, 200, 3):
+        t = sched.times[k]
+        where = feet[:, :2].copy()                       # each leg's last target by time t
+        for st in plan.steps:
+            if st.touchdown_time < t:
+                where[st.leg] = st.target[:2]
+            elif st.liftoff_time <= t:                  # in the air: halfway
+                where[st.leg] = (where[st.leg] + st.target[:2]) / 2
+        np.testing.assert_allclose(sched.centres[k], where.mean(axis=0), atol=1e-12)
+        f, st = stance_at(plan, t)                       # the feet in stance: their centroid
+        np.testing.assert_allclose(sched.stance_centres[k], f[st, :2].mean(axis=0),
+                                   atol=1e-12)
+
+
 def test_two_legs_swinging_is_degenerate_with_sample_index():
     feet = np.column_stack([SQUARE, np.zeros(4)])
     steps = [Step(leg, 0.2, 0.6, feet[leg], 0.1, True, False, 0.0) for leg in (0, 3)]

@@ -112,7 +112,8 @@ class MpcNode(Node):
         self.get_logger().info(
             f'mpc: N={self.mpc.n} per axis ({self.settings.horizon} s / {self.settings.dt} s), '
             f'h={self.settings.com_height} m, R={self.settings.jerk_weight}, '
-            f'w_v={self.settings.velocity_weight}, margin={self.settings.zmp_margin} m')
+            f'w_v={self.settings.velocity_weight}, w_p={self.settings.position_weight}, '
+            f'margin={self.settings.zmp_margin} m')
 
     # ----------------------------------------------------------------------------- set-up
 
@@ -126,7 +127,8 @@ class MpcNode(Node):
         try:
             s = mpc_settings(p)
             if not (s.dt > 0 and s.horizon >= s.dt and s.com_height > 0 and s.gravity > 0
-                    and s.jerk_weight > 0 and s.velocity_weight >= 0 and s.zmp_margin >= 0
+                    and s.jerk_weight > 0 and s.velocity_weight >= 0 and s.position_weight >= 0
+                    and s.zmp_margin >= 0
                     and s.eps_abs > 0 and s.max_iter > 0):
                 raise ValueError('out of range')
             return s
