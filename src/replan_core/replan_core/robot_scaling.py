@@ -5,8 +5,8 @@ value(R) = value(reference) * scale(R) / scale(reference), each scale measured o
 (``robot_file.RobotFacts``): ``weight`` m g, ``leg_weight`` one leg's m_leg g, ``length`` the
 leg length l, ``time`` sqrt(l / g),
 ``speed`` sqrt(g l), ``rate`` sqrt(g / l), ``torque`` m g l, ``stiffness`` m g / l, ``damping``
-m sqrt(g / l), ``joint_inertia`` the smallest joint inertia; a list parameter scales each
-value. Values
+m sqrt(g / l), ``joint_inertia`` the smallest joint inertia, ``position_cost`` l^-3; a list
+parameter scales each value. Values
 ``measured`` on the model (CoM height, feet about the hips, foot frame height) are set, not
 scaled.
 """
@@ -33,6 +33,8 @@ SCALES = {
     'stiffness': lambda f: f.mass * G / f.leg_length,        # N/m
     'damping': lambda f: f.mass * math.sqrt(G / f.leg_length),   # N s/m
     'joint_inertia': lambda f: f.min_joint_inertia,          # kg m^2
+    # a weight of a squared position against the squared jerk: (l / T^3)^2 / l^2, T ~ sqrt(l)
+    'position_cost': lambda f: f.leg_length ** -3,           # 1/m^3
 }
 MEASURED = {
     'com_height': lambda f: float(f.com_height),

@@ -153,11 +153,13 @@ def test_each_rule_scales_by_its_physics(facts):
 def test_torques_stiffness_damping_and_lists_scale_too(facts):
     hyq, go1 = facts['hyq'], facts['go1']
     rules = {'rules': {'torque': ['wbc.stand_up_kp'], 'stiffness': ['wbc.swing_kp'],
-                       'damping': ['wbc.swing_kd'], 'length': ['sim.payload_offset']}}
+                       'damping': ['wbc.swing_kd'], 'length': ['sim.payload_offset'],
+                       'position_cost': ['mpc.position_weight']}}
     values = {'wbc': {'stand_up_kp': 400.0, 'swing_kp': [1500.0] * 3, 'swing_kd': [50.0] * 3},
-              'sim': {'payload_offset': [0.1, 0.05, 0.05]}}
+              'sim': {'payload_offset': [0.1, 0.05, 0.05]}, 'mpc': {'position_weight': 1e4}}
     out = derived_parameters(go1, hyq, values, rules)
     mass, legs = go1.mass / hyq.mass, go1.leg_length / hyq.leg_length
+    assert out['mpc']['position_weight'] == pytest.approx(1e4 / legs ** 3)   # about 4.4e4
     assert out['wbc']['stand_up_kp'] == pytest.approx(400.0 * mass * legs)
     assert out['wbc']['swing_kp'] == pytest.approx([1500.0 * mass / legs] * 3)
     assert out['wbc']['swing_kd'] == pytest.approx([50.0 * mass / math.sqrt(legs)] * 3)
