@@ -82,12 +82,6 @@ class MpcSettings:
     # the position term's reference between the centre of the four feet (0) and the centroid
     # of the feet in stance (1: the CoM pulled into each support triangle, a sway)
     position_sway: float = 0.0
-
-    def position_reference(self, sched: SupportSchedule) -> np.ndarray:
-        """(N, 2) m: the CoM position the position term pulls to at each sample."""
-        if self.position_sway == 0.0:
-            return sched.centres
-        return sched.centres + self.position_sway * (sched.stance_centres - sched.centres)
     zmp_margin: float = 0.0           # m, inward safety margin of every polygon
     terminal_capture_point: bool = True   # capture point at N inside the last polygon
     formulation: str = 'working_set'  # 'working_set' (default), 'sparse' or 'dense', see above
@@ -116,6 +110,13 @@ class MpcSettings:
     @property
     def n(self) -> int:
         return round(self.horizon / self.dt)
+
+    def position_reference(self, sched: SupportSchedule) -> np.ndarray:
+        """(N, 2) m: the CoM position the position term pulls to at each sample (``sched``
+        made with ``support_schedule(..., centres=True)``)."""
+        if self.position_sway == 0.0:
+            return sched.centres
+        return sched.centres + self.position_sway * (sched.stance_centres - sched.centres)
 
 
 @dataclass
@@ -274,7 +275,7 @@ class LipMpc(WorkingSetDual, FullQp):
             if len(self._poly_cache) > 512:         # footholds keep moving: stay bounded
                 self._poly_cache.clear()
             sched = support_schedule(support, start_time, s.dt, n, s.zmp_margin,
-                                     self._poly_cache)
+                                     self._poly_cache, centres=s.position_weight > 0.0)
             if com_z is None:
                 com_z = float(np.mean(np.asarray(support.initial_feet)[:, 2])) + s.com_height
         else:
@@ -283,6 +284,11 @@ class LipMpc(WorkingSetDual, FullQp):
                 return self._fallback(start_time, None, None, STATUS_REJECTED,
                                       f'input rejected: schedule has {sched.n} samples, '
                                       f'the QP {n}', t_start, 0, None)
+            if s.position_weight > 0.0 and sched.centres is None:
+                return self._fallback(start_time, None, None, STATUS_REJECTED,
+                                      'input rejected: the position term needs the feet '
+                                      'centres (support_schedule(..., centres=True))',
+                                      t_start, 0, None)
         if com_z is None:
             com_z = float(com_pos[2])
         x0 = np.array([com_pos[0], com_vel[0], com_acc[0], com_pos[1], com_vel[1], com_acc[1]])

@@ -233,7 +233,8 @@ class SupportSchedule:
 
 
 def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
-                     margin: float = 0.0, cache: dict | None = None) -> SupportSchedule:
+                     margin: float = 0.0, cache: dict | None = None,
+                     centres: bool = False) -> SupportSchedule:
     """Support polygons at the samples ``start_time + k dt``, k = 1..N, from a foothold plan.
 
     After the last planned step the final stance is kept to the end of the horizon. The stance
@@ -242,6 +243,8 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     Polygons are built once per distinct stance and kept in ``cache`` (a dict owned by the
     caller) across calls, since consecutive re-plans share all but one foothold. A swinging leg
     is out of the stance on the closed interval [liftoff, touchdown] (see ``stance_at``).
+    ``centres``: also the position term's references (``SupportSchedule.centres`` and
+    ``stance_centres``; left None otherwise, so a re-plan without the term does not pay for them).
     """
     times = start_time + dt * np.arange(1, n + 1)
     nleg = len(LEGS)
@@ -249,13 +252,11 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     # src[k, leg]: -1 = initial foot, j = target of step j; swing[k, leg]: in the air.
     src = np.full((n, nleg), -1, dtype=np.int64)
     swing = np.zeros((n, nleg), dtype=bool)
-    swing_step = np.full((n, nleg), -1, dtype=np.int64)   # the step in the air, if any
     if plan.steps:                      # times ascend: the comparisons become index ranges
         i_lo = np.searchsorted(times, [st.liftoff_time for st in plan.steps], 'left').tolist()
         i_td = np.searchsorted(times, [st.touchdown_time for st in plan.steps], 'right').tolist()
         for j, st in enumerate(plan.steps):
             swing[i_lo[j]:i_td[j], st.leg] = True      # liftoff <= t <= touchdown
-            swing_step[i_lo[j]:i_td[j], st.leg] = j
             src[i_td[j]:, st.leg] = j                    # t > touchdown
     code = np.where(swing, -2, src)                      # what defines each leg's contribution
     # Runs of samples with the same stance: [bounds[i], bounds[i + 1]).
@@ -263,13 +264,6 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     bounds = [0, *bounds.tolist(), n]
     feet_xy = feet0[:, :2].tolist()
     targets_xy = [(float(st.target[0]), float(st.target[1])) for st in plan.steps]
-    # Where each step's foot lifts off from: the leg's previous target, or its initial foot.
-    starts_xy, last = [], list(feet_xy)
-    for st, target in zip(plan.steps, targets_xy, strict=True):
-        starts_xy.append(last[st.leg])
-        last[st.leg] = target
-    centres = np.zeros((n, 2))
-    stance_centres = np.zeros((n, 2))
     A = np.zeros((n, MAX_ROWS, 2))
     b = np.zeros((n, MAX_ROWS))
     active = np.zeros((n, MAX_ROWS), dtype=bool)
@@ -288,11 +282,6 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
             poly = _polygon(list(pts), margin)
             cache[key] = poly
         polys.extend([poly] * (k1 - k0))
-        legs_xy = [feet_xy[leg] if c == -1 else targets_xy[c] if c >= 0 else
-                   np.add(starts_xy[swing_step[k0, leg]], targets_xy[swing_step[k0, leg]]) / 2
-                   for leg, c in enumerate(row)]
-        centres[k0:k1] = np.mean(legs_xy, axis=0)
-        stance_centres[k0:k1] = np.mean(pts, axis=0)
         m = min(len(poly.offsets), MAX_ROWS)
         A[k0:k1, :m] = poly.normals[:m]
         b[k0:k1, :m] = poly.offsets[:m]
@@ -302,8 +291,37 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
             degenerate[k0:k1] = True
             reasons += [f'sample {k + 1} (t={times[k]:.3f} s): {poly.reason}'
                         for k in range(k0, k1)]
-    return SupportSchedule(times, A, b, active, n_feet, degenerate, reasons, polys, centres,
-                           stance_centres)
+    sched = SupportSchedule(times, A, b, active, n_feet, degenerate, reasons, polys)
+    if centres:
+        sched.centres, sched.stance_centres = _feet_centres(plan, feet0, src, swing)
+    return sched
+
+
+def _feet_centres(plan: FootholdPlan, feet0: np.ndarray, src: np.ndarray,
+                  swing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample (N, 2) m: the centre of the four feet, a swinging foot halfway between its
+    lift-off point and its target, and the centroid of the feet in stance. ``src`` and
+    ``swing`` are ``support_schedule``'s: the step whose target a leg stands on (-1: its
+    initial foot; while it swings, the step before), and whether it is in the air."""
+    nleg = len(feet0)
+    targets = np.array([st.target[:2] for st in plan.steps], dtype=float).reshape(-1, 2)
+    # Each leg's position per sample: row `leg` of `where` for an initial foot, nleg + j for
+    # the target of step j.
+    where = np.vstack([feet0[:, :2], targets])
+    legs = np.broadcast_to(np.arange(nleg), src.shape)
+    stand = where[np.where(src < 0, legs, nleg + src)]            # (N, legs, 2)
+    # A swinging leg's target: the first step of that leg after the one it stands on.
+    nxt = np.full(src.shape, -1, dtype=np.int64)
+    for j in range(len(plan.steps) - 1, -1, -1):     # later steps first: the earliest wins
+        leg = plan.steps[j].leg
+        nxt[:, leg] = np.where(src[:, leg] < j, j, nxt[:, leg])
+    legs_xy = stand
+    if plan.steps:
+        air = where[nleg + np.maximum(nxt, 0)]
+        legs_xy = np.where(swing[:, :, None], 0.5 * (stand + air), stand)
+    down = ~swing
+    stance = (stand * down[:, :, None]).sum(axis=1) / np.maximum(down.sum(axis=1), 1)[:, None]
+    return legs_xy.mean(axis=1), stance
 
 
 def implied_velocity(plan: FootholdPlan) -> np.ndarray:

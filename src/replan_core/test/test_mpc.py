@@ -144,12 +144,16 @@ def test_position_weight_pulls_the_com_over_its_feet():
 def test_position_sway_moves_the_reference_into_the_support_triangles():
     plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.array([0.1, 0.0]),
                       np.random.default_rng(6), layout=LAYOUT)
-    sched = support_schedule(plan, 0.0, 0.04, 200)
+    sched = support_schedule(plan, 0.0, 0.04, 200, centres=True)
     for sway, want in ((0.0, sched.centres), (1.0, sched.stance_centres),
                        (0.25, 0.75 * sched.centres + 0.25 * sched.stance_centres)):
         got = MpcSettings(position_sway=sway).position_reference(sched)
         np.testing.assert_allclose(got, want, atol=1e-12)
     assert np.abs(sched.stance_centres - sched.centres).max() > 0.05   # the triangles' sway
+    # A ready schedule without the centres cannot feed the term: rejected, not solved wrong.
+    res = LipMpc(MpcSettings(position_weight=10.0)).solve(
+        0.0, np.zeros(3), np.zeros(3), np.zeros(3), support_schedule(plan, 0.0, 0.04, 200))
+    assert res.status == STATUS_REJECTED and 'centres' in res.reason
 
 
 @pytest.mark.parametrize('formulation', ['dense', 'sparse'])

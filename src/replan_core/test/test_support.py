@@ -78,7 +78,8 @@ def test_schedule_centres_are_the_four_feet_with_a_swinging_foot_halfway():
     feet = np.column_stack([LAYOUT, np.zeros(4)])
     plan = crawl_plan(0.0, np.zeros(3), 0.0, feet, 2, np.array([0.1, 0.05]),
                       np.random.default_rng(3), layout=LAYOUT)
-    sched = support_schedule(plan, 0.0, 0.04, 200)
+    sched = support_schedule(plan, 0.0, 0.04, 200, centres=True)
+    assert support_schedule(plan, 0.0, 0.04, 200).centres is None    # only when asked for
     for k in range(0, 200, 3):
         t = sched.times[k]
         where = feet[:, :2].copy()                       # each leg's last target by time t

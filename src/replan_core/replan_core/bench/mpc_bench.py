@@ -51,6 +51,12 @@ class BenchCrawl:
     speed_scale: float = 1.0
     com_height: float | None = None     # None: the MPC settings' (the reference robot's)
 
+    def settings(self, base: MpcSettings | None = None) -> MpcSettings:
+        """``base`` (default: the defaults) with this robot's CoM height as the LIP height;
+        the reference robot keeps the tuned one, as the launcher does."""
+        base = base or MpcSettings()
+        return base if self.com_height is None else replace(base, com_height=self.com_height)
+
 
 def bench_crawl(robot: str, root: Path) -> BenchCrawl:
     """The crawl of robot file ``robot`` (a name of ``root``/config/robots/ or a path):
@@ -250,8 +256,7 @@ def main(argv: list[str] | None = None) -> None:
                            drop_inactive=not args.keep_inactive,
                            add_peaks_only=not args.add_all_violated,
                            exact_dual=not args.proxsuite_dual)
-    if crawl.com_height is not None:
-        settings = replace(settings, com_height=crawl.com_height)
+    settings = crawl.settings(settings)
     print(json.dumps({'robot': args.robot, **run(settings, crawl, args.replans, args.seed,
                                                   idle=args.idle, idle_mode=args.idle_mode)}))
 

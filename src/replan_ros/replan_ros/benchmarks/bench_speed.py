@@ -59,7 +59,6 @@ import yaml
 
 from replan_core.bench.mpc_bench import REFERENCE_ROBOT, BenchCrawl, bench_crawl
 from replan_core.bench.mpc_bench import run as mpc_bench_run
-from replan_core.mpc import MpcSettings
 from replan_core.robot_file import load_robot_file, robot_file_path
 from replan_ros.benchmarks.tick_table import read_budgets, table
 from replan_ros.experiments.analysis import read_messages, replan_wall_latency
@@ -125,14 +124,6 @@ def speed_robot(robot: str) -> SpeedRobot:
 
     spec = layers[0].spec
     return SpeedRobot(spec.name, robot, bench_robot(spec, reference), crawl)
-
-
-def mpc_settings(crawl: BenchCrawl) -> MpcSettings:
-    """The MPC benchmark's settings for ``crawl``: the defaults, with the robot's CoM height as
-    the LIP height (the reference keeps its tuned one), as ``mpc_bench.main`` sets them."""
-    if crawl.com_height is None:
-        return MpcSettings()
-    return MpcSettings(com_height=crawl.com_height)
 
 
 @contextlib.contextmanager
@@ -487,7 +478,7 @@ def main(argv: list[str] | None = None) -> int:
             log(f'round {k}: {setup}: real-time factor {result["real_time_factor"]}, '
                 f'tick {result.get("tick_ms_mean")} ms, mpc {result["mpc"]}')
         rounds.append({'physics': physics, 'graph': graph})
-    settings = mpc_settings(robot.crawl)                # the graph's robot's crawl
+    settings = robot.crawl.settings()                   # the graph's robot's crawl
     mpc_bench = mpc_bench_run(settings, robot.crawl, 200, 0)
     mpc_idle = mpc_bench_run(settings, robot.crawl, MPC_IDLE_REPLANS, 0, idle=MPC_IDLE)
     rows, summary = summarise(rounds, mpc_bench, mpc_idle)

@@ -123,11 +123,13 @@ class MpcNode(Node):
             self.warn_period = float(value)
 
     def _settings(self, p) -> MpcSettings:
-        # The values were checked against params.MPC; only horizon >= dt ties two together.
+        # The values were checked against params.MPC; horizon >= dt and a position_sway only
+        # with a position_weight tie two together (params.files._node_checks).
         try:
             s = mpc_settings(p)
             if not (s.dt > 0 and s.horizon >= s.dt and s.com_height > 0 and s.gravity > 0
                     and s.jerk_weight > 0 and s.velocity_weight >= 0 and s.position_weight >= 0
+                    and not (s.position_sway > 0 and s.position_weight == 0)
                     and s.zmp_margin >= 0
                     and s.eps_abs > 0 and s.max_iter > 0):
                 raise ValueError('out of range')

@@ -165,6 +165,9 @@ def _node_checks(node: str, r: Resolved) -> None:
     if node == 'mpc' and v['horizon'] < v['dt']:
         raise ConfigError(f'{_value_at(r, node, "horizon")} must be at least '
                           f'{_value_at(r, node, "dt")}')
+    if node == 'mpc' and v['position_sway'] > 0.0 and v['position_weight'] == 0.0:
+        raise ConfigError(f'{_value_at(r, node, "position_sway")} has no effect with '
+                          f'{_value_at(r, node, "position_weight")}: the position term is off')
     if node == 'wbc' and v['fz_min'] >= v['fz_max']:
         raise ConfigError(f'{_value_at(r, node, "fz_min")} must be below '
                           f'{_value_at(r, node, "fz_max")}')
