@@ -155,7 +155,14 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
              'cycles to get to the new speed, so an average from 2 s after the change on '
              '(`achieved`) keeps part of that. Each run\'s `cycle_velocities` give the mean '
              'velocity of every whole cycle after the change; the page counts the cycles '
-             'before every later one is within the tolerance of the set-point.', '']
+             'before every later one is within the tolerance of the set-point.', '',
+             'A crawl that sways by design (`mpc.position_sway`, on by default since stop 44) '
+             'moves its trunk along and across within each cycle, and a 1 s average keeps '
+             'part of that motion: so the page also judges "promptly" on whole-cycle means, '
+             'the same 10 % band reached from the second whole cycle after the change on '
+             f'(within one crawl cycle, {prompt} steps, of the first touchdown after it). That '
+             'the sway is what keeps the 1 s averages out of the band is a hypothesis: this '
+             'page does not measure the sway.', '']
     for scenario in sorted({r['scenario'] for r in rows}):
         for world in sorted({r['world'] for r in rows if r['scenario'] == scenario}):
             sel = [r for r in rows if r['scenario'] == scenario and r['world'] == world]
@@ -172,6 +179,7 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
                      spread(steps, 1), len(sel), claim, verdict)
             page.row('velocity change', setting, 'seconds until within 10 %',
                      spread(values(sel, 'settle_time_s'), 2), len(sel), '', '')
+            _whole_cycle_row(page, setting, sel, claim, falls)
             rise = values(sel, 'rise_steps')
             prompt_rise = sum(1 for s in rise if s <= prompt)
             page.row('velocity change', setting,
@@ -197,6 +205,22 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
                                   f'({mean[0]:.3f}, {mean[1]:.3f}, {mean[2]:.3f})')
                 lines[-1] += f'; {settled} of {len(sel)} runs within 10 %, {falls} falls.'
     page.section('\n'.join(lines))
+
+
+def _whole_cycle_row(page: Page, setting: str, sel: list[dict], claim: str,
+                     falls: int) -> None:
+    """Whole cycles after the change until every later cycle's mean velocity is within 10 %
+    of the set-point: prompt when that holds from the second whole cycle on (one cycle for the
+    change), so the within-cycle motion of a crawl does not count."""
+    counts = [cycles_to_within(r, 0.10) for r in sel]
+    known = [c for c in counts if c is not None]
+    prompt = sum(1 for c in known if c <= 1)
+    page.row('velocity change', setting, 'whole cycles until every later one is within 10 %',
+             spread(known, 1) + (f'; {len(counts) - len(known)} of {len(counts)} runs never'
+                                 if len(known) < len(counts) else ''), len(sel),
+             claim + ' (whole-cycle means)',
+             'holds' if prompt == len(sel) and not falls else
+             f'does not hold ({len(sel) - prompt} of {len(sel)} runs later or never)')
 
 
 def _steady_rows(page: Page, setting: str, sel: list[dict]) -> None:

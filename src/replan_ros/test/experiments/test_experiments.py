@@ -300,6 +300,15 @@ def test_velocity_change_page_gives_the_steady_state_and_the_cycles_to_get_there
             '3 % (beyond the paper) | does not hold (1 of 3 runs off by more) |') in text
     assert ('| velocity change | straight to sideways | whole cycles until every later one is '
             'within 3 % | 2.0 ± 0.0 (2.0 to 2.0); 1 of 3 runs never | 3 |') in text
+    # Within 10 % from the second whole cycle on (0.095 is 5 % off): prompt in every run.
+    assert ('| velocity change | straight to sideways | whole cycles until every later one is '
+            'within 10 % | 1.0 ± 0.0 (1.0 to 1.0) | 3 | a velocity change is followed promptly '
+            '(whole-cycle means) | holds |') in text
+    rows[1]['cycle_velocities'] = _cycles(0.07, 0.085, 0.1, 0.1)
+    write_page(page, {'velocity_changes': rows}, meta)
+    later = page.read_text()
+    assert ('within 10 % | 1.3 ± 0.6 (1.0 to 2.0) | 3 | a velocity change is followed promptly '
+            '(whole-cycle means) | does not hold (1 of 3 runs later or never) |') in later
     assert 'walks at 97.7 % of its set-point speed after the change' in text
     assert 'from whole cycle 3.0 after the change on (mean, 2 of 3 runs)' in text
 
