@@ -156,8 +156,9 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
              '(`achieved`) keeps part of that. Each run\'s `cycle_velocities` give the mean '
              'velocity of every whole cycle after the change; the page counts the cycles '
              'before every later one is within the tolerance of the set-point.', '',
-             'A crawl that sways by design (`mpc.position_sway`, on by default since stop 44) '
-             'moves its trunk along and across within each cycle, and a 1 s average keeps '
+             'A crawl that sways by design (the MPC\'s position term with `mpc.position_sway`, '
+             'docs/mpc.md) moves its trunk along and across within each cycle, and a 1 s '
+             'average keeps '
              'part of that motion: so the page also judges "promptly" on whole-cycle means, '
              'the same 10 % band reached from the second whole cycle after the change on '
              f'(within one crawl cycle, {prompt} steps, of the first touchdown after it). That '

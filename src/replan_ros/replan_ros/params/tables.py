@@ -136,12 +136,10 @@ def _mpc_table() -> tuple[ParamSpec, ...]:
         # why).
         _p('velocity_weight', 300.0, 'weight of the velocity-tracking term (0 disables it)',
            min=0.0, max=1e9),
-        # The node's defaults: the core's 0 is the paper's cost, without a position target
-        # (config/mpc.yaml says why the node has one).
-        _p('position_weight', 10000.0, 'weight of the CoM-over-its-feet term (0 disables it; '
-           'not in the paper)', '1/m^2', min=0.0, max=1e9),
-        _p('position_sway', 0.5, "the position term's reference: 0 the centre of the four "
-           'feet, 1 the centroid of the feet in stance', min=0.0, max=1.0),
+        _p('position_weight', _M.position_weight, 'weight of the CoM-over-its-feet term (0 '
+           'disables it; not in the paper)', '1/m^2', min=0.0, max=1e9),
+        _p('position_sway', _M.position_sway, "the position term's reference: 0 the centre of "
+           'the four feet, 1 the centroid of the feet in stance', min=0.0, max=1.0),
         _p('zmp_margin', 0.02, 'inward safety margin of the support polygons', 'm', min=0.0,
            max=0.2),
         _p('terminal_capture_point', _M.terminal_capture_point,

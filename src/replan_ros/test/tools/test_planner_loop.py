@@ -25,26 +25,24 @@ def test_the_walk_reaches_its_set_point_and_correction_shortens_the_first_cycle(
 
 
 def test_without_the_correction_the_trunk_stays_beside_its_feet():
-    """The paper's MPC (position term off) has no position target: walking off forward, the
-    trunk drifts sideways in the first cycle and, with the footholds placed about the feet
-    (correction off), stays there (9.8 cm measured); the foothold correction brings it back
-    over them (1.5 cm)."""
+    """The MPC has no position target: walking off forward, the trunk drifts sideways in the
+    first cycle and, with the footholds placed about the feet (correction off), stays there
+    (9.8 cm measured); the foothold correction brings it back over them (1.5 cm)."""
     forward = [(0.5, np.array([0.15, 0.0, 0.0]))]
-    paper = {'position_weight': 0.0, 'position_sway': 0.0}
-    on = trunk_offsets(walk('hyq', 'realistic', forward, 14.0, {'mpc': paper}), 0.5)
+    on = trunk_offsets(walk('hyq', 'realistic', forward, 14.0), 0.5)
     off = trunk_offsets(walk('hyq', 'realistic', forward, 14.0,
-                             {'gait': {'foothold_correction': False}, 'mpc': paper}), 0.5)
+                             {'gait': {'foothold_correction': False}}), 0.5)
     assert len(on) >= 3 and len(off) == len(on)
     assert abs(off[2][1]) > 0.05 and abs(off[3][1] - off[2][1]) < 0.005   # it stays
     assert abs(on[2][1]) < 0.03
 
 
 def test_the_position_term_keeps_the_trunk_over_its_feet_without_the_correction():
-    """``mpc.position_weight`` (on by default) gives the MPC the position target the paper's
-    lacks: with the correction off, the forward walk's trunk stays within 2 cm of the centre
-    of its feet instead of 9.8 cm, at the same speed."""
+    """``mpc.position_weight`` gives the MPC the position target it lacks: with the
+    correction off, the forward walk's trunk stays within 2 cm of the centre of its feet
+    (1.5 cm measured at 10000) instead of 9.8 cm, at the same speed."""
     forward = [(0.5, np.array([0.15, 0.0, 0.0]))]
-    params = {'gait': {'foothold_correction': False}}
+    params = {'gait': {'foothold_correction': False}, 'mpc': {'position_weight': 10000.0}}
     log = walk('hyq', 'realistic', forward, 14.0, params)
     offsets = trunk_offsets(log, 0.5)
     assert len(offsets) >= 3
