@@ -1,4 +1,8 @@
-"""One-off check (stop 44): the planner loop with a CoM offset from the base."""
+"""One-off check of stop 44, kept as the record of a figure in docs/gait.md ("Switched on, then
+off again"); not part of the stack. The loop of replan_ros.tools.planner_loop.walk (HyQ,
+realistic parameters), but with the footholds laid out about a base at the CoM minus the
+turned offset (DX, DY) m, turning in place at 0.2 rad/s; prints the base's mean body velocity
+over 18-30 s. Usage (scripts/env.sh sourced): python turn_offset_check.py W_P DX DY"""
 import sys
 from dataclasses import replace
 import numpy as np
