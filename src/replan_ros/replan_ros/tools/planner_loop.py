@@ -25,6 +25,7 @@ import argparse
 import json
 import sys
 from dataclasses import replace
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -112,12 +113,21 @@ def _whole_cycles(log: list[tuple[float, np.ndarray, float, np.ndarray]], start:
 def cycle_velocities(log: list[tuple[float, np.ndarray, float, np.ndarray]], start: float,
                      legs: int = 4) -> list[list[float]]:
     """The mean (vx, vy, wz) of each whole cycle (``legs`` touchdowns) from the first touchdown
-    at or after ``start``: vx, vy in the body frame of the cycle's mean heading."""
+    at or after ``start``: the body-frame velocity integrated over the cycle, each step between
+    two touchdowns taken as an arc of constant twist (exact for one; a single chord over a
+    0.55 rad cycle read the speed 1.3 % low)."""
     out = []
     for cycle in _whole_cycles(log, start, legs):
-        (t0, p0, y0, _), (t1, p1, y1, _) = cycle[0], cycle[-1]
-        vx, vy = _to_body((p1 - p0) / (t1 - t0), 0.5 * (y0 + y1))
-        out.append([vx, vy, float((y1 - y0) / (t1 - t0))])
+        travel = np.zeros(2)
+        for (_, p0, y0, _), (_, p1, y1, _) in pairwise(cycle):
+            # A constant-twist arc's chord lies along its mid heading and is its length
+            # times sin(h) / h, h half the turn.
+            half = 0.5 * (y1 - y0)
+            arc = half / np.sin(half) if abs(half) > 1e-9 else 1.0
+            travel += arc * np.array(_to_body(p1 - p0, y0 + half))
+        (t0, _, y0, _), (t1, _, y1, _) = cycle[0], cycle[-1]
+        vx, vy = travel / (t1 - t0)
+        out.append([float(vx), float(vy), float((y1 - y0) / (t1 - t0))])
     return out
 
 
