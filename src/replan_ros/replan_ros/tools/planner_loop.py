@@ -5,7 +5,7 @@ seconds, so a planner setting can be tried before the graph runs it.
 
     scripts/planner_loop.sh [--robot NAME|FILE] [--profile realistic|ideal]
                             [--at T VX VY WZ ...] [--duration S] [--late S]
-                            [--set node.key=VALUE ...] [--json]
+                            [--base-offset DX DY] [--set node.key=VALUE ...] [--json]
 
 Prints the mean velocity of each whole crawl cycle (four touchdowns) from the last set-point
 change on, body frame of the cycle's mean heading (vx, vy m/s; wz rad/s), and where the trunk
@@ -16,7 +16,10 @@ the velocity feedback and step timing of the gait node (they act on measured vel
 touchdowns), the trunk's lag behind its plan and the controller (the graph's ``scenario.sh``
 has them). ``--late S`` makes every touchdown S seconds later than planned, as the haptic
 touchdown does on the realistic robot; the strides are stretched for it as the gait node's
-step timing would. Used in docs/gait.md ("The way to a new speed takes cycles").
+step timing would. ``--base-offset DX DY`` lays the footholds out about a base DX, DY m (body)
+behind the CoM, as on a robot whose CoM is not over the centre of its feet, and measures that
+base (velocities and the feet centre minus it). Used in docs/gait.md ("The way to a new speed
+takes cycles", "Switched on, then off again").
 """
 
 from __future__ import annotations
@@ -36,11 +39,14 @@ from replan_ros.params.robot import project_root
 
 def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], duration: float,
          overrides: dict[str, dict] | None = None, late: float = 0.0,
-         root: Path | None = None) -> list[tuple[float, np.ndarray, float, np.ndarray]]:
-    """(t, CoM xy (m, world), yaw (rad), centre of the four feet xy (m, world)) at the start
+         root: Path | None = None, base_offset=(0.0, 0.0),
+         ) -> list[tuple[float, np.ndarray, float, np.ndarray]]:
+    """(t, base xy (m, world), yaw (rad), centre of the four feet xy (m, world)) at the start
     and at every touchdown of a walk from the robot's standing feet. ``schedule``: (t, (vx, vy,
     wz)) set-points in force from t on; ``overrides``: node -> {key: value} on top of the
-    run's parameters (gait, mpc)."""
+    run's parameters (gait, mpc). The base is where the footholds are laid out about: the CoM
+    itself by default, or ``base_offset`` (m, body x, y) behind it, as a robot whose CoM is
+    that far ahead of its base (the CoM still starts over the centre of the feet)."""
     from replan_core.gait import compute_footholds
     from replan_core.mpc import LipMpc
     from replan_core.robot_file import robot_facts
@@ -71,13 +77,20 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
         now = [v for start, v in schedule if start <= t + 1e-9]
         return np.asarray(now[-1] if now else np.zeros(3), dtype=float)
 
+    offset = np.asarray(base_offset, dtype=float).reshape(2)
+
+    def base(com: np.ndarray, yaw: float) -> np.ndarray:
+        c, s = np.cos(yaw), np.sin(yaw)
+        return np.array([com[0] - c * offset[0] + s * offset[1],
+                         com[1] - s * offset[0] - c * offset[1], com[2]])
+
     t, yaw = 0.0, 0.0
     com = np.array([0.0, 0.0, float(values['mpc']['com_height'])])
     vel, acc = np.zeros(3), np.zeros(3)
     scale = (gait.step_period + late) / gait.step_period
-    plan = compute_footholds(setpoint(t), feet, com, yaw, None, gait.sequence[0], t, gait,
-                             delay=float(values['gait']['start_delay']))
-    log = [(t, com[:2].copy(), yaw, feet[:, :2].mean(axis=0))]
+    plan = compute_footholds(setpoint(t), feet, base(com, yaw), yaw, None, gait.sequence[0], t,
+                             gait, delay=float(values['gait']['start_delay']))
+    log = [(t, base(com, yaw)[:2], yaw, feet[:, :2].mean(axis=0))]
     while t < duration:
         result = mpc.solve(t, com, vel, acc, plan, v_ref=implied_velocity(plan))
         first = plan.steps[0]
@@ -86,10 +99,10 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
         feet = feet.copy()
         feet[first.leg] = first.target
         yaw = float(first.yaw)
-        log.append((t, com[:2].copy(), yaw, feet[:, :2].mean(axis=0)))
+        log.append((t, base(com, yaw)[:2], yaw, feet[:, :2].mean(axis=0)))
         following = gait.sequence[(gait.sequence.index(first.leg) + 1) % len(gait.sequence)]
-        plan = compute_footholds(setpoint(t), feet, com, yaw, None, following, t, gait,
-                                 stride_time_scale=scale)
+        plan = compute_footholds(setpoint(t), feet, base(com, yaw), yaw, None, following, t,
+                                 gait, stride_time_scale=scale)
     return log
 
 
@@ -135,7 +148,8 @@ def trunk_offsets(log: list[tuple[float, np.ndarray, float, np.ndarray]], start:
                   legs: int = 4) -> list[list[float]]:
     """Where the trunk stood over its feet in each whole cycle, as ``cycle_velocities`` cuts
     them: the mean over the cycle's ``legs`` touchdowns of the centre of the four feet minus
-    the CoM, in the body frame of each touchdown (x, y m)."""
+    the CoM (the base, with a ``walk`` base offset), in the body frame of each touchdown
+    (x, y m)."""
     return [[float(v) for v in np.mean([_to_body(centre - com, yaw)
                                         for _, com, yaw, centre in cycle[1:]], axis=0)]
             for cycle in _whole_cycles(log, start, legs)]
@@ -167,6 +181,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--duration', type=float, default=26.0, help='s of walk (default 26)')
     parser.add_argument('--late', type=float, default=0.0,
                         help='s each touchdown comes after its plan (default 0)')
+    parser.add_argument('--base-offset', nargs=2, type=float, default=[0.0, 0.0],
+                        metavar=('DX', 'DY'),
+                        help='m, body frame: lay the footholds out about a base this far behind '
+                             'the CoM and measure the base (default 0 0: the CoM itself)')
     parser.add_argument('--set', action='append', default=[], metavar='NODE.KEY=VALUE',
                         help='a gait or mpc parameter for this walk; repeatable')
     parser.add_argument('--json', action='store_true', help='one JSON line instead of text')
@@ -178,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         (0.5, np.array([0.15, 0.0, 0.0]))]
     try:
         log = walk(args.robot, args.profile, schedule, args.duration, _overrides(args.set),
-                   args.late)
+                   args.late, base_offset=args.base_offset)
     except (ValueError, KeyError, OSError) as err:
         print(f'config error: planner_loop: {err}', file=sys.stderr)
         return 2

@@ -69,6 +69,21 @@ def test_a_turning_walk_is_measured_in_the_body_frame():
     assert cycles[2][2] == pytest.approx(0.15, abs=1e-3)
 
 
+def test_a_base_apart_from_the_com_crabs_in_an_in_place_turn():
+    """Footholds laid out about a base 3.9 cm behind and 1.5 cm right of the CoM (HyQ's CoM
+    over its base in the standing pose): turning in place, the base crabs sideways over 1 cm/s
+    on average (docs/gait.md, "Switched on, then off again"); with the base at the CoM every
+    cycle moves it under 1 cm/s."""
+    turn = [(0.5, np.array([0.0, 0.0, 0.2]))]
+    at_com = cycle_velocities(walk('hyq', 'realistic', turn, 30.0), 18.0)
+    apart = cycle_velocities(walk('hyq', 'realistic', turn, 30.0, base_offset=(0.039, 0.015)),
+                             18.0)
+    assert len(apart) >= 3 and len(at_com) == len(apart)
+    assert all(np.hypot(c[0], c[1]) < 0.01 for c in at_com)           # under 1 cm/s
+    assert np.mean([c[1] for c in apart]) < -0.01
+    assert all(c[2] == pytest.approx(0.2, abs=1e-3) for c in apart)
+
+
 def test_cycle_velocities_of_a_known_arc():
     """A trunk on an arc of constant twist (0.1 m/s, 0.2 rad/s: 0.55 rad per 2.75 s cycle),
     logged at its touchdowns: the speed along the arc exactly, where one chord per cycle
