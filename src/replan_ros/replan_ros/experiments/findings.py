@@ -12,6 +12,7 @@ from replan_ros.experiments.stats import (
     compare_paired,
     cycles_to_within,
     p_text,
+    prompt_by_cycles,
     push_resolution,
     push_sign_test,
     steady_velocity,
@@ -42,10 +43,9 @@ def findings(page, name: str, data, results: dict) -> None:
                     f'; {len(settle)} of {len(sel)} runs get within 10 % of the set-point '
                     f'(1 s average), after {np.mean(settle):.1f} touchdowns on average'
                     if settle else '; no run gets within 10 % of the set-point (1 s average)')
-                whole = [c for c in (cycles_to_within(r, 0.10) for r in sel) if c is not None]
                 page.findings[-1] += (
-                    f', {sum(1 for c in whole if c <= 1)} of {len(sel)} by whole-cycle means '
-                    'from the second whole cycle on')
+                    f', {prompt_by_cycles(sel)[1]} of {len(sel)} by whole-cycle means from the '
+                    'second whole cycle on')
                 page.findings[-1] += (
                     f'; the realistic robot walks at {np.mean(ratio) * 100:.1f} % of its '
                     'set-point speed after the change (mean over the runs, over the last whole '

@@ -20,10 +20,12 @@ from replan_ros.experiments.stats import (
     PAPER_QP_MS,
     PAPER_QP_STD_MS,
     POWER,
+    PROMPT_BAND,
     against_paper,
     compare_paired,
     cycles_to_within,
     p_text,
+    prompt_by_cycles,
     push_resolution,
     push_sign_test,
     sign_test,
@@ -158,8 +160,8 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
              'before every later one is within the tolerance of the set-point.', '',
              'A crawl that sways by design (the MPC\'s position term with `mpc.position_sway`, '
              'docs/mpc.md) moves its trunk along and across within each cycle, and a 1 s '
-             'average keeps '
-             'part of that motion: so the page also judges "promptly" on whole-cycle means, '
+             'average keeps part of that motion: so the page also judges "promptly" on '
+             'whole-cycle means, '
              'the same 10 % band reached from the second whole cycle after the change on '
              f'(within one crawl cycle, {prompt} steps, of the first touchdown after it). That '
              'the sway is what keeps the 1 s averages out of the band is a hypothesis: this '
@@ -213,12 +215,11 @@ def _whole_cycle_row(page: Page, setting: str, sel: list[dict], claim: str,
     """Whole cycles after the change until every later cycle's mean velocity is within 10 %
     of the set-point: prompt when that holds from the second whole cycle on (one cycle for the
     change), so the within-cycle motion of a crawl does not count."""
-    counts = [cycles_to_within(r, 0.10) for r in sel]
-    known = [c for c in counts if c is not None]
-    prompt = sum(1 for c in known if c <= 1)
-    page.row('velocity change', setting, 'whole cycles until every later one is within 10 %',
-             spread(known, 1) + (f'; {len(counts) - len(known)} of {len(counts)} runs never'
-                                 if len(known) < len(counts) else ''), len(sel),
+    known, prompt = prompt_by_cycles(sel)
+    page.row('velocity change', setting,
+             f'whole cycles until every later one is within {PROMPT_BAND * 100:.0f} %',
+             spread(known, 1) + (f'; {len(sel) - len(known)} of {len(sel)} runs never'
+                                 if len(known) < len(sel) else ''), len(sel),
              claim + ' (whole-cycle means)',
              'holds' if prompt == len(sel) and not falls else
              f'does not hold ({len(sel) - prompt} of {len(sel)} runs later or never)')

@@ -61,6 +61,20 @@ def cycles_to_within(row: dict, tolerance: float) -> int | None:
     return outside[-1] + 1 if outside else 0
 
 
+# Share of the set-point: the band of "followed promptly" (replan_core.metrics.settle_time's
+# default tolerance), judged here on whole-cycle means.
+PROMPT_BAND = 0.10
+
+
+def prompt_by_cycles(rows: list[dict]) -> tuple[list[int], int]:
+    """Per run, the whole cycles until every later cycle's mean velocity is within
+    ``PROMPT_BAND`` of the set-point (``cycles_to_within``; runs where it never is are left
+    out), and how many runs are prompt: within from the second whole cycle after the change
+    on (one cycle for the change itself)."""
+    known = [c for c in (cycles_to_within(r, PROMPT_BAND) for r in rows) if c is not None]
+    return known, sum(1 for c in known if c <= 1)
+
+
 def spread(xs: list[float], digits: int = 3, scale: float = 1.0) -> str:
     """'mean +- std (min to max)' of ``xs`` times ``scale``; '-' if empty."""
     if not xs:
