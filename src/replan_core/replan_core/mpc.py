@@ -82,6 +82,12 @@ class MpcSettings:
     # the position term's reference between the centre of the four feet (0) and the centroid
     # of the feet in stance (1: the CoM pulled into each support triangle, a sway)
     position_sway: float = 0.0
+    # m, body frame x, y: where the CoM stands relative to the centre of the feet in the robot's
+    # standing pose. The footholds are laid out about the base, so the term's reference is the
+    # centre plus this offset turned with the trunk's yaw reference: without it the term pulls
+    # the CoM off its place over the feet (HyQ's is 3.9 cm ahead) and an in-place turn crabbed
+    # (docs/mpc.md, "Position term").
+    com_offset: tuple[float, float] = (0.0, 0.0)
     zmp_margin: float = 0.0           # m, inward safety margin of every polygon
     terminal_capture_point: bool = True   # capture point at N inside the last polygon
     formulation: str = 'working_set'  # 'working_set' (default), 'sparse' or 'dense', see above
@@ -114,9 +120,14 @@ class MpcSettings:
     def position_reference(self, sched: SupportSchedule) -> np.ndarray:
         """(N, 2) m: the CoM position the position term pulls to at each sample (``sched``
         made with ``support_schedule(..., centres=True)``)."""
-        if self.position_sway == 0.0:
-            return sched.centres
-        return sched.centres + self.position_sway * (sched.stance_centres - sched.centres)
+        ref = sched.centres
+        if self.position_sway != 0.0:
+            ref = ref + self.position_sway * (sched.stance_centres - sched.centres)
+        dx, dy = self.com_offset
+        if dx != 0.0 or dy != 0.0:
+            cos, sin = np.cos(sched.yaws), np.sin(sched.yaws)
+            ref = ref + np.column_stack([cos * dx - sin * dy, sin * dx + cos * dy])
+        return ref
 
 
 @dataclass

@@ -220,6 +220,7 @@ class RobotFacts:
     min_joint_inertia: float    # kg m^2, smallest diagonal entry of the joint-space inertia
     feet_about_hips: np.ndarray  # (4, 2) m, each foot about its hip (haa axis), base frame xy
     feet_xy: np.ndarray         # (4, 2) m, each foot in the base frame xy
+    com_about_feet: np.ndarray  # (2,) m, the CoM about the centre of the feet, base frame xy
 
 
 def robot_facts(spec: RobotSpec) -> RobotFacts:
@@ -259,4 +260,5 @@ def robot_facts(spec: RobotSpec) -> RobotFacts:
                       foot_height=float(feet[:, 2].mean() - ground),
                       min_joint_inertia=float(min(inertia[r, r] for r in joint_rows)),
                       feet_about_hips=feet[:, :2] - abductions[:, :2],
-                      feet_xy=feet[:, :2] - q[:2])
+                      feet_xy=feet[:, :2] - q[:2],
+                      com_about_feet=com[:2] - feet[:, :2].mean(axis=0))

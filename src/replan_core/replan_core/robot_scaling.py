@@ -40,6 +40,7 @@ MEASURED = {
     'com_height': lambda f: float(f.com_height),
     'foot_height': lambda f: float(f.foot_height),
     'feet_about_hips': lambda f: [float(v) for v in np.asarray(f.feet_about_hips).ravel()],
+    'com_about_feet': lambda f: [float(v) for v in np.asarray(f.com_about_feet).ravel()],
 }
 
 

@@ -213,6 +213,9 @@ class SupportSchedule:
     # references, MpcSettings.position_weight and position_sway)
     centres: np.ndarray | None = None
     stance_centres: np.ndarray | None = None
+    # (N,) rad: the trunk yaw reference at each sample (that of the last step touched down, the
+    # plan's initial yaw before the first), which turns the position term's CoM offset
+    yaws: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -243,8 +246,9 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     Polygons are built once per distinct stance and kept in ``cache`` (a dict owned by the
     caller) across calls, since consecutive re-plans share all but one foothold. A swinging leg
     is out of the stance on the closed interval [liftoff, touchdown] (see ``stance_at``).
-    ``centres``: also the position term's references (``SupportSchedule.centres`` and
-    ``stance_centres``; left None otherwise, so a re-plan without the term does not pay for them).
+    ``centres``: also the position term's references (``SupportSchedule.centres``,
+    ``stance_centres`` and ``yaws``; left None otherwise, so a re-plan without the term does not
+    pay for them).
     """
     times = start_time + dt * np.arange(1, n + 1)
     nleg = len(LEGS)
@@ -294,6 +298,10 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     sched = SupportSchedule(times, A, b, active, n_feet, degenerate, reasons, polys)
     if centres:
         sched.centres, sched.stance_centres = _feet_centres(plan, feet0, src, swing)
+        # Steps touch down in their order, so the last one down is the largest index stood on.
+        last = src.max(axis=1)
+        yaws = np.array([plan.initial_yaw, *(st.yaw for st in plan.steps)], dtype=float)
+        sched.yaws = yaws[last + 1]
     return sched
 
 

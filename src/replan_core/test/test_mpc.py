@@ -156,6 +156,26 @@ def test_position_sway_moves_the_reference_into_the_support_triangles():
     assert res.status == STATUS_REJECTED and 'centres' in res.reason
 
 
+def test_the_com_offset_turns_with_the_yaw_reference_of_each_sample():
+    """The reference is the centre of the feet plus ``com_offset`` turned by the yaw of the
+    last step down (the plan's initial yaw before the first); an offset of 0 leaves the
+    reference the very array of the centres, so the default plans do not change."""
+    plan = crawl_plan(0.0, np.zeros(3), 0.3, FEET, 2, np.array([0.05, 0.0]),
+                      np.random.default_rng(6), layout=LAYOUT)
+    for j, step in enumerate(plan.steps):
+        step.yaw = 0.3 + 0.1 * (j + 1)
+    sched = support_schedule(plan, 0.0, 0.04, 200, centres=True)
+    assert MpcSettings().position_reference(sched) is sched.centres
+    first_down = plan.steps[0].touchdown_time
+    assert sched.yaws[sched.times <= first_down] == pytest.approx(0.3)
+    down = [step.yaw for step in plan.steps if step.touchdown_time < sched.times[-1]]
+    assert len(down) >= 4 and sched.yaws[-1] == pytest.approx(down[-1])
+    got = MpcSettings(com_offset=(0.04, 0.015)).position_reference(sched) - sched.centres
+    want = np.column_stack([np.cos(sched.yaws) * 0.04 - np.sin(sched.yaws) * 0.015,
+                            np.sin(sched.yaws) * 0.04 + np.cos(sched.yaws) * 0.015])
+    np.testing.assert_allclose(got, want, atol=1e-12)
+
+
 @pytest.mark.parametrize('formulation', ['dense', 'sparse'])
 def test_full_formulations_agree_with_the_position_term(formulation):
     plan = crawl_plan(0.0, np.zeros(3), 0.0, FEET, 2, np.array([0.1, 0.05]),

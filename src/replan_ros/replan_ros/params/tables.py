@@ -140,6 +140,11 @@ def _mpc_table() -> tuple[ParamSpec, ...]:
            'disables it; not in the paper)', '1/m^2', min=0.0, max=1e9),
         _p('position_sway', _M.position_sway, "the position term's reference: 0 the centre of "
            'the four feet, 1 the centroid of the feet in stance', min=0.0, max=1.0),
+        # HyQ's, the reference robot's (its model measures 0.0393, 0.0151 m: a unit test
+        # checks it); another robot's is measured on its model (config/robots/scaling.yaml).
+        _p('com_offset', [0.0393, 0.0151], "the CoM about the centre of the feet in the "
+           "standing pose, body frame x, y: added to the position term's reference, turned "
+           'with the yaw reference', 'm', min=-0.5, max=0.5, length=2),
         _p('zmp_margin', 0.02, 'inward safety margin of the support polygons', 'm', min=0.0,
            max=0.2),
         _p('terminal_capture_point', _M.terminal_capture_point,

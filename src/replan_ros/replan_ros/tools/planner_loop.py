@@ -46,7 +46,8 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
     wz)) set-points in force from t on; ``overrides``: node -> {key: value} on top of the
     run's parameters (gait, mpc). The base is where the footholds are laid out about: the CoM
     itself by default, or ``base_offset`` (m, body x, y) behind it, as a robot whose CoM is
-    that far ahead of its base (the CoM still starts over the centre of the feet)."""
+    that far ahead of its base (the CoM still starts over the centre of the feet); the
+    position term's ``mpc.com_offset`` is ``base_offset`` unless ``overrides`` set it."""
     from replan_core.gait import compute_footholds
     from replan_core.mpc import LipMpc
     from replan_core.robot_file import robot_facts
@@ -60,7 +61,11 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
     profile_path = profile_file(config, profile)
     layer = robot_parameters(config, robot, profile_path)
     run = check_run_files(config, [profile_path, layer.derived, layer.overrides]).values
-    values = {node: dict(run[node], **(overrides or {}).get(node, {})) for node in ('gait', 'mpc')}
+    # The loop's CoM sits base_offset ahead of its base, so that is the offset the position
+    # term knows of (mpc.com_offset), unless the caller sets another.
+    loop = {'mpc': {'com_offset': [float(v) for v in base_offset]}}
+    values = {node: {**run[node], **loop.get(node, {}), **(overrides or {}).get(node, {})}
+              for node in ('gait', 'mpc')}
     unknown = {f'{node}.{key}' for node, keys in (overrides or {}).items()
                for key in keys if node not in values or key not in run[node]}
     if unknown:

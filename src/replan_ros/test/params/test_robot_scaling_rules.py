@@ -37,3 +37,16 @@ def test_the_reference_robot_gets_its_resolved_values_back():
     for node, params in derived.items():
         for name, value in params.items():
             assert value == values[node][name], (node, name)
+
+
+def test_the_reference_com_offset_is_its_model_s():
+    """``mpc.com_offset`` is measured for every other robot; the reference keeps its file's
+    value, which must be what its model measures (to 1 mm), or the position term would pull
+    HyQ's CoM off its place over the feet."""
+    reference = robot_facts(load_robot_file(
+        ROOT / 'config' / 'robots' / f'{RULES["reference"]}.yaml', ROOT))
+    configured = load_param_file(ROOT / 'config' / 'mpc.yaml')['mpc']['com_offset']
+    assert RULES['measured']['mpc.com_offset'] == 'com_about_feet'
+    assert configured == defaults('mpc')['com_offset']
+    for got, want in zip(configured, reference.com_about_feet, strict=True):
+        assert abs(got - want) < 1e-3

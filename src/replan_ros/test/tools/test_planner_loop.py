@@ -84,6 +84,23 @@ def test_a_base_apart_from_the_com_crabs_in_an_in_place_turn():
     assert all(c[2] == pytest.approx(0.2, abs=1e-3) for c in apart)
 
 
+def test_the_position_term_with_the_com_offset_turns_in_place_without_crabbing():
+    """The same base apart from the CoM, the position term on: with ``mpc.com_offset`` the
+    term's reference is where the CoM stands over its feet and the base stays under 0.5 cm/s
+    in every cycle; with the offset taken as 0 (the reference the centre of the feet) the term
+    pulls the CoM 4 cm back over the feet, and the base crabs over 1 cm/s."""
+    turn = [(0.5, np.array([0.0, 0.0, 0.2]))]
+    term = {'position_weight': 10000.0, 'position_sway': 0.5}
+    known = cycle_velocities(walk('hyq', 'realistic', turn, 30.0, {'mpc': term},
+                                  base_offset=(0.039, 0.015)), 18.0)
+    unknown = cycle_velocities(walk('hyq', 'realistic', turn, 30.0,
+                                    {'mpc': dict(term, com_offset=[0.0, 0.0])},
+                                    base_offset=(0.039, 0.015)), 18.0)
+    assert len(known) >= 3 and len(unknown) == len(known)
+    assert all(np.hypot(c[0], c[1]) < 0.005 for c in known)
+    assert np.mean([c[1] for c in unknown]) < -0.01
+
+
 def test_cycle_velocities_of_a_known_arc():
     """A trunk on an arc of constant twist (0.1 m/s, 0.2 rad/s: 0.55 rad per 2.75 s cycle),
     logged at its touchdowns: the speed along the arc exactly, where one chord per cycle
