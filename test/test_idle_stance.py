@@ -4,7 +4,7 @@ Runs ``config/scenarios/idle_stance.yaml`` with ``scripts/scenario.sh`` as ``tes
 does (real processes, the default realistic profile: estimated state, noisy sensors) and
 checks on the bag: after idle_after + one step of zero set-point no step is planned and the
 four feet stay down, the trunk stays within 1 cm, the first lift-off after the new set-point
-comes within one step, and the walk afterwards reaches the commanded speed.
+comes within one step, and both walks reach the commanded speed over a whole crawl cycle.
 """
 
 from __future__ import annotations
@@ -63,8 +63,13 @@ def test_idle_stance_stands_still_then_walks_off_within_one_step(ros_domain, tmp
     true_liftoff = next(c.stamp for c in contacts if c.stamp > WALK_AGAIN and not c.contact.all())
     assert true_liftoff - WALK_AGAIN <= gait.step_period + 0.25 + 0.1, true_liftoff
 
-    # Both walks reach the commanded speed (within 15 %) after 2 s of settling.
+    # Both walks reach the commanded speed (within 15 %): each one's last whole crawl cycle.
+    # Its 5 s leave one whole cycle after the start; a 3 s window (2 s of settling to the
+    # segment's end) cuts the sway into the support triangles (the MPC's position_sway): it
+    # read 0.083 m/s where that cycle read 0.096.
     for start in (1.0, WALK_AGAIN):
-        vx, vy, _ = segment(metrics, start)['achieved']
+        cycles = segment(metrics, start)['cycle_velocities']
+        assert cycles, metrics['velocity_tracking']
+        vx, vy, _ = cycles[-1]['velocity']
         assert vx == pytest.approx(SPEED, rel=0.15), metrics['velocity_tracking']
         assert abs(vy) < 0.03, metrics['velocity_tracking']

@@ -435,3 +435,9 @@ class IdleMonitor:
             self.zero_since = float(t)
         return (self.enabled
                 and t - self.zero_since >= self.idle_after - self.tolerance - _EPS)
+
+    def stands_at(self, t: float) -> bool:
+        """True if a re-plan at sim time ``t`` would stand still, the set-point staying zero
+        until then (``update`` has seen the zero run start)."""
+        return (self.enabled and self.zero_since is not None
+                and t - self.zero_since >= self.idle_after - self.tolerance - _EPS)

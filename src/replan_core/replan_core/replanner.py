@@ -182,6 +182,7 @@ class GaitReplanner:
                                          self.schedule.next_leg, t, self.params, delay=delay,
                                          stride_correction=correction,
                                          stride_time_scale=self.stride_time_scale)
+                self._end_before_standing(plan)
         except ValueError as err:
             self.log('error', f'footholds at t={t:.3f} s failed ({err}); keeping the previous '
                               'plan')
@@ -199,6 +200,16 @@ class GaitReplanner:
             self.log('info', f'walking again at t={t:.3f} s ({source} {setpoint.tolist()}), '
                              f'{LEGS[self.schedule.next_leg]} first')
         return plan
+
+    def _end_before_standing(self, plan: FootholdPlan) -> None:
+        """If the re-plan at this plan's trigger will stand still (the set-point zero long
+        enough by then), drop the steps after the trigger: the plan then says the feet stay
+        down from that touchdown on, so the CoM plan made now settles over the final stance
+        during the last swing instead of swaying towards a swing that will not come and
+        turning back after it (docs/gait.md, "Idle stance")."""
+        trigger = next((j for j, st in enumerate(plan.steps) if st.replan), None)
+        if trigger is not None and self.idle.stands_at(plan.steps[trigger].touchdown_time):
+            del plan.steps[trigger + 1:]
 
     @property
     def stride_time_scale(self) -> float:

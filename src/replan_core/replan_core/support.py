@@ -339,10 +339,12 @@ def implied_velocity(plan: FootholdPlan) -> np.ndarray:
     With at least two steps per leg it is the advance of the stance centre over the last full
     cycle (each leg moved once more) divided by its duration: the first step of each leg also
     makes up for where the feet happen to be (foothold correction, lag), which would bias a
-    start-to-end average. With fewer steps it falls back to that average.
+    start-to-end average. With fewer steps it falls back to that average; with fewer than one
+    per leg (a plan that stops: a stand plan, or the last swing before one) it is zero, as the
+    few steps only bring feet back under the trunk.
     """
     steps = plan.steps
-    if not steps:
+    if len(steps) < len(plan.initial_feet):
         return np.zeros(2)
     feet = np.array(plan.initial_feet, dtype=float)
     centres = [(plan.start_time, feet[:, :2].mean(axis=0))]

@@ -120,14 +120,18 @@ def test_lost_ticks_are_warned_and_time_going_back_starts_a_new_run():
 
 
 def test_zero_setpoint_for_idle_after_stands_and_a_new_one_walks_off():
-    replanner, logs, _ = make(idle_after=1.5)
+    replanner, logs, _ = make(idle_after=2.5)
     replanner.tick(contacts(0.0))
-    plan_now(replanner, ZERO)
-    t = 0.0
+    t, plans = 0.0, [plan_now(replanner, ZERO)]
     while not replanner.standing:
         t = run_until_pending(replanner, round(t + TICK, 6))
-        plan_now(replanner, ZERO)
-    assert t >= 1.5 - 0.5 * GaitParams().step_period
+        plans.append(plan_now(replanner, ZERO))
+    assert t >= 2.5 - 0.5 * GaitParams().step_period
+    # The plan before the stand ends at its trigger (the feet stay down from that touchdown
+    # on, so the MPC settles the CoM during the last swing); the ones before it do not.
+    before = plans[-2]
+    assert len(before.steps) == 1 and before.steps[0].replan
+    assert len(plans) >= 3 and all(len(p.steps) == 8 for p in plans[:-2])
     assert is_stand_plan(replanner.plan) and len(replanner.plan.steps) == 1
     trigger = replanner.plan.steps[0]
     assert trigger.liftoff_time == pytest.approx(t + 0.5 - 0.5 * TICK)   # off the tick grid

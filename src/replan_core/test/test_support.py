@@ -119,8 +119,11 @@ def test_implied_velocity_is_the_stride_rate_not_the_catch_up():
         steps.append(Step(leg, t_td - 0.5, t_td, target, 0.1, True, i == 0, 0.0))
     plan = FootholdPlan(10.0, feet, 0.0, steps)
     np.testing.assert_allclose(implied_velocity(plan), [v, 0.0], atol=1e-12)
-    short = FootholdPlan(10.0, feet, 0.0, steps[:3])
+    short = FootholdPlan(10.0, feet, 0.0, steps[:5])
     assert implied_velocity(short)[0] > 0
+    # Fewer steps than legs: a plan that stops (gait.Replanner ends the plan before a stand).
+    stopping = FootholdPlan(10.0, feet, 0.0, steps[:1])
+    assert np.all(implied_velocity(stopping) == 0)
     assert np.all(implied_velocity(FootholdPlan(10.0, feet, 0.0, [])) == 0)
 
 

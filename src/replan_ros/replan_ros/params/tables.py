@@ -136,10 +136,12 @@ def _mpc_table() -> tuple[ParamSpec, ...]:
         # why).
         _p('velocity_weight', 300.0, 'weight of the velocity-tracking term (0 disables it)',
            min=0.0, max=1e9),
-        _p('position_weight', _M.position_weight, 'weight of the CoM-over-its-feet term (0 '
-           'disables it; not in the paper)', '1/m^2', min=0.0, max=1e9),
-        _p('position_sway', _M.position_sway, "the position term's reference: 0 the centre of "
-           'the four feet, 1 the centroid of the feet in stance', min=0.0, max=1.0),
+        # The node's defaults: the core's 0 is the paper's cost, without a position target
+        # (config/mpc.yaml says why the node has one).
+        _p('position_weight', 10000.0, 'weight of the CoM-over-its-feet term (0 disables it; '
+           'not in the paper)', '1/m^2', min=0.0, max=1e9),
+        _p('position_sway', 0.5, "the position term's reference: 0 the centre of the four "
+           'feet, 1 the centroid of the feet in stance', min=0.0, max=1.0),
         # HyQ's, the reference robot's (its model measures 0.0393, 0.0151 m: a unit test
         # checks it); another robot's is measured on its model (config/robots/scaling.yaml).
         _p('com_offset', [0.0393, 0.0151], "the CoM about the centre of the feet in the "

@@ -201,8 +201,9 @@ def test_cross_node_checks():
     assert 'must be below' in _error('wbc:\n  ros__parameters:\n    fz_min: 900.0\n')
     assert 'must be at least' in _error('mpc:\n  ros__parameters:\n    horizon: 0.2\n'
                                         '    dt: 0.3\n')
-    assert _error('mpc:\n  ros__parameters:\n    position_sway: 0.5\n').startswith(
-        'mpc.position_sway = 0.5 (/tmp/x.yaml) has no effect with mpc.position_weight = 0.0')
+    assert _error('mpc:\n  ros__parameters:\n    position_sway: 0.7\n'
+                  '    position_weight: 0.0\n').startswith(
+        'mpc.position_sway = 0.7 (/tmp/x.yaml) has no effect with mpc.position_weight = 0.0')
     check_run([_source('mpc:\n  ros__parameters:\n    position_sway: 0.5\n'
                        '    position_weight: 100.0\n')], NODES)
     crouched = '[-0.2, 0.9, -1.8, -0.2, 0.9, -1.8, -0.2, -0.9, 1.8, -0.2, -0.9, 1.8]'

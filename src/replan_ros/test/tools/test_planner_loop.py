@@ -25,24 +25,26 @@ def test_the_walk_reaches_its_set_point_and_correction_shortens_the_first_cycle(
 
 
 def test_without_the_correction_the_trunk_stays_beside_its_feet():
-    """The MPC has no position target: walking off forward, the trunk drifts sideways in the
-    first cycle and, with the footholds placed about the feet (correction off), stays there
-    (9.8 cm measured); the foothold correction brings it back over them (1.5 cm)."""
+    """The paper's MPC (position term off) has no position target: walking off forward, the
+    trunk drifts sideways in the first cycle and, with the footholds placed about the feet
+    (correction off), stays there (9.8 cm measured); the foothold correction brings it back
+    over them (1.5 cm)."""
     forward = [(0.5, np.array([0.15, 0.0, 0.0]))]
-    on = trunk_offsets(walk('hyq', 'realistic', forward, 14.0), 0.5)
+    paper = {'position_weight': 0.0, 'position_sway': 0.0}
+    on = trunk_offsets(walk('hyq', 'realistic', forward, 14.0, {'mpc': paper}), 0.5)
     off = trunk_offsets(walk('hyq', 'realistic', forward, 14.0,
-                             {'gait': {'foothold_correction': False}}), 0.5)
+                             {'gait': {'foothold_correction': False}, 'mpc': paper}), 0.5)
     assert len(on) >= 3 and len(off) == len(on)
     assert abs(off[2][1]) > 0.05 and abs(off[3][1] - off[2][1]) < 0.005   # it stays
     assert abs(on[2][1]) < 0.03
 
 
 def test_the_position_term_keeps_the_trunk_over_its_feet_without_the_correction():
-    """``mpc.position_weight`` gives the MPC the position target it lacks: with the
-    correction off, the forward walk's trunk stays within 2 cm of the centre of its feet
-    (1.5 cm measured at 10000) instead of 9.8 cm, at the same speed."""
+    """``mpc.position_weight`` (on by default) gives the MPC the position target the paper's
+    lacks: with the correction off, the forward walk's trunk stays within 2 cm of the centre
+    of its feet instead of 9.8 cm, at the same speed."""
     forward = [(0.5, np.array([0.15, 0.0, 0.0]))]
-    params = {'gait': {'foothold_correction': False}, 'mpc': {'position_weight': 10000.0}}
+    params = {'gait': {'foothold_correction': False}}
     log = walk('hyq', 'realistic', forward, 14.0, params)
     offsets = trunk_offsets(log, 0.5)
     assert len(offsets) >= 3
@@ -70,14 +72,15 @@ def test_a_turning_walk_is_measured_in_the_body_frame():
 
 
 def test_a_base_apart_from_the_com_crabs_in_an_in_place_turn():
-    """Footholds laid out about a base 3.9 cm behind and 1.5 cm right of the CoM (HyQ's CoM
-    over its base in the standing pose): turning in place, the base crabs sideways over 1 cm/s
-    on average (docs/gait.md, "Switched on, then off again"); with the base at the CoM every
-    cycle moves it under 1 cm/s."""
+    """The paper's MPC (position term off), footholds laid out about a base 3.9 cm behind and
+    1.5 cm right of the CoM (HyQ's CoM over its base in the standing pose): turning in place,
+    the base crabs sideways over 1 cm/s on average (docs/gait.md, "Switched on, then off
+    again"); with the base at the CoM every cycle moves it under 1 cm/s."""
     turn = [(0.5, np.array([0.0, 0.0, 0.2]))]
-    at_com = cycle_velocities(walk('hyq', 'realistic', turn, 30.0), 18.0)
-    apart = cycle_velocities(walk('hyq', 'realistic', turn, 30.0, base_offset=(0.039, 0.015)),
-                             18.0)
+    paper = {'mpc': {'position_weight': 0.0, 'position_sway': 0.0}}
+    at_com = cycle_velocities(walk('hyq', 'realistic', turn, 30.0, paper), 18.0)
+    apart = cycle_velocities(walk('hyq', 'realistic', turn, 30.0, paper,
+                                  base_offset=(0.039, 0.015)), 18.0)
     assert len(apart) >= 3 and len(at_com) == len(apart)
     assert all(np.hypot(c[0], c[1]) < 0.01 for c in at_com)           # under 1 cm/s
     assert np.mean([c[1] for c in apart]) < -0.01
