@@ -468,3 +468,22 @@ def test_fallen_torques_let_a_tipped_robot_come_to_rest(world, robot):
         speeds.append(float(np.abs(joints.velocity).max()))
     assert trunk_tilt(world.base_state().quaternion) > WbcParams().fall_tilt
     assert max(speeds[-50:]) < 0.2, max(speeds[-50:])
+
+
+@pytest.mark.parametrize('name', ['go1', 'anymal_c'])
+def test_the_wbc_bench_crawls_another_robot(name):
+    """``scripts/bench_wbc.sh --robot``: the robot's model and names, HyQ's controller values
+    and crawl scaled to it; one cycle closes every haptic step with the CoM tracked to 1 cm
+    and no force-QP fallback."""
+    from replan_core.bench.wbc_bench import bench_robot, run
+    from replan_core.robot_file import load_robot_file, robot_file_path
+
+    spec = load_robot_file(robot_file_path(name, ROOT / 'config'), ROOT)
+    reference = load_robot_file(robot_file_path('hyq', ROOT / 'config'), ROOT)
+    robot = bench_robot(spec, reference)
+    assert robot.params.fz_max < WbcParams().fz_max            # lighter than HyQ
+    figures = run('', 1, quiet=True, robot=robot)
+    assert figures['steps_done'] == figures['steps'] == 4
+    assert figures['fallbacks'] == 0
+    assert figures['com_error_max_m'] < 0.01
+    assert figures['advance_m'] > 0.5 * robot.crawl['step_length']

@@ -1,6 +1,7 @@
 """Benchmark of the whole-body controller: computation time per control tick, closed loop.
 
-Run: ``scripts/bench_wbc.sh`` (or ``python -m replan_core.bench.wbc_bench --help``).
+Run: ``scripts/bench_wbc.sh [--robot NAME|FILE]`` (or ``python -m replan_core.bench.wbc_bench
+--help``).
 
 The run is realistic for the controller: the PyBullet world (``sim_world.SimWorld``) in closed
 loop with a static crawl (four haptic steps per cycle, CoM shifted into each support triangle
@@ -8,13 +9,21 @@ before its swing) generated here from the actual feet, so every tick has a swing
 moving CoM and a 3- or 4-foot force QP. The time measured is ``WholeBodyController.compute``
 (one pinocchio pass, the force QP, the torques) plus the plan sampling and the step tracker, i.e.
 what the wbc node does per tick besides message conversion.
+
+Another robot (``--robot``, a robot file): its model, names, contact sphere and standing pose;
+the controller's force bounds and swing gains and the crawl's lengths and times scaled from
+HyQ's by the rules of the robot files (``config/robots/scaling.yaml``: forces with m g, swing
+stiffness with m g / l and damping with m sqrt(g / l), lengths with l, times with sqrt(l / g),
+speeds with sqrt(g l)).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -78,20 +87,65 @@ def crawl_plan(start_time: float, feet: np.ndarray, com: np.ndarray, cycles: int
     return footholds, ComPlan(start_time, dt, position, velocity, acceleration)
 
 
-def run(urdf: str, cycles: int, quiet: bool = False) -> dict[str, float]:
+@dataclass
+class WbcBenchRobot:
+    """What the bench needs of a robot other than the default HyQ: its model and names (None:
+    the world's and the model's defaults), the controller's parameters, the sim's contact
+    threshold and the crawl's lengths (m), times (s) and haptic descent speed (m/s)."""
+
+    urdf: str
+    names: dict = field(default_factory=dict)        # SimWorld's robot keywords
+    model_names: tuple = ()                          # RobotModel's (joints, feet)
+    params: object | None = None                     # WbcParams; None: the defaults
+    contact_threshold: float = 30.0                  # N
+    crawl: dict = field(default_factory=dict)        # crawl_plan's keywords
+    haptic_velocity: float = 0.15                    # m/s
+
+
+def bench_robot(spec, reference) -> WbcBenchRobot:
+    """``spec``'s robot (a ``robot_file.RobotSpec``) with HyQ's (``reference``) controller
+    values and crawl scaled to it (the rules of config/robots/scaling.yaml)."""
+    from replan_core.robot_file import robot_facts
+    from replan_core.robot_scaling import SCALES
+    from replan_core.wbc import WbcParams
+
+    facts, ref = robot_facts(spec), robot_facts(reference)
+
+    def ratio(scale: str) -> float:
+        return SCALES[scale](facts) / SCALES[scale](ref)
+
+    base = WbcParams()
+    params = dataclasses.replace(
+        base, fz_min=base.fz_min * ratio('weight'), fz_max=base.fz_max * ratio('weight'),
+        swing_kp=base.swing_kp * ratio('stiffness'), swing_kd=base.swing_kd * ratio('damping'),
+        haptic_velocity=base.haptic_velocity * ratio('speed'),
+        touchdown_depth=base.touchdown_depth * ratio('length'))
+    crawl = {'step_length': 0.08 * ratio('length'), 'step_height': 0.06 * ratio('length'),
+             'shift_time': 0.8 * ratio('time'), 'swing_time': 0.6 * ratio('time')}
+    names = {'joint_names': spec.joints, 'foot_frames': spec.feet,
+             'foot_offset': spec.foot_offset,
+             'initial_joint_positions': np.asarray(spec.standing_pose, dtype=float)}
+    return WbcBenchRobot(str(spec.urdf), names, (spec.joints, spec.feet), params,
+                         30.0 * ratio('weight'), crawl, params.haptic_velocity)
+
+
+def run(urdf: str, cycles: int, quiet: bool = False,
+        robot: WbcBenchRobot | None = None) -> dict[str, float]:
     """Closed-loop crawl; returns timing figures (s) and tracking figures (m)."""
     from replan_core.robot_model import RobotModel
     from replan_core.sim_world import SimWorld
     from replan_core.wbc import PlanFollower, WholeBodyController
 
-    world = SimWorld(urdf)
+    robot = robot or WbcBenchRobot(urdf)
+    world = SimWorld(robot.urdf, contact_threshold=robot.contact_threshold, **robot.names)
     try:
-        robot = RobotModel(urdf)
-        wbc = WholeBodyController(robot)
+        model = RobotModel(robot.urdf, *robot.model_names)
+        wbc = WholeBodyController(model, robot.params)
         base, joints, contacts = world.base_state(), world.joint_state(), world.contact_state()
-        com0 = robot.com_state(base, joints)[0]
-        footholds, com_plan = crawl_plan(0.5, contacts.foot_position, com0, cycles=cycles)
-        follower = PlanFollower(footholds, com_plan)
+        com0 = model.com_state(base, joints)[0]
+        footholds, com_plan = crawl_plan(0.5, contacts.foot_position, com0, cycles=cycles,
+                                         **robot.crawl)
+        follower = PlanFollower(footholds, com_plan, haptic_velocity=robot.haptic_velocity)
         tick_times, cpu_times, compute_times, com_errors = [], [], [], []
         fallbacks = 0
         while world.time < com_plan.end_time:
@@ -107,7 +161,7 @@ def run(urdf: str, cycles: int, quiet: bool = False) -> dict[str, float]:
             com_errors.append(float(np.linalg.norm(result.com_error)))
             fallbacks += int(result.fallback)
             world.step(result.torque)
-        final = robot.com_state(world.base_state(), world.joint_state())[0]
+        final = model.com_state(world.base_state(), world.joint_state())[0]
     finally:
         world.close()
     ticks = np.array(tick_times)
@@ -151,8 +205,24 @@ def main() -> None:
     parser.add_argument('--urdf', default=os.environ.get('REPLAN_URDF',
                                                          str(root / 'urdf' / 'hyq.urdf')))
     parser.add_argument('--cycles', type=int, default=2, help='crawl cycles (4 steps each)')
+    parser.add_argument('--robot', default='', help='a robot file: a name of config/robots/ '
+                        '(go1) or a path (default: HyQ from --urdf)')
+    parser.add_argument('--root', default=str(root), help='the project (config/robots/)')
     args = parser.parse_args()
-    run(args.urdf, args.cycles)
+    robot = None
+    if args.robot:
+        from replan_core.robot_file import RobotFileError, load_robot_file, robot_file_path
+        project = Path(args.root)
+        try:
+            spec = load_robot_file(robot_file_path(args.robot, project / 'config'), project)
+            reference = load_robot_file(robot_file_path('hyq', project / 'config'), project)
+        except RobotFileError as err:
+            raise SystemExit(f'config error: {err}') from None
+        robot = bench_robot(spec, reference)
+        print(f'robot {spec.name}: fz {robot.params.fz_min:.1f}-{robot.params.fz_max:.0f} N, '
+              f'swing kp {robot.params.swing_kp[0]:.0f} N/m, step '
+              f'{robot.crawl["step_length"]:.3f} m in {robot.crawl["swing_time"]:.2f} s')
+    run(args.urdf, args.cycles, robot=robot)
 
 
 if __name__ == '__main__':
