@@ -220,15 +220,19 @@ def test_non_haptic_replans_at_the_planned_touchdown(launcher, probe):
 
 
 def test_idle_stance_stands_then_walks_off_at_the_next_trigger(launcher, probe):
-    """Zero set-point for idle_after: the re-plan at a touchdown publishes a stand plan (one
-    zero-length replan trigger, no real step); the trigger's tick re-plans, and with a new
-    set-point the plan walks off after the four-feet phase, the crawl order kept."""
+    """Zero set-point for idle_after: the plan before it ends at its trigger, the re-plan at
+    that touchdown publishes a stand plan (one zero-length replan trigger, no real step); the
+    trigger's tick re-plans, and with a new set-point the plan walks off after the four-feet
+    phase, the crawl order kept."""
     launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
                    params={**TIMING, 'idle_after': 1.0, 'idle_replan_period': 0.5})
     sim = FakeSim(probe)
     sim.wait_connected(launcher)
     first = sim.replan_at(0.0, launcher)              # zero set-point from the start
-    assert len(first.steps) == 8 and LEGS[first.steps[0].leg] == 'lh'
+    # Its trigger (lh) touches down 1.3 s into the zero run, when the re-plan will stand:
+    # the plan ends there (the MPC brings the CoM to rest during that swing).
+    assert len(first.steps) == 1 and LEGS[first.steps[0].leg] == 'lh'
+    assert first.steps[0].replan and first.steps[0].step_height > 0.0
     sim.tick(1.0)                                     # lh lifts off
     stand = sim.replan_at(1.3, launcher)              # lh touches down: zero for 1.3 s
     assert len(stand.steps) == 1
