@@ -7,10 +7,10 @@ QP of fixed size) and ``compute`` is called once per control tick (250 Hz):
   the stance feet to realise the desired CoM acceleration (plan feed-forward + PD on the CoM
   error) and the trunk angular acceleration (PD on the orientation: level roll/pitch, commanded
   yaw), with unilateral contact ``fz >= fz_min`` and inner linearised friction pyramids; swing
-  feet are forced to ``f = 0`` by the box bounds, so the QP keeps its 12 variables every tick and
-  is only updated and warm started. Torques ``tau_leg = -J_leg^T f_leg + h_leg``: the foot pushes
-  the ground with ``-f`` and ``h`` (pinocchio nonLinearEffects) compensates the leg's own
-  gravity and Coriolis terms;
+  feet are forced to ``f = 0`` by the box bounds, so the QP keeps its 12 variables every tick
+  (built once, set up and solved cold each tick: a warm start is not bit-exact). Torques
+  ``tau_leg = -J_leg^T f_leg + h_leg``: the foot pushes the ground with ``-f`` and ``h``
+  (pinocchio nonLinearEffects) compensates the leg's own gravity and Coriolis terms;
 - swing legs: Cartesian impedance ``J^T (Kp e + Kd de)`` plus the feed-forward of the reference
   acceleration through the leg's inverse dynamics, plus ``h_leg``;
 - torques are clipped to the URDF effort limits; any non-finite intermediate result gives a
@@ -394,8 +394,7 @@ class WholeBodyController:
         self._qp.settings.eps_rel = 0.0
         self._qp.settings.max_iter = p.qp_max_iter
         self._qp.settings.verbose = False
-        self._qp_initialized = False
-        self._qp_stance: tuple[bool, ...] = ()
+        self._qp.settings.initial_guess = _COLD_START
 
     def _bounds(self, stance: tuple[bool, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Box bounds of the forces for a stance set; 16 sets at most, each built once
@@ -427,33 +426,20 @@ class WholeBodyController:
         h = np.matmul(aw, a, out=self._h)
         h.ravel()[::3 * N_LEGS + 1] += self.params.regularization    # the diagonal, a view
         g = np.negative(np.matmul(aw, wrench, out=self._g), out=self._g)
-        # Warm start while the stance set holds; a new set changes the box bounds, and
-        # proxsuite's warm start from a point outside the new box can end in a spurious
-        # 'primal_infeasible': set up afresh then (one more init per touchdown/lift-off).
-        stance_key = tuple(stance.tolist())
-        lower, upper = self._bounds(stance_key)
-        warm = self._qp_initialized and stance_key == self._qp_stance
-        name, iterations = self._solve_qp(h, g, lower, upper, warm)
-        if name not in ('solved', 'max_iter') and warm:
-            name, iterations = self._solve_qp(h, g, lower, upper, False)   # retry cold once
-        self._qp_stance = stance_key
-        return self._qp.results.x.reshape(N_LEGS, 3).copy(), name, iterations
-
-    def _solve_qp(self, h: np.ndarray, g: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                  warm: bool) -> tuple[str, int]:
-        """Solve; returns the status name and the iteration count."""
+        lower, upper = self._bounds(tuple(stance.tolist()))
+        # Set up and solved cold every tick, never warm-started: a warm start from the last
+        # tick's forces is not bit-exact. In config/scenarios/knock_over.yaml (tick 3.136 s) the
+        # same two QPs, solved in a row, gave 'solved' in 15 iterations or 'max_iter' after
+        # 300 000 (1 s, non-finite forces) depending on the heap alone; a cold solve of every
+        # tick of that run gave the same bits under heap noise (test_proxqp.py). It costs about
+        # 30 us more per tick (docs/wbc.md, "The force QP").
         qp = self._qp
-        if warm:
-            qp.update(H=h, g=g, l_box=lower, u_box=upper)
-            qp.settings.initial_guess = _WARM_START
-        else:
-            qp.settings.initial_guess = _COLD_START
-            qp.init(h, g, None, None, self._c, self._l, self._u, lower, upper)
-            self._qp_initialized = True
+        qp.init(h, g, None, None, self._c, self._l, self._u, lower, upper)
         qp.solve()
         info = qp.results.info          # each attribute access builds a new wrapper: once
         status = info.status
-        return _STATUS_NAMES.get(status, str(status)), int(info.iter)
+        name = _STATUS_NAMES.get(status, str(status))
+        return qp.results.x.reshape(N_LEGS, 3).copy(), name, int(info.iter)
 
     # ------------------------------------------------------------------------------ per tick
     def compute(self, base: BaseState, joints: JointState, contact: np.ndarray,
@@ -613,7 +599,6 @@ class WholeBodyController:
         clipped = np.clip(torque, -self._limit, self._limit)
         self._hold_q = q_ref.copy()          # a failure meanwhile holds the path, not the sit
         self._hold_torque = weight
-        self._qp_initialized = False
         return WbcResult(
             torque=clipped, forces=np.tile(foot_force, (N_LEGS, 1)), com_error=np.zeros(3),
             com_velocity_error=np.zeros(3), orientation_error=np.zeros(3),
@@ -630,7 +615,6 @@ class WholeBodyController:
                            neginf=0.0)
         torque = -self.params.fall_damping * qd
         clipped = np.clip(torque, -self._limit, self._limit)
-        self._qp_initialized = False    # whatever follows starts the QP cold
         contact = np.asarray(contact, bool)
         return WbcResult(
             torque=clipped, forces=np.zeros((N_LEGS, 3)), com_error=np.zeros(3),
@@ -652,7 +636,6 @@ class WholeBodyController:
         torque = self._hold_torque + p.fallback_kp * (hold - q) - p.fallback_kd * qd
         torque = np.nan_to_num(torque, nan=0.0, posinf=0.0, neginf=0.0)
         torque = np.clip(torque, -self._limit, self._limit)
-        self._qp_initialized = False    # the next solve starts cold
         return WbcResult(
             torque=torque, forces=np.zeros((N_LEGS, 3)), com_error=np.zeros(3),
             com_velocity_error=np.zeros(3), orientation_error=np.zeros(3),
@@ -662,7 +645,6 @@ class WholeBodyController:
 
 
 # proxsuite's enum values, looked up once (an attribute chain per tick costs ~2 us).
-_WARM_START = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
 _COLD_START = proxqp.InitialGuess.NO_INITIAL_GUESS
 _STATUS_NAMES = {
     proxqp.QPSolverOutput.PROXQP_SOLVED: 'solved',
