@@ -433,8 +433,7 @@ class IdleMonitor:
             return False
         if self.zero_since is None:
             self.zero_since = float(t)
-        return (self.enabled
-                and t - self.zero_since >= self.idle_after - self.tolerance - _EPS)
+        return self.stands_at(t)
 
     def stands_at(self, t: float) -> bool:
         """True if a re-plan at sim time ``t`` would stand still, the set-point staying zero

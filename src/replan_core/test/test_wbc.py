@@ -473,15 +473,31 @@ def test_fallen_torques_let_a_tipped_robot_come_to_rest(world, robot):
 @pytest.mark.parametrize('name', ['go1', 'anymal_c'])
 def test_the_wbc_bench_crawls_another_robot(name):
     """``scripts/bench_wbc.sh --robot``: the robot's model and names, HyQ's controller values
-    and crawl scaled to it; one cycle closes every haptic step with the CoM tracked to 1 cm
-    and no force-QP fallback."""
+    scaled to it by config/robots/scaling.yaml (each as the launcher derives it), and the
+    crawl; one cycle closes every haptic step with the CoM tracked to 1 cm and no force-QP
+    fallback."""
+    from replan_core.bench import bench_robots
     from replan_core.bench.wbc_bench import bench_robot, run
-    from replan_core.robot_file import load_robot_file, robot_file_path
+    from replan_core.robot_file import robot_facts
+    from replan_core.robot_scaling import derived_parameters
 
-    spec = load_robot_file(robot_file_path(name, ROOT / 'config'), ROOT)
-    reference = load_robot_file(robot_file_path('hyq', ROOT / 'config'), ROOT)
-    robot = bench_robot(spec, reference)
+    spec, reference, rules = bench_robots(name, ROOT)
+    robot = bench_robot(spec, reference, rules)
     assert robot.params.fz_max < WbcParams().fz_max            # lighter than HyQ
+    # Every WbcParams field the rules name is scaled as the launcher scales it from the same
+    # reference value.
+    base = WbcParams()
+    named = [k.split('.', 1)[1] for keys in rules['rules'].values() for k in keys
+             if k.startswith('wbc.') and hasattr(base, k.split('.', 1)[1])]
+    assert {'fz_min', 'fz_max', 'swing_kp', 'swing_kd', 'haptic_velocity'} <= set(named)
+    launcher = derived_parameters(robot_facts(spec), robot_facts(reference),
+                                  {'wbc': {n: np.asarray(getattr(base, n)).tolist()
+                                           for n in named}},
+                                  {'rules': {s: [k for k in keys if k[4:] in named]
+                                             for s, keys in rules['rules'].items()}},
+                                  measure=False)['wbc']
+    for field_name in named:
+        assert np.allclose(getattr(robot.params, field_name), launcher[field_name]), field_name
     figures = run('', 1, quiet=True, robot=robot)
     assert figures['steps_done'] == figures['steps'] == 4
     assert figures['fallbacks'] == 0

@@ -29,14 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
+from replan_core.bench import bench_robots, is_reference
 from replan_core.mpc import LipMpc, MpcSettings
-from replan_core.robot_file import load_robot_file, robot_facts, robot_file_path
+from replan_core.robot_file import robot_facts
 from replan_core.robot_scaling import SCALES
 from replan_core.types import FootholdPlan, Step
 
 CRAWL_ORDER = (2, 0, 3, 1)                 # lh, lf, rh, rf
 SWING, FOUR_FEET = 0.6, 0.4                # s, the reference robot's bench crawl
-REFERENCE_ROBOT = 'hyq'                    # config/robots/scaling.yaml's reference
 
 
 @dataclass(frozen=True)
@@ -62,13 +62,11 @@ def bench_crawl(robot: str, root: Path) -> BenchCrawl:
     """The crawl of robot file ``robot`` (a name of ``root``/config/robots/ or a path):
     timing and set-points scaled from the reference robot's by sqrt(l / g) and sqrt(g l).
     ValueError (RobotFileError) names the file and key of a bad robot file."""
-    path = robot_file_path(robot, root / 'config')
-    reference = robot_file_path(REFERENCE_ROBOT, root / 'config')
-    facts = robot_facts(load_robot_file(path, root))
-    ref = robot_facts(load_robot_file(reference, root))
+    spec, reference, _ = bench_robots(robot, root)
+    facts, ref = robot_facts(spec), robot_facts(reference)
     time_scale = SCALES['time'](facts) / SCALES['time'](ref)
     # The reference keeps its tuned LIP height (config/mpc.yaml), as the launcher does.
-    same = Path(path).resolve() == Path(reference).resolve()
+    same = is_reference(spec, reference)
     return BenchCrawl(feet_xy=np.asarray(facts.feet_xy, dtype=float), swing=SWING * time_scale,
                       four_feet=FOUR_FEET * time_scale,
                       speed_scale=SCALES['speed'](facts) / SCALES['speed'](ref),
@@ -239,8 +237,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument('--proxsuite-dual', action='store_true',
                     help='working set: solve the dual with proxsuite (+ KKT polish) instead of '
                          'the exact active-set method')
-    ap.add_argument('--robot', default=REFERENCE_ROBOT,
-                    help='a robot file: a name of config/robots/ (go1) or a path (default hyq)')
+    ap.add_argument('--robot', default='',
+                    help='a robot file: a name of config/robots/ (go1) or a path (default: '
+                         'the reference robot of config/robots/scaling.yaml, HyQ)')
     ap.add_argument('--root', default='.', help='the project (its config/ and urdf/)')
     args = ap.parse_args(argv)
     try:

@@ -26,13 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.robot_file import (
-    RobotSpec,
-    load_robot_file,
-    robot_facts,
-    robot_file_path,
-)
-from replan_core.robot_scaling import SCALES
+from replan_core.bench import bench_robots
+from replan_core.robot_file import RobotSpec, robot_facts
+from replan_core.robot_scaling import SCALES, derived_parameters
 from replan_core.robot_variant import perturbed_urdf
 from replan_core.sensors import REALISTIC_IMU, REALISTIC_JOINTS, ImuSensor, JointSensor
 from replan_core.sim_world import (
@@ -63,18 +59,22 @@ class BenchRobot:
     payload_offset: tuple[float, float, float] = PAYLOAD[1]
 
 
-def bench_robot(spec: RobotSpec, reference: RobotSpec) -> BenchRobot:
-    """``spec``'s robot with HyQ's (``reference``) gains and payload scaled to it."""
+def bench_robot(spec: RobotSpec, reference: RobotSpec, rules: dict) -> BenchRobot:
+    """``spec``'s robot with the reference robot's (HyQ's) PD gains and payload scaled to it:
+    the payload by ``rules`` (config/robots/scaling.yaml), the bench's own PD hold like a joint
+    stiffness (m g l) and damping (m g l sqrt(l / g))."""
     facts, ref = robot_facts(spec), robot_facts(reference)
+    payload = derived_parameters(
+        facts, ref, {'sim': {'payload_mass': PAYLOAD[0], 'payload_offset': list(PAYLOAD[1])}},
+        {'rules': {scale: [k for k in keys if k in ('sim.payload_mass', 'sim.payload_offset')]
+                   for scale, keys in rules.get('rules', {}).items()}}, measure=False)['sim']
     torque = SCALES['torque'](facts) / SCALES['torque'](ref)
     time_scale = SCALES['time'](facts) / SCALES['time'](ref)
-    length = SCALES['length'](facts) / SCALES['length'](ref)
     kp, kd = PD_GAINS
     return BenchRobot(str(spec.urdf), spec.joints, spec.feet, spec.foot_offset, spec.root_link,
                       np.asarray(spec.standing_pose, dtype=float),
-                      (kp * torque, kd * torque * time_scale),
-                      PAYLOAD[0] * SCALES['weight'](facts) / SCALES['weight'](ref),
-                      tuple(float(c) * length for c in PAYLOAD[1]))
+                      (kp * torque, kd * torque * time_scale), payload['payload_mass'],
+                      tuple(payload['payload_offset']))
 
 
 def physics_rtf(urdf: str, *, terrain: str = 'flat', query: bool = True,
@@ -129,12 +129,11 @@ def main(argv: list[str] | None = None) -> None:
     if args.robot:
         root = Path(args.root)
         try:
-            spec = load_robot_file(robot_file_path(args.robot, root / 'config'), root)
-            reference = load_robot_file(robot_file_path('hyq', root / 'config'), root)
+            spec, reference, rules = bench_robots(args.robot, root)
         except ValueError as err:            # RobotFileError: one line naming file and key
             print(f'config error: {err}', file=sys.stderr)
             raise SystemExit(2) from None
-        robot = bench_robot(spec, reference)
+        robot = bench_robot(spec, reference, rules)
         print(f'robot {spec.name}: PD {robot.pd_gains[0]:.1f} N m/rad, '
               f'{robot.pd_gains[1]:.2f} N m s/rad; realistic payload {robot.payload_mass:.2f} kg')
     cases = [(terrain, query, False) for terrain in ('flat', 'rough') for query in (False, True)]

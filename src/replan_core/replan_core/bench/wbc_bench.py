@@ -11,10 +11,9 @@ moving CoM and a 3- or 4-foot force QP. The time measured is ``WholeBodyControll
 what the wbc node does per tick besides message conversion.
 
 Another robot (``--robot``, a robot file): its model, names, contact sphere and standing pose;
-the controller's force bounds and swing gains and the crawl's lengths and times scaled from
-HyQ's by the rules of the robot files (``config/robots/scaling.yaml``: forces with m g, swing
-stiffness with m g / l and damping with m sqrt(g / l), lengths with l, times with sqrt(l / g),
-speeds with sqrt(g l)).
+every controller parameter of ``WbcParams`` and the sim's contact threshold that
+``config/robots/scaling.yaml`` scales, scaled from the reference robot's (HyQ's) by its rules,
+and the bench crawl's lengths (with l) and times (with sqrt(l / g)).
 """
 
 from __future__ import annotations
@@ -31,6 +30,7 @@ import numpy as np
 from replan_core.types import ComPlan, FootholdPlan, Step
 
 CRAWL_ORDER = (0, 3, 1, 2)    # lf, rh, rf, lh: the crawl sequence
+CONTACT_THRESHOLD = 30.0      # N: the sim's contact threshold for the reference robot (HyQ)
 
 
 def _quintic(s: float) -> tuple[float, float, float]:
@@ -97,36 +97,43 @@ class WbcBenchRobot:
     names: dict = field(default_factory=dict)        # SimWorld's robot keywords
     model_names: tuple = ()                          # RobotModel's (joints, feet)
     params: object | None = None                     # WbcParams; None: the defaults
-    contact_threshold: float = 30.0                  # N
+    contact_threshold: float = CONTACT_THRESHOLD     # N, the sim's
     crawl: dict = field(default_factory=dict)        # crawl_plan's keywords
-    haptic_velocity: float = 0.15                    # m/s
 
 
-def bench_robot(spec, reference) -> WbcBenchRobot:
-    """``spec``'s robot (a ``robot_file.RobotSpec``) with HyQ's (``reference``) controller
-    values and crawl scaled to it (the rules of config/robots/scaling.yaml)."""
+def bench_robot(spec, reference, rules: dict) -> WbcBenchRobot:
+    """``spec``'s robot (a ``robot_file.RobotSpec``) with the reference robot's controller
+    parameters scaled to it by ``rules`` (config/robots/scaling.yaml: each ``wbc.`` parameter
+    of ``WbcParams`` and ``sim.contact_threshold`` it names; ``bench.bench_robots``) and the
+    bench crawl scaled with the leg length and pendulum time."""
     from replan_core.robot_file import robot_facts
-    from replan_core.robot_scaling import SCALES
+    from replan_core.robot_scaling import SCALES, derived_parameters
     from replan_core.wbc import WbcParams
 
     facts, ref = robot_facts(spec), robot_facts(reference)
-
-    def ratio(scale: str) -> float:
-        return SCALES[scale](facts) / SCALES[scale](ref)
-
     base = WbcParams()
-    params = dataclasses.replace(
-        base, fz_min=base.fz_min * ratio('weight'), fz_max=base.fz_max * ratio('weight'),
-        swing_kp=base.swing_kp * ratio('stiffness'), swing_kd=base.swing_kd * ratio('damping'),
-        haptic_velocity=base.haptic_velocity * ratio('speed'),
-        touchdown_depth=base.touchdown_depth * ratio('length'))
-    crawl = {'step_length': 0.08 * ratio('length'), 'step_height': 0.06 * ratio('length'),
-             'shift_time': 0.8 * ratio('time'), 'swing_time': 0.6 * ratio('time')}
+    values = {'wbc': {f.name: np.asarray(getattr(base, f.name)).tolist()
+                      for f in dataclasses.fields(base)},
+              'sim': {'contact_threshold': CONTACT_THRESHOLD}}
+    here = {f'{node}.{name}' for node, names in values.items() for name in names}
+    derived = derived_parameters(
+        facts, ref, values,
+        {'rules': {scale: [k for k in keys if k in here]
+                   for scale, keys in rules.get('rules', {}).items()}}, measure=False)
+    wbc = derived.get('wbc', {})
+    params = dataclasses.replace(base, **{
+        name: np.asarray(value) if isinstance(getattr(base, name), np.ndarray) else value
+        for name, value in wbc.items()})
+    length = SCALES['length'](facts) / SCALES['length'](ref)
+    time_scale = SCALES['time'](facts) / SCALES['time'](ref)
+    crawl = {'step_length': 0.08 * length, 'step_height': 0.06 * length,
+             'shift_time': 0.8 * time_scale, 'swing_time': 0.6 * time_scale}
     names = {'joint_names': spec.joints, 'foot_frames': spec.feet,
              'foot_offset': spec.foot_offset,
              'initial_joint_positions': np.asarray(spec.standing_pose, dtype=float)}
     return WbcBenchRobot(str(spec.urdf), names, (spec.joints, spec.feet), params,
-                         30.0 * ratio('weight'), crawl, params.haptic_velocity)
+                         derived.get('sim', {}).get('contact_threshold', CONTACT_THRESHOLD),
+                         crawl)
 
 
 def run(urdf: str, cycles: int, quiet: bool = False,
@@ -134,7 +141,7 @@ def run(urdf: str, cycles: int, quiet: bool = False,
     """Closed-loop crawl; returns timing figures (s) and tracking figures (m)."""
     from replan_core.robot_model import RobotModel
     from replan_core.sim_world import SimWorld
-    from replan_core.wbc import PlanFollower, WholeBodyController
+    from replan_core.wbc import PlanFollower, WbcParams, WholeBodyController
 
     robot = robot or WbcBenchRobot(urdf)
     world = SimWorld(robot.urdf, contact_threshold=robot.contact_threshold, **robot.names)
@@ -145,7 +152,8 @@ def run(urdf: str, cycles: int, quiet: bool = False,
         com0 = model.com_state(base, joints)[0]
         footholds, com_plan = crawl_plan(0.5, contacts.foot_position, com0, cycles=cycles,
                                          **robot.crawl)
-        follower = PlanFollower(footholds, com_plan, haptic_velocity=robot.haptic_velocity)
+        haptic_velocity = (robot.params or WbcParams()).haptic_velocity
+        follower = PlanFollower(footholds, com_plan, haptic_velocity=haptic_velocity)
         tick_times, cpu_times, compute_times, com_errors = [], [], [], []
         fallbacks = 0
         while world.time < com_plan.end_time:
@@ -211,14 +219,13 @@ def main() -> None:
     args = parser.parse_args()
     robot = None
     if args.robot:
-        from replan_core.robot_file import RobotFileError, load_robot_file, robot_file_path
-        project = Path(args.root)
+        from replan_core.bench import bench_robots
+        from replan_core.robot_file import RobotFileError
         try:
-            spec = load_robot_file(robot_file_path(args.robot, project / 'config'), project)
-            reference = load_robot_file(robot_file_path('hyq', project / 'config'), project)
+            spec, reference, rules = bench_robots(args.robot, Path(args.root))
         except RobotFileError as err:
             raise SystemExit(f'config error: {err}') from None
-        robot = bench_robot(spec, reference)
+        robot = bench_robot(spec, reference, rules)
         print(f'robot {spec.name}: fz {robot.params.fz_min:.1f}-{robot.params.fz_max:.0f} N, '
               f'swing kp {robot.params.swing_kp[0]:.0f} N/m, step '
               f'{robot.crawl["step_length"]:.3f} m in {robot.crawl["swing_time"]:.2f} s')

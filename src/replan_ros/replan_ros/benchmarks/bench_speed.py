@@ -57,9 +57,9 @@ from typing import TYPE_CHECKING
 
 import yaml
 
-from replan_core.bench.mpc_bench import REFERENCE_ROBOT, BenchCrawl, bench_crawl
+from replan_core.bench import bench_robots
+from replan_core.bench.mpc_bench import BenchCrawl, bench_crawl
 from replan_core.bench.mpc_bench import run as mpc_bench_run
-from replan_core.robot_file import load_robot_file, robot_file_path
 from replan_ros.benchmarks.tick_table import read_budgets, table
 from replan_ros.experiments.analysis import read_messages, replan_wall_latency
 from replan_ros.experiments.runner import git_revision, machine_description
@@ -115,7 +115,7 @@ def speed_robot(robot: str) -> SpeedRobot:
     try:
         layers = [robot_parameters(CONFIG, robot, profile_file(CONFIG, profile))
                   for profile in dict.fromkeys(profile for profile, _, _ in SETUPS.values())]
-        reference = load_robot_file(robot_file_path(REFERENCE_ROBOT, CONFIG), ROOT)
+        _, reference, rules = bench_robots(robot, ROOT)
         crawl = bench_crawl(robot, ROOT)
     except ValueError as err:           # ConfigError, RobotFileError: one line each
         raise ConfigError(str(err)) from None
@@ -123,7 +123,7 @@ def speed_robot(robot: str) -> SpeedRobot:
     from replan_core.bench.sim_bench import bench_robot
 
     spec = layers[0].spec
-    return SpeedRobot(spec.name, robot, bench_robot(spec, reference), crawl)
+    return SpeedRobot(spec.name, robot, bench_robot(spec, reference, rules), crawl)
 
 
 @contextlib.contextmanager

@@ -37,6 +37,10 @@ RECORDED_BEFORE_START = ('/clock', '/joint_states', '/imu', '/ground_truth/odom'
 RECORDER_WAIT = 20.0    # s, wall
 DELIVERY_WAIT = 30.0    # s, wall: scheduled inputs acknowledged by the nodes that use them
 STOP_TIMEOUT = 10.0     # s, SIGINT -> SIGKILL
+# wall s the launcher waits, at the end of a recorded run, for the controller's command of the
+# stop tick: without it the bag's last command and estimate were there or not by a race (the
+# controller stopped before or after it answered), and the metrics of the last tick with them.
+END_COMMAND_WAIT = 2.0
 RESPAWN_DELAY = 1.0     # s, wall: first back-off, doubled at each further death
 RESPAWN_LIMIT = 3       # deaths of one node within RESPAWN_WINDOW that stop the graph
 RESPAWN_WINDOW = 30.0   # s, wall
@@ -346,7 +350,9 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
     # The truth only when the run records it anyway: a plain launch has no reader of the
     # simulator's truth at all (test/test_launch.py checks it), so it shows the estimate.
     recording = any(n.name == 'recorder' for n in graph.nodes)
-    watch = ClockWatch(graph.env, follow_run=progress is not None, truth=recording)
+    controlled = any(n.name == 'wbc' for n in graph.nodes)
+    watch = ClockWatch(graph.env, follow_run=progress is not None, truth=recording,
+                       commands=recording and controlled)
     tracker = RunProgress(duration, event_times)
     log = graph.log
     if progress is not None:
@@ -382,6 +388,12 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
                 break
             if duration is not None and watch.sim_time >= duration:
                 graph.log(f'[launch {_stamp()}] reached {duration} s of sim time')
+                # The sim holds at its stop tick; the run ends with the controller's answer
+                # to it, so every recorded run ends with the same messages.
+                if not watch.wait_for_command(watch.clock_ns, END_COMMAND_WAIT):
+                    graph.log(f'[launch {_stamp()}] no controller command stamped '
+                              f'{watch.sim_time:.3f} s within {END_COMMAND_WAIT} s: the '
+                              'recording ends without it')
                 break
             if wall_timeout is not None and time.monotonic() - start_wall > wall_timeout:
                 graph.log(f'[launch {_stamp()}] wall-time limit {wall_timeout} s reached at '

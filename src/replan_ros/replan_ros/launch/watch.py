@@ -15,10 +15,11 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import PointCloud2
+from sensor_msgs.msg import JointState, PointCloud2
 
 from replan_ros.transport import qos
 from replan_ros.transport.on_demand import OnDemandSubscriptions
+from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
 
 class ScheduledInputs:
@@ -50,6 +51,11 @@ class ScheduledInputs:
 PROGRESS_ODOM_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                                reliability=ReliabilityPolicy.BEST_EFFORT,
                                durability=DurabilityPolicy.VOLATILE)
+# The controller's commands, read for their stamps only when the run ends: reliable, so the
+# one command of the stop tick is not dropped; depth 1, so the wbc's writer never waits on it.
+END_COMMAND_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                             reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.VOLATILE)
 
 
 class ClockWatch:
@@ -61,13 +67,20 @@ class ClockWatch:
     (``on_demand``) once per ``spin``, so it never wakes the launcher in between."""
 
     def __init__(self, env: dict[str, str], *, follow_run: bool = False,
-                 truth: bool = True) -> None:
+                 truth: bool = True, commands: bool = False) -> None:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=int(env.get('ROS_DOMAIN_ID', '0')))
         self.node = Node('launch_clock_watch', context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.sim_time = 0.0
+        self.clock_ns = 0
+        self.command_ns = -1             # stamp of the newest controller command seen
+        self._commands: OnDemandSubscriptions | None = None
+        if commands:
+            self._commands = OnDemandSubscriptions(self.node)
+            self._commands.subscribe(JointState, '/joint_torque_cmd', END_COMMAND_QOS,
+                                     self._on_command)
         self.node.create_subscription(
             Clock, '/clock', self._on_clock,
             QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
@@ -87,6 +100,17 @@ class ClockWatch:
 
     def _on_clock(self, msg: Clock) -> None:
         self.sim_time = msg.clock.sec + msg.clock.nanosec * 1e-9
+        self.clock_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+
+    def _on_command(self, data: bytes) -> None:
+        self.command_ns = max(self.command_ns, cdr_header_stamp_ns(data) or -1)
+
+    def wait_for_command(self, stamp_ns: int, timeout: float) -> bool:
+        """Wait up to ``timeout`` wall s for the controller's command stamped ``stamp_ns`` (or
+        later); True once it was published. Without ``commands`` there is nothing to wait for."""
+        if self._commands is None:
+            return True
+        return self._commands.drain(lambda: self.command_ns >= stamp_ns, timeout)
 
     def _on_footholds(self, msg: PointCloud2) -> None:
         # A respawned gait node may send a plan again: a re-plan is a new stamp.
@@ -121,6 +145,8 @@ class ClockWatch:
     def close(self) -> None:
         if self._odom is not None:
             self._odom.destroy()
+        if self._commands is not None:
+            self._commands.destroy()
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
