@@ -47,6 +47,9 @@ HYQ_STANCE_OFFSETS: tuple[tuple[float, float], ...] = (
 DEFAULT_SEQUENCE: tuple[int, ...] = (LEGS.index('lh'), LEGS.index('lf'),
                                      LEGS.index('rh'), LEGS.index('rf'))
 
+# Whose hips the foothold correction places the feet about (GaitParams.correction_hips).
+CORRECTION_HIPS: tuple[str, ...] = ('sway_free', 'actual')
+
 _EPS = 1e-9
 
 
@@ -79,9 +82,14 @@ class GaitParams:
     replan_window: int = 1                 # K: re-plan at every K-th touchdown (paper: 1)
     haptic: bool = True                    # swings end at sensed contact (section V.A)
     foothold_correction: bool = True       # section V.B
-    # m: the first foothold of a leg moves to the actual hip only when the hip-relative and
+    # m: the first foothold of a leg moves to the hip only when the hip-relative and
     # foot-relative placements differ by more than this (after a push); 0 = always (literal V.B)
     correction_threshold: float = 0.10
+    # About whose hips (docs/gait.md, "Foothold correction about a sway-free trunk"): 'actual',
+    # the trunk's now, with its sway (which alone parts the two placements by up to 15 cm on
+    # HyQ); 'sway_free', the trunk's trend over the last crawl cycle
+    # (speed_feedback.trunk_trend). The replanner passes those hips to compute_footholds.
+    correction_hips: str = 'sway_free'
     # Idle stance (issue 16): stop stepping after idle_after s of zero set-point (one crawl
     # cycle, 4 * 0.75 s); while standing, re-plan every idle_replan_period s so that a new
     # set-point is picked up within idle_replan_period + four_feet_duration (0.75 s, one step).
@@ -121,6 +129,9 @@ class GaitParams:
             raise ValueError('swing_duration must be > 0 and four_feet_duration >= 0')
         if self.n_footholds < 1 or self.replan_window < 1:
             raise ValueError('n_footholds and replan_window must be >= 1')
+        if self.correction_hips not in CORRECTION_HIPS:
+            raise ValueError(f'correction_hips must be one of {", ".join(CORRECTION_HIPS)}, '
+                             f'got {self.correction_hips!r}')
         if len(self.hip_offsets) != 4 or len(self.stance_offsets) != 4:
             raise ValueError('hip_offsets and stance_offsets need one (x, y) per leg')
         values = (self.step_height, self.max_step_length_x, self.max_step_length_y,
@@ -250,7 +261,7 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
                       base_yaw: float, hips: np.ndarray | None, next_leg: int,
                       start_time: float, params: GaitParams, n: int | None = None,
                       delay: float = 0.0, stride_correction=None,
-                      stride_time_scale: float = 1.0) -> FootholdPlan:
+                      stride_time_scale: float = 1.0, sway_free: bool = False) -> FootholdPlan:
     """compFootholds of Algorithm 1: the next ``n`` steps from the actual state at ``start_time``.
 
     velocity_set_point: (vx, vy, wz), body frame, m/s and rad/s; clamped to the limits.
@@ -267,6 +278,12 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         footholds are laid out along the reference as it will be at the actual, later
         touchdowns (the twist times this scale over the planned times); the plan's times and
         trunk yaw reference keep the planned timing. 1.0: as planned.
+    sway_free: ``hips`` are those of the trunk's trend, its sway averaged out
+        (speed_feedback.trunk_trend): foothold correction then restores the shape of the foot
+        pattern about them at every step, and moves the whole pattern with them only by more
+        than ``params.correction_threshold`` (a push); a smaller common offset of the feet from
+        the hips (the trunk lagging its feet) is the velocity feedback's. False: the actual
+        hips, corrected about beyond the threshold only (their sway alone reaches it).
     Footholds keep each foot's actual height (flat terrain).
     """
     params.validate()
@@ -302,14 +319,17 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
     if next_leg not in order:
         raise ValueError(f'next_leg {next_leg} is not in the sequence {order}')
     k0 = order.index(next_leg)
-    # The first lift-off comes after a four-feet phase (or the standing delay at the start).
+    # The steps' times: the first lift-off comes after a four-feet phase (or the standing delay
+    # at the start); mid: the middle of the coming stance.
+    timing = []
     next_liftoff = start_time + max(float(delay), params.four_feet_duration)
     for j in range(n):
-        leg = order[(k0 + j) % len(order)]
-        liftoff = next_liftoff
-        touchdown = liftoff + params.swing_duration
+        touchdown = next_liftoff + params.swing_duration
+        timing.append((order[(k0 + j) % len(order)], next_liftoff, touchdown,
+                       touchdown + half_stance))
         next_liftoff = touchdown + params.four_feet_duration
-        mid = touchdown + half_stance                 # middle of the coming stance
+    first_targets = _first_footholds(timing, feet, hips_xy, placed, params, sway_free)
+    for j, (leg, liftoff, touchdown, mid) in enumerate(timing):
         offset = hip_offsets[leg] + stance[leg]
         _, yaw_td = ref.pose(touchdown)
         shift = _rot(yaw_td) @ correction             # velocity feedback, world frame
@@ -318,22 +338,7 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
             target = (last_xy[leg] + placed.foot(mid, offset) - placed.foot(last_mid[leg], offset)
                       + shift)
         else:
-            # First foothold, uncorrected: the foot's actual position plus one stride.
-            prev_mid = mid - params.cycle_duration
-            target = last_xy[leg] + placed.foot(mid, offset) - placed.foot(prev_mid, offset)
-            if params.foothold_correction:
-                # Corrected: about the actual hip, moved as the reference hip moves (V.B), when
-                # the two placements differ by more than the threshold (a push). Below it the
-                # foot-relative placement stands: hip-relative placement at every step feeds
-                # the crawl's sway and lag back into the feet, and the walk settles ~20 %
-                # slower than commanded (docs/gait.md).
-                hip_now = placed.foot(start_time, hip_offsets[leg])
-                hip_mid = placed.foot(mid, hip_offsets[leg])
-                _, yaw_mid = placed.pose(mid)
-                corrected = hips_xy[leg] + (hip_mid - hip_now) + _rot(yaw_mid) @ stance[leg]
-                if np.linalg.norm(corrected - target) > params.correction_threshold:
-                    target = corrected
-            target = target + shift
+            target = first_targets[leg] + shift
         target = _clamp_step(last_xy[leg], target, yaw_td, params)
         last_xy[leg] = target
         last_mid[leg] = mid
@@ -343,6 +348,45 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
             step_height=params.step_height, haptic=params.haptic,
             replan=(j + 1) % params.replan_window == 0, yaw=yaw_td))
     return plan
+
+
+def _first_footholds(timing: list[tuple[int, float, float, float]], feet: np.ndarray,
+                     hips_xy: np.ndarray, placed: ReferenceTrajectory, params: GaitParams,
+                     sway_free: bool) -> dict[int, np.ndarray]:
+    """The first foothold (xy, world) of each leg in ``timing`` ((leg, lift-off, touchdown,
+    mid-stance) per step), before the velocity feedback's shift: the foot's actual position
+    plus one stride of the reference, and the foothold correction (V.B) about the hips."""
+    hip_offsets = np.asarray(params.hip_offsets, dtype=float)
+    stance = np.asarray(params.stance_offsets, dtype=float)
+    targets: dict[int, np.ndarray] = {}
+    gaps: dict[int, np.ndarray] = {}          # hip-relative minus foot-relative, m, world
+    for leg, _, _, mid in timing:
+        if leg in targets:
+            continue
+        offset = hip_offsets[leg] + stance[leg]
+        prev_mid = mid - params.cycle_duration
+        targets[leg] = feet[leg, :2] + placed.foot(mid, offset) - placed.foot(prev_mid, offset)
+        # About the hip, moved as the reference hip moves (V.B).
+        hip_now = placed.foot(placed.t0, hip_offsets[leg])
+        hip_mid = placed.foot(mid, hip_offsets[leg])
+        _, yaw_mid = placed.pose(mid)
+        gaps[leg] = (hips_xy[leg] + (hip_mid - hip_now) + _rot(yaw_mid) @ stance[leg]
+                     - targets[leg])
+    if not params.foothold_correction:
+        return targets
+    if sway_free:
+        # The shape of the pattern about the sway-free hips at every step; the whole pattern
+        # only beyond the threshold (a push): a smaller common offset is the trunk lagging
+        # or leading its feet, which placement about the hips would feed back into the speed.
+        common = np.mean(list(gaps.values()), axis=0)
+        if np.linalg.norm(common) <= params.correction_threshold:
+            return {leg: targets[leg] + gaps[leg] - common for leg in targets}
+        return {leg: targets[leg] + gaps[leg] for leg in targets}
+    # The actual hips sway: only beyond the threshold (a push). Below it the foot-relative
+    # placement stands: hip-relative placement at every step feeds the crawl's sway and lag
+    # back into the feet, and the walk settles ~20 % slower than commanded (docs/gait.md).
+    return {leg: targets[leg] + gaps[leg] if np.linalg.norm(gaps[leg])
+            > params.correction_threshold else targets[leg] for leg in targets}
 
 
 def stance_phases(plan: FootholdPlan) -> list[tuple[float, float, np.ndarray, np.ndarray]]:

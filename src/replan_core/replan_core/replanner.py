@@ -9,6 +9,7 @@ decode it (``adopt``), so that both trackers compare bit-identical times.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -26,7 +27,7 @@ from replan_core.gait import (
     stand_plan,
 )
 from replan_core.rotations import yaw_of
-from replan_core.speed_feedback import SpeedFeedback, StepTiming
+from replan_core.speed_feedback import ReplanSample, SpeedFeedback, StepTiming, trunk_trend
 from replan_core.types import LEGS, BaseState, ContactState, FootholdPlan
 
 DEFAULT_TICK_NS = 4_000_000     # control period until the stamps have shown it (250 Hz)
@@ -100,6 +101,9 @@ class GaitReplanner:
                                    self.params.velocity_feedback_max_error)
         # The step period actually walked, for the strides (speed_feedback.StepTiming).
         self.timing = StepTiming(self.params.step_period, len(self.params.sequence))
+        # The base at the walking re-plans of the last cycle and a bit (speed_feedback.
+        # trunk_trend): the sway-free trunk the foothold correction places the feet about.
+        self.trend_samples: deque[ReplanSample] = deque(maxlen=2 * len(self.params.sequence) + 1)
 
     @property
     def standing(self) -> bool:
@@ -168,12 +172,15 @@ class GaitReplanner:
             if stand:
                 self.speed.reset()
                 self.timing.restart()
+                self.trend_samples.clear()
                 plan = stand_plan(feet, yaw, t, self.schedule.next_leg, self._trigger_time(t))
             else:
                 if was_standing:
                     self.speed.reset()
-                correction = self.speed.update(t, base.position, yaw,
-                                               clamp_velocity(setpoint, self.params))
+                    self.trend_samples.clear()
+                twist = clamp_velocity(setpoint, self.params)
+                correction = self.speed.update(t, base.position, yaw, twist)
+                hips, sway_free = self._correction_hips(t, base, yaw, hips, twist)
                 # Walking off from a stand, as at the start: the reference trunk stands
                 # through the four-feet phase, so the first strides are partial.
                 delay = (self.start_delay if initial
@@ -181,7 +188,8 @@ class GaitReplanner:
                 plan = compute_footholds(setpoint, feet, base.position, yaw, hips,
                                          self.schedule.next_leg, t, self.params, delay=delay,
                                          stride_correction=correction,
-                                         stride_time_scale=self.stride_time_scale)
+                                         stride_time_scale=self.stride_time_scale,
+                                         sway_free=sway_free)
                 self._end_before_standing(plan)
         except ValueError as err:
             self.log('error', f'footholds at t={t:.3f} s failed ({err}); keeping the previous '
@@ -200,6 +208,29 @@ class GaitReplanner:
             self.log('info', f'walking again at t={t:.3f} s ({source} {setpoint.tolist()}), '
                              f'{LEGS[self.schedule.next_leg]} first')
         return plan
+
+    def _correction_hips(self, t: float, base: BaseState, yaw: float, hips: np.ndarray | None,
+                         twist: np.ndarray) -> tuple[np.ndarray | None, bool]:
+        """The hips the foothold correction places the feet about: with ``correction_hips``
+        'sway_free', the actual ones (None: the nominal offsets) moved by the trunk's sway, i.e.
+        to where the trunk's trend over the last cycle puts them (speed_feedback.trunk_trend);
+        until a cycle is walked at this set-point, and with 'actual', the actual ones. The
+        flag: the sway-free ones."""
+        xy = np.asarray(base.position, dtype=float)[:2]
+        self.trend_samples.append(ReplanSample(t, xy.copy(), yaw, np.asarray(twist, dtype=float)))
+        if self.params.correction_hips != 'sway_free':
+            return hips, False
+        trend = trunk_trend(list(self.trend_samples), self.params.cycle_duration)
+        if trend is None:
+            return hips, False
+        if hips is None:
+            c, s = np.cos(yaw), np.sin(yaw)
+            offsets = np.asarray(self.params.hip_offsets, dtype=float) @ np.array([[c, s],
+                                                                                 [-s, c]])
+            hips = np.column_stack([xy + offsets, np.full(4, float(base.position[2]))])
+        moved = np.array(hips, dtype=float, copy=True)
+        moved[:, :2] += trend - xy
+        return moved, True
 
     def _end_before_standing(self, plan: FootholdPlan) -> None:
         """If the re-plan at this plan's trigger will stand still (the set-point zero long

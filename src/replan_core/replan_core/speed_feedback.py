@@ -37,6 +37,12 @@ intervals between the last cycle's touchdowns) and the foothold planner lays the
 for it (``gait.compute_footholds(stride_time_scale=)``): the footholds are where the reference
 trunk will be at the actual touchdowns, not at the planned ones.
 
+Trunk trend (``trunk_trend``). The base pose at the re-plans of the last cycle, one at each
+phase of the crawl, gives where the trunk is now without its sway: each moved on to now with
+the twist measured over the cycle, and averaged (the sway of the four phases cancels). The
+foothold correction places the feet about the hips of that trunk (gait.GaitParams.
+correction_hips), not about the swaying one.
+
 ROS-free and clock-free: times are the touchdown and re-plan stamps (s).
 """
 
@@ -47,6 +53,8 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+
+from replan_core.gait import ReferenceTrajectory
 
 
 @dataclass(frozen=True)
@@ -74,6 +82,33 @@ def mean_body_velocity(a: ReplanSample, b: ReplanSample) -> np.ndarray:
     half = 0.5 * abs(dyaw)
     arc_over_chord = half / math.sin(half) if half > 1e-9 else 1.0
     return body * arc_over_chord / dt
+
+
+def trunk_trend(samples: list[ReplanSample], cycle: float) -> np.ndarray | None:
+    """The base xy (m, world) at the newest sample's time without the crawl's sway, from the
+    re-plan samples (time order) of the last crawl cycle (``cycle`` s): the twist measured from
+    the sample about one cycle back to the newest (the same phase: the sway cancels), each later
+    sample moved on to the newest time along it, and their mean (one per phase: the sway
+    cancels). None without a cycle of samples (at least two phases), or if the set-point
+    changed within it (the trunk is then on its way to the new speed: the measured twist is
+    not its motion now)."""
+    if not samples:
+        return None
+    newest = samples[-1]
+    # The oldest sample at most a step past one cycle back (the same leg's touchdown).
+    window = [s for s in samples if newest.t - s.t <= 1.25 * cycle]
+    oldest = min(window, key=lambda s: abs(newest.t - s.t - cycle))
+    later = [s for s in window if s.t > oldest.t]
+    span = newest.t - oldest.t
+    if len(later) < 2 or span < 0.75 * cycle:
+        return None
+    if any(not np.array_equal(s.setpoint, newest.setpoint) for s in window if s.t >= oldest.t):
+        return None
+    vx, vy = mean_body_velocity(oldest, newest)
+    wz = math.remainder(newest.yaw - oldest.yaw, math.tau) / span
+    twist = np.array([vx, vy, wz])
+    moved = [ReferenceTrajectory(s.t, s.xy, s.yaw, twist).pose(newest.t)[0] for s in later]
+    return np.mean(moved, axis=0)
 
 
 class SpeedFeedback:

@@ -45,7 +45,7 @@ _ROBOT_FILE = _p(
 
 
 def _gait_table() -> tuple[ParamSpec, ...]:
-    from replan_core.gait import GaitParams  # lazy: see _LazyTables
+    from replan_core.gait import CORRECTION_HIPS, GaitParams  # lazy: see _LazyTables
     _G = GaitParams()
     return (
         _ROBOT_FILE,
@@ -80,8 +80,11 @@ def _gait_table() -> tuple[ParamSpec, ...]:
         _p('foothold_correction', _G.foothold_correction,
            'first foothold of each leg about the actual hip (paper section V.B)'),
         _p('correction_threshold', _G.correction_threshold, 'foothold correction moves a first '
-           'foothold to the actual hip only when that differs from the foot-relative one by more '
+           'foothold to the hip only when that differs from the foot-relative one by more '
            '(0: always)', 'm', min=0.0, max=1.0),
+        _p('correction_hips', _G.correction_hips, 'foothold correction about the hips of: '
+           'sway_free = the trunk\'s trend over the last crawl cycle (its sway averaged out); '
+           'actual = the trunk now, sway included (docs/gait.md)', choices=CORRECTION_HIPS),
         _p('min_swing_fraction', 0.5, 'haptic touchdown accepted after this fraction of the '
            'planned swing (sent in footholds: the controller applies the same)', min=0.0, max=1.0),
         _p('max_extension', 0.3, 'haptic swing forced to end this long after its planned '

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from dataclasses import replace
 from itertools import pairwise
@@ -140,7 +141,7 @@ def cycle_velocities(log: list[tuple[float, np.ndarray, float, np.ndarray]], sta
         for (_, p0, y0, _), (_, p1, y1, _) in pairwise(cycle):
             # A constant-twist arc's chord lies along its mid heading and is its length
             # times sin(h) / h, h half the turn.
-            half = 0.5 * (y1 - y0)
+            half = 0.5 * math.remainder(y1 - y0, math.tau)    # yaws wrap at +-pi
             arc = half / np.sin(half) if abs(half) > 1e-9 else 1.0
             travel += arc * np.array(_to_body(p1 - p0, y0 + half))
         (t0, _, y0, _), (t1, _, y1, _) = cycle[0], cycle[-1]
