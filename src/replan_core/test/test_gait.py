@@ -1,6 +1,7 @@
 """Crawl schedule and footholds (gait.py)."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -274,6 +275,56 @@ def test_correction_threshold_keeps_small_deviations_foot_relative():
             expected = (hips[leg, :2] + params.stance_offsets[leg] if follows_hips
                         else feet[leg, :2])
             np.testing.assert_allclose(first[leg].target[:2], expected, atol=TOL)
+
+
+def test_sway_free_correction_restores_the_pattern_and_leaves_a_small_common_offset():
+    # About sway-free hips (the trunk's trend), every first foothold goes back to its place in
+    # the pattern: one foot 6 cm off it is put back. An offset common to all four feet below the
+    # threshold (the trunk lagging its feet) stays, for the velocity feedback; a 15 cm one (a
+    # push) is followed.
+    params = GaitParams()
+    plain = replace(params, foothold_correction=False)
+    feet = standing_feet(params)
+    off = feet.copy()
+    off[0, :2] += (0.06, -0.02)
+    for shift, followed in ((0.0, False), (0.05, False), (0.15, True)):
+        base = np.array([0.0, shift])
+        hips = hips_of(params, base, 0.0)
+        corrected = compute_footholds((0.0, 0.0, 0.0), off, np.array([*base, HEIGHT]), 0.0,
+                                      hips, 2, 10.0, params, sway_free=True)
+        nominal_plan = compute_footholds((0.0, 0.0, 0.0), feet, np.array([*base, HEIGHT]), 0.0,
+                                         hips, 2, 10.0, plain)
+        first, _ = legs_first_last(corrected)
+        first_nominal, _ = legs_first_last(nominal_plan)
+        moved = np.array([first[leg].target[:2] - first_nominal[leg].target[:2]
+                          for leg in range(4)])
+        # The shape: every foot moved alike from its foot-relative place in the pattern.
+        np.testing.assert_allclose(moved - moved.mean(axis=0), 0.0, atol=TOL)
+        common = moved.mean(axis=0)
+        expected = (np.array([0.0, shift]) if followed
+                    else np.array([0.06, -0.02]) / 4)    # the one foot's share of the mean
+        np.testing.assert_allclose(common, expected, atol=TOL)
+
+
+def test_actual_hips_are_corrected_about_beyond_the_threshold_only():
+    # The same feet and the hips of the trunk 5 cm aside: the actual hips (sway_free False)
+    # leave every foothold foot-relative (below the 10 cm threshold), where the sway-free ones
+    # restore the shape.
+    params = GaitParams()
+    feet = standing_feet(params)
+    feet[0, :2] += (0.06, 0.0)
+    hips = hips_of(params, (0.0, 0.05), 0.0)
+    base = np.array([0.0, 0.05, HEIGHT])
+    actual = compute_footholds((0.0, 0.0, 0.0), feet, base, 0.0, hips, 2, 10.0, params)
+    plain = compute_footholds((0.0, 0.0, 0.0), feet, base, 0.0, hips, 2, 10.0,
+                              replace(params, foothold_correction=False))
+    for a, b in zip(actual.steps, plain.steps, strict=True):
+        np.testing.assert_allclose(a.target, b.target, atol=TOL)
+    sway_free = compute_footholds((0.0, 0.0, 0.0), feet, base, 0.0, hips, 2, 10.0, params,
+                                  sway_free=True)
+    first, _ = legs_first_last(sway_free)
+    first_plain, _ = legs_first_last(plain)
+    assert first[0].target[0] < first_plain[0].target[0] - 0.04
 
 
 def test_step_length_is_clamped():

@@ -13,6 +13,7 @@ from replan_core.speed_feedback import (
     SpeedFeedback,
     StepTiming,
     mean_body_velocity,
+    trunk_trend,
 )
 
 STEP = 0.75          # s between re-plans (one step)
@@ -236,3 +237,44 @@ def test_strides_are_laid_out_for_the_measured_step_period():
     with pytest.raises(ValueError, match='stride_time_scale'):
         compute_footholds((0.1, 0.0, 0.0), feet, base, 0.3, None, 2, 0.0, params,
                           stride_time_scale=0.0)
+
+
+# ------------------------------------------------------------------------------ trunk trend
+def test_the_trend_of_a_swaying_straight_walk_is_its_line():
+    # 0.15 m/s along a heading of 0.7 rad, a sideways sway of 4 cm and a surge of 1 cm at the
+    # crawl's cycle and twice it, sampled at the re-plans (one per step): the trend at the
+    # newest re-plan is the line without the sway, to rounding.
+    heading, v = 0.7, 0.15
+    along = np.array([math.cos(heading), math.sin(heading)])
+    side = np.array([-math.sin(heading), math.cos(heading)])
+
+    def base(t):
+        phase = 2 * math.pi * t / CYCLE
+        return (np.array([1.0, -2.0]) + v * t * along + 0.04 * math.sin(phase + 0.3) * side
+                + 0.01 * math.cos(2 * phase) * along)
+
+    samples = [_sample(t, base(t), heading) for t in np.arange(6) * STEP + 10.0]
+    t_now = samples[-1].t
+    np.testing.assert_allclose(trunk_trend(samples, CYCLE),
+                               np.array([1.0, -2.0]) + v * t_now * along, atol=1e-12)
+    assert np.linalg.norm(samples[-1].xy - (np.array([1.0, -2.0]) + v * t_now * along)) > 0.02
+
+
+def test_the_trend_of_a_steady_turn_is_on_its_arc():
+    v, w = 0.1, 0.2                     # m/s, rad/s
+    radius = v / w
+
+    def pose(t):
+        return (np.array([radius * math.sin(w * t), radius * (1 - math.cos(w * t))]), w * t)
+
+    samples = [_sample(t, *pose(t), setpoint=(v, 0.0, w)) for t in np.arange(5) * STEP + 3.0]
+    np.testing.assert_allclose(trunk_trend(samples, CYCLE), pose(samples[-1].t)[0], atol=1e-12)
+
+
+def test_no_trend_without_a_cycle_at_the_set_point():
+    samples = [_sample(t, (0.15 * t, 0.0)) for t in np.arange(5) * STEP]
+    assert trunk_trend(samples, CYCLE) is not None
+    assert trunk_trend(samples[-2:], CYCLE) is None            # half a cycle: not yet
+    assert trunk_trend([], CYCLE) is None
+    changed = [*samples[:-1], _sample(samples[-1].t, samples[-1].xy, setpoint=(0.1, 0, 0))]
+    assert trunk_trend(changed, CYCLE) is None                 # on its way to the new speed
