@@ -80,7 +80,8 @@ def findings(page, name: str, data, results: dict) -> None:
                      f'kg would gain {first / mass:.3f} m/s. A hypothesis these runs do not '
                      'isolate: the stance legs take most of the impulse at once, so the hips '
                      'move little and the footholds about them differ little from the ones '
-                     'about the feet (the thresholded rule acts only beyond '
+                     'about the feet (the thresholded rule moves the footholds with the hips '
+                     'as a whole only beyond '
                      f'{settings.get("correction_threshold_m", 0.1) * 100:.0f} cm); the '
                      'sustained push moves them further.')
         res = push_resolution(cfg)
