@@ -82,13 +82,15 @@ class GaitParams:
     replan_window: int = 1                 # K: re-plan at every K-th touchdown (paper: 1)
     haptic: bool = True                    # swings end at sensed contact (section V.A)
     foothold_correction: bool = True       # section V.B
-    # m: the first foothold of a leg moves to the hip only when the hip-relative and
-    # foot-relative placements differ by more than this (after a push); 0 = always (literal V.B)
+    # m, a push: with correction_hips 'sway_free', the whole foot pattern follows the hips only
+    # when its common offset from them exceeds this (its shape is restored at every step); with
+    # 'actual', a first foothold moves to the hip only when the hip-relative and foot-relative
+    # placements differ by more than this (0 = always: V.B literally).
     correction_threshold: float = 0.10
     # About whose hips (docs/gait.md, "Foothold correction about a sway-free trunk"): 'actual',
     # the trunk's now, with its sway (which alone parts the two placements by up to 15 cm on
     # HyQ); 'sway_free', the trunk's trend over the last crawl cycle
-    # (speed_feedback.trunk_trend). The replanner passes those hips to compute_footholds.
+    # (speed_feedback.trunk_trend; the replanner passes compute_footholds its trend_shift).
     correction_hips: str = 'sway_free'
     # Idle stance (issue 16): stop stepping after idle_after s of zero set-point (one crawl
     # cycle, 4 * 0.75 s); while standing, re-plan every idle_replan_period s so that a new
@@ -261,7 +263,7 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
                       base_yaw: float, hips: np.ndarray | None, next_leg: int,
                       start_time: float, params: GaitParams, n: int | None = None,
                       delay: float = 0.0, stride_correction=None,
-                      stride_time_scale: float = 1.0, sway_free: bool = False) -> FootholdPlan:
+                      stride_time_scale: float = 1.0, trend_shift=None) -> FootholdPlan:
     """compFootholds of Algorithm 1: the next ``n`` steps from the actual state at ``start_time``.
 
     velocity_set_point: (vx, vy, wz), body frame, m/s and rad/s; clamped to the limits.
@@ -278,12 +280,13 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         footholds are laid out along the reference as it will be at the actual, later
         touchdowns (the twist times this scale over the planned times); the plan's times and
         trunk yaw reference keep the planned timing. 1.0: as planned.
-    sway_free: ``hips`` are those of the trunk's trend, its sway averaged out
-        (speed_feedback.trunk_trend): foothold correction then restores the shape of the foot
-        pattern about them at every step, and moves the whole pattern with them only by more
-        than ``params.correction_threshold`` (a push); a smaller common offset of the feet from
-        the hips (the trunk lagging its feet) is the velocity feedback's. False: the actual
-        hips, corrected about beyond the threshold only (their sway alone reaches it).
+    trend_shift: (2,) m, world: the trunk's trend (its sway averaged out,
+        speed_feedback.trunk_trend) minus the base. The hips are moved by it, and foothold
+        correction then restores the shape of the foot pattern about them at every step and
+        moves the whole pattern with them only by more than ``params.correction_threshold`` (a
+        push); a smaller common offset of the feet from the hips (the trunk lagging its feet)
+        is the velocity feedback's. None: the actual hips, corrected about beyond the threshold
+        only (their sway alone reaches it).
     Footholds keep each foot's actual height (flat terrain).
     """
     params.validate()
@@ -296,6 +299,8 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         hips_xy = base_xy + hip_offsets @ _rot(base_yaw).T
     else:
         hips_xy = np.asarray(hips, dtype=float).reshape(4, 3)[:, :2]
+    if trend_shift is not None:
+        hips_xy = hips_xy + np.asarray(trend_shift, dtype=float).reshape(2)
     twist = clamp_velocity(velocity_set_point, params)
     correction = (np.zeros(2) if stride_correction is None
                   else np.asarray(stride_correction, dtype=float).reshape(2))
@@ -328,7 +333,8 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         timing.append((order[(k0 + j) % len(order)], next_liftoff, touchdown,
                        touchdown + half_stance))
         next_liftoff = touchdown + params.four_feet_duration
-    first_targets = _first_footholds(timing, feet, hips_xy, placed, params, sway_free)
+    first_targets = _first_footholds(timing, feet, hips_xy, placed, params,
+                                     sway_free=trend_shift is not None)
     for j, (leg, liftoff, touchdown, mid) in enumerate(timing):
         offset = hip_offsets[leg] + stance[leg]
         _, yaw_td = ref.pose(touchdown)
@@ -366,6 +372,8 @@ def _first_footholds(timing: list[tuple[int, float, float, float]], feet: np.nda
         offset = hip_offsets[leg] + stance[leg]
         prev_mid = mid - params.cycle_duration
         targets[leg] = feet[leg, :2] + placed.foot(mid, offset) - placed.foot(prev_mid, offset)
+        if not params.foothold_correction:
+            continue
         # About the hip, moved as the reference hip moves (V.B).
         hip_now = placed.foot(placed.t0, hip_offsets[leg])
         hip_mid = placed.foot(mid, hip_offsets[leg])

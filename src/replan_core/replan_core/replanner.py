@@ -180,7 +180,7 @@ class GaitReplanner:
                     self.trend_samples.clear()
                 twist = clamp_velocity(setpoint, self.params)
                 correction = self.speed.update(t, base.position, yaw, twist)
-                hips, sway_free = self._correction_hips(t, base, yaw, hips, twist)
+                trend_shift = self._trend_shift(t, base, yaw, twist)
                 # Walking off from a stand, as at the start: the reference trunk stands
                 # through the four-feet phase, so the first strides are partial.
                 delay = (self.start_delay if initial
@@ -189,7 +189,7 @@ class GaitReplanner:
                                          self.schedule.next_leg, t, self.params, delay=delay,
                                          stride_correction=correction,
                                          stride_time_scale=self.stride_time_scale,
-                                         sway_free=sway_free)
+                                         trend_shift=trend_shift)
                 self._end_before_standing(plan)
         except ValueError as err:
             self.log('error', f'footholds at t={t:.3f} s failed ({err}); keeping the previous '
@@ -209,28 +209,18 @@ class GaitReplanner:
                              f'{LEGS[self.schedule.next_leg]} first')
         return plan
 
-    def _correction_hips(self, t: float, base: BaseState, yaw: float, hips: np.ndarray | None,
-                         twist: np.ndarray) -> tuple[np.ndarray | None, bool]:
-        """The hips the foothold correction places the feet about: with ``correction_hips``
-        'sway_free', the actual ones (None: the nominal offsets) moved by the trunk's sway, i.e.
-        to where the trunk's trend over the last cycle puts them (speed_feedback.trunk_trend);
-        until a cycle is walked at this set-point, and with 'actual', the actual ones. The
-        flag: the sway-free ones."""
+    def _trend_shift(self, t: float, base: BaseState, yaw: float,
+                     twist: np.ndarray) -> np.ndarray | None:
+        """Keep this re-plan's base; with ``correction_hips`` 'sway_free', the trunk's trend
+        over the last cycle minus the base (m, world; speed_feedback.trunk_trend), by which
+        compute_footholds moves the hips the correction places the feet about. None with
+        'actual', and until a cycle is walked at this set-point: the actual hips."""
         xy = np.asarray(base.position, dtype=float)[:2]
         self.trend_samples.append(ReplanSample(t, xy.copy(), yaw, np.asarray(twist, dtype=float)))
         if self.params.correction_hips != 'sway_free':
-            return hips, False
+            return None
         trend = trunk_trend(list(self.trend_samples), self.params.cycle_duration)
-        if trend is None:
-            return hips, False
-        if hips is None:
-            c, s = np.cos(yaw), np.sin(yaw)
-            offsets = np.asarray(self.params.hip_offsets, dtype=float) @ np.array([[c, s],
-                                                                                 [-s, c]])
-            hips = np.column_stack([xy + offsets, np.full(4, float(base.position[2]))])
-        moved = np.array(hips, dtype=float, copy=True)
-        moved[:, :2] += trend - xy
-        return moved, True
+        return None if trend is None else trend - xy
 
     def _end_before_standing(self, plan: FootholdPlan) -> None:
         """If the re-plan at this plan's trigger will stand still (the set-point zero long

@@ -84,6 +84,13 @@ def mean_body_velocity(a: ReplanSample, b: ReplanSample) -> np.ndarray:
     return body * arc_over_chord / dt
 
 
+def one_cycle_back(samples, t: float, cycle: float) -> ReplanSample:
+    """The sample closest to one crawl cycle (``cycle`` s) before ``t``: the same leg's
+    touchdown, where the crawl's sway and surge are those of ``t`` (a window from it to ``t``
+    cancels them)."""
+    return min(samples, key=lambda s: abs(t - s.t - cycle))
+
+
 def trunk_trend(samples: list[ReplanSample], cycle: float) -> np.ndarray | None:
     """The base xy (m, world) at the newest sample's time without the crawl's sway, from the
     re-plan samples (time order) of the last crawl cycle (``cycle`` s): the twist measured from
@@ -97,7 +104,7 @@ def trunk_trend(samples: list[ReplanSample], cycle: float) -> np.ndarray | None:
     newest = samples[-1]
     # The oldest sample at most a step past one cycle back (the same leg's touchdown).
     window = [s for s in samples if newest.t - s.t <= 1.25 * cycle]
-    oldest = min(window, key=lambda s: abs(newest.t - s.t - cycle))
+    oldest = one_cycle_back(window, newest.t, cycle)
     later = [s for s in window if s.t > oldest.t]
     span = newest.t - oldest.t
     if len(later) < 2 or span < 0.75 * cycle:
@@ -164,7 +171,7 @@ class SpeedFeedback:
         # them in: the error of one window scattered by +-0.01 m/s, as much as the loss).
         if sample.t - self._samples[0].t < 0.75 * self.window:
             return self.correction               # not a full window yet
-        start = min(self._samples, key=lambda s: abs(sample.t - s.t - self.window))
+        start = one_cycle_back(self._samples, sample.t, self.window)
         measured = mean_body_velocity(start, sample)
         error = sample.setpoint[:2] - measured         # m/s, body frame
         if float(np.hypot(*error)) > self.max_error:

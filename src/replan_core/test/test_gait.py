@@ -291,9 +291,15 @@ def test_sway_free_correction_restores_the_pattern_and_leaves_a_small_common_off
         base = np.array([0.0, shift])
         hips = hips_of(params, base, 0.0)
         corrected = compute_footholds((0.0, 0.0, 0.0), off, np.array([*base, HEIGHT]), 0.0,
-                                      hips, 2, 10.0, params, sway_free=True)
+                                      hips, 2, 10.0, params, trend_shift=np.zeros(2))
         nominal_plan = compute_footholds((0.0, 0.0, 0.0), feet, np.array([*base, HEIGHT]), 0.0,
                                          hips, 2, 10.0, plain)
+        # The same hips given as the actual ones at the origin moved by the trend's shift.
+        shifted = compute_footholds((0.0, 0.0, 0.0), off, np.array([*base, HEIGHT]), 0.0,
+                                    hips_of(params, (0.0, 0.0), 0.0), 2, 10.0, params,
+                                    trend_shift=base)
+        for a, b in zip(corrected.steps, shifted.steps, strict=True):
+            np.testing.assert_allclose(a.target, b.target, atol=TOL)
         first, _ = legs_first_last(corrected)
         first_nominal, _ = legs_first_last(nominal_plan)
         moved = np.array([first[leg].target[:2] - first_nominal[leg].target[:2]
@@ -321,7 +327,7 @@ def test_actual_hips_are_corrected_about_beyond_the_threshold_only():
     for a, b in zip(actual.steps, plain.steps, strict=True):
         np.testing.assert_allclose(a.target, b.target, atol=TOL)
     sway_free = compute_footholds((0.0, 0.0, 0.0), feet, base, 0.0, hips, 2, 10.0, params,
-                                  sway_free=True)
+                                  trend_shift=np.zeros(2))
     first, _ = legs_first_last(sway_free)
     first_plain, _ = legs_first_last(plain)
     assert first[0].target[0] < first_plain[0].target[0] - 0.04

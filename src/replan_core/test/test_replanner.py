@@ -204,28 +204,25 @@ def test_setpoints_are_rejected_or_clamped(value, expected, problem):
     assert problem in text and (text == '') == (problem == '')
 
 
-def test_the_correction_hips_are_the_trend_s_once_a_cycle_is_walked_at_the_set_point():
-    """The foothold correction's hips: the actual ones (here None: the nominal offsets) until
-    a cycle of re-plans at the set-point is known, then the nominal hips about the trunk's trend
-    (speed_feedback.trunk_trend), sway removed; a new set-point goes back to the actual ones."""
+def test_the_trend_shift_is_known_once_a_cycle_is_walked_at_the_set_point():
+    """The shift of the hips the foothold correction places the feet about: none (the actual
+    hips) until a cycle of re-plans at the set-point is known, then the trunk's trend minus the
+    base (speed_feedback.trunk_trend), sway removed; a new set-point goes back to none, and so
+    does correction_hips 'actual'."""
     replanner, _, _ = make()
     params = replanner.params
     step = params.step_period
-    flags = []
+    shifts = []
     for k in range(6):
         t = 5.0 + k * step
         sway = 0.03 * np.sin(2 * np.pi * t / params.cycle_duration)
         base = BaseState(t, np.array([0.1 * t, sway, 0.55]), np.array([0.0, 0.0, 0.0, 1.0]),
                          np.zeros(3), np.zeros(3))
-        hips, sway_free = replanner._correction_hips(t, base, 0.0, None, WALK)
-        flags.append(sway_free)
-    assert flags == [False, False, False, True, True, True]
-    expected = np.array([0.1 * t, 0.0]) + np.asarray(params.hip_offsets)
-    np.testing.assert_allclose(hips[:, :2], expected, atol=1e-12)
-    np.testing.assert_allclose(hips[:, 2], 0.55)
+        shifts.append(replanner._trend_shift(t, base, 0.0, WALK))
+    assert [s is not None for s in shifts] == [False, False, False, True, True, True]
+    np.testing.assert_allclose(shifts[-1], [0.0, -sway], atol=1e-12)   # the trend: y = 0
     base = BaseState(t + step, np.array([0.1 * (t + step), 0.0, 0.55]),
                      np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), np.zeros(3))
-    assert replanner._correction_hips(t + step, base, 0.0, None, np.array([0.05, 0.0, 0.0])) \
-        == (None, False)
+    assert replanner._trend_shift(t + step, base, 0.0, np.array([0.05, 0.0, 0.0])) is None
     actual = make(correction_hips='actual')[0]
-    assert actual._correction_hips(t, base, 0.0, None, WALK) == (None, False)
+    assert actual._trend_shift(t, base, 0.0, WALK) is None

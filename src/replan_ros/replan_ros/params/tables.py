@@ -78,10 +78,13 @@ def _gait_table() -> tuple[ParamSpec, ...]:
            max=8),
         _p('haptic', _G.haptic, 'swings end at sensed contact (paper section V.A)'),
         _p('foothold_correction', _G.foothold_correction,
-           'first foothold of each leg about the actual hip (paper section V.B)'),
-        _p('correction_threshold', _G.correction_threshold, 'foothold correction moves a first '
-           'foothold to the hip only when that differs from the foot-relative one by more '
-           '(0: always)', 'm', min=0.0, max=1.0),
+           'first foothold of each leg about the hip (paper section V.B; whose hip: '
+           'correction_hips)'),
+        _p('correction_threshold', _G.correction_threshold, 'a push: sway_free hips, the whole '
+           'foot pattern follows them only when its common offset exceeds this (its shape is '
+           'restored at every step); actual hips, a first foothold moves to the hip only when '
+           'that differs from the foot-relative one by more (0: always)', 'm', min=0.0,
+           max=1.0),
         _p('correction_hips', _G.correction_hips, 'foothold correction about the hips of: '
            'sway_free = the trunk\'s trend over the last crawl cycle (its sway averaged out); '
            'actual = the trunk now, sway included (docs/gait.md)', choices=CORRECTION_HIPS),
