@@ -5,7 +5,8 @@ value(R) = value(reference) * scale(R) / scale(reference), each scale measured o
 (``robot_file.RobotFacts``): ``weight`` m g, ``leg_weight`` one leg's m_leg g, ``length`` the
 leg length l, ``time`` sqrt(l / g),
 ``speed`` sqrt(g l), ``rate`` sqrt(g / l), ``torque`` m g l, ``stiffness`` m g / l, ``damping``
-m sqrt(g / l), ``joint_inertia`` the smallest joint inertia, ``position_cost`` l^-3; a list
+m sqrt(g / l), ``press_depth`` l m_leg / m (a leg's weight over the swing stiffness),
+``joint_inertia`` the smallest joint inertia, ``position_cost`` l^-3; a list
 parameter scales each value. Values
 ``measured`` on the model (CoM height, feet about the hips, foot frame height) are set, not
 scaled.
@@ -32,6 +33,9 @@ SCALES = {
     'torque': lambda f: f.mass * G * f.leg_length,           # N m
     'stiffness': lambda f: f.mass * G / f.leg_length,        # N/m
     'damping': lambda f: f.mass * math.sqrt(G / f.leg_length),   # N s/m
+    # leg_weight / stiffness: how far below the ground a swing must aim for its stiffness to
+    # press the foot with the share of the contact threshold (a leg's weight) the reference's does
+    'press_depth': lambda f: f.leg_mass * f.leg_length / f.mass,  # m
     'joint_inertia': lambda f: f.min_joint_inertia,          # kg m^2
     # a weight of a squared position against the squared jerk: (l / T^3)^2 / l^2, T ~ sqrt(l)
     'position_cost': lambda f: f.leg_length ** -3,           # 1/m^3

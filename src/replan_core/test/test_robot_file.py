@@ -178,6 +178,27 @@ def test_derived_joint_damping_stays_below_what_250_hz_can_apply(facts):
         assert damping['wbc']['fall_damping'] < 0.5 * 2 * robot.min_joint_inertia / 0.004, name
 
 
+def test_every_haptic_swing_presses_its_foot_with_the_same_share_of_its_threshold(facts):
+    """The project's rules: swing stiffness x touchdown depth over the estimator's contact
+    threshold is the reference's for every robot (rule press_depth; B1 at the length rule
+    pressed with 32 % of its threshold, HyQ 56 %, and half its touchdowns were sensed late)."""
+    wanted = ('wbc.swing_kp', 'wbc.touchdown_depth', 'wbc.estimator.contact_force_threshold')
+    project = yaml.safe_load((ROBOTS / 'scaling.yaml').read_text())['rules']
+    rules = {'rules': {scale: [key for key in keys if key in wanted]
+                       for scale, keys in project.items()}}
+    assert sum(len(keys) for keys in rules['rules'].values()) == 3
+    values = {'wbc': {'swing_kp': [1500.0] * 3, 'touchdown_depth': 0.015,
+                      'estimator.contact_force_threshold': 40.0}}
+    shares = {}
+    for name, robot in facts.items():
+        wbc = derived_parameters(robot, facts['hyq'], values, rules, measure=False)['wbc']
+        shares[name] = (wbc['swing_kp'][0] * wbc['touchdown_depth']
+                        / wbc['estimator.contact_force_threshold'])
+    assert shares == pytest.approx({name: 1500.0 * 0.015 / 40.0 for name in facts}, rel=1e-12)
+    b1 = derived_parameters(facts['b1'], facts['hyq'], values, rules, measure=False)['wbc']
+    assert b1['touchdown_depth'] == pytest.approx(0.027, abs=0.001)   # m; 0.015 by length
+
+
 def test_unknown_scales_measurements_and_parameters_are_refused(facts):
     hyq = facts['hyq']
     with pytest.raises(ValueError, match="unknown scale 'mass'"):

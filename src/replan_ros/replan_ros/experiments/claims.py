@@ -183,7 +183,7 @@ def lateral_push(ctx: Context, cfg: dict, world: str = 'realistic') -> dict:
 
 def sustained_push(ctx: Context, cfg: dict) -> list[dict]:
     """A lateral force held for ``push_duration`` s while walking, per setting (foothold
-    correction off, literal, thresholded), force and seed: whether the robot falls, and what
+    correction off, literal, sway-free), force and seed: whether the robot falls, and what
     the push does to its support over the steps that follow (``push_effects``, from the run's
     bag, which these runs keep). Paired by seed and force across the settings."""
     runner = ctx.runner

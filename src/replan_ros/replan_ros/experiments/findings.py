@@ -80,13 +80,13 @@ def findings(page, name: str, data, results: dict) -> None:
                      f'kg would gain {first / mass:.3f} m/s. A hypothesis these runs do not '
                      'isolate: the stance legs take most of the impulse at once, so the hips '
                      'move little and the footholds about them differ little from the ones '
-                     'about the feet (the thresholded rule moves the footholds with the hips '
+                     'about the feet (the sway-free rule moves the footholds with the hips '
                      'as a whole only beyond '
                      f'{settings.get("correction_threshold_m", 0.1) * 100:.0f} cm); the '
                      'sustained push moves them further.')
         res = push_resolution(cfg)
         shown = False
-        for setting in ('correction_thresholded', 'correction_literal'):
+        for setting in ('correction_sway_free', 'correction_literal'):
             if setting in table and off and len(table[setting]) == len(off):
                 _, verdict = push_sign_test(table, setting, res)
                 text += f' {setting.replace("_", " ").capitalize()} vs off: {verdict}.'

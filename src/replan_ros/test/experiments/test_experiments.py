@@ -207,7 +207,7 @@ def test_page_from_results(tmp_path):
             _row(setting=name, force_n=60.0, seed=s, trunk_shift_max_m=0.10,
                  capture_margin_p5_m=(0.02 if name == 'correction_off' else 0.03) + 0.001 * s,
                  capture_margin_min_m=0.0, foot_offset_change_m=0.05)
-            for name in ('correction_off', 'correction_thresholded') for s in range(5)],
+            for name in ('correction_off', 'correction_sway_free') for s in range(5)],
         'velocity_term': (
             [_row(velocity_term=on, seed=s, setpoint=0.15, achieved=[0.15 - 0.001 * s, 0, 0],
                   commanded=[0.15, 0, 0], swing_travel_share=(0.6 if on else 0.5) + 0.01 * s,
@@ -237,7 +237,7 @@ def test_page_from_results(tmp_path):
     assert 'Haptic off: the swing aims at the foothold itself' in text
     assert '"off disturbs the pitch": holds (3 pairs), p = ' in text
     assert 'hypothesis here' in text
-    assert ('| sustained push | correction thresholded vs off, 60 N | capture point in the '
+    assert ('| sustained push | correction sway free vs off, 60 N | capture point in the '
             'support, 5th percentile (cm) | 3.2 vs 2.2 | 10 | foothold correction keeps the '
             'support from degenerating | holds (5 pairs)') in text
     # The velocity term: the steady speed from the straight walks alone, "faster motion" from
@@ -358,7 +358,7 @@ def test_censored_push_phases_are_left_out_of_the_sign_test(tmp_path):
                 'second': {'impulse_ns': 45.0, 'fell': second_fell}}
     table = {'correction_off': [entry(0, 0, 75.0, None, True), entry(0, 1, 75.0, None, True),
                                 entry(1, 0, 45.0, 60.0, True), entry(1, 1, 30.0, 45.0, False)],
-             'correction_thresholded': [entry(0, 0, 75.0, None, False),
+             'correction_sway_free': [entry(0, 0, 75.0, None, False),
                                         entry(0, 1, 75.0, None, False),
                                         entry(1, 0, 75.0, None, False),
                                         entry(1, 1, 60.0, 75.0, False)]}
@@ -374,15 +374,15 @@ def test_censored_push_phases_are_left_out_of_the_sign_test(tmp_path):
             'probe fell in either setting: left out)') in text
     assert ('| lateral push | correction off | impulse survived, over phases and seeds (N s) | '
             '56.2 ± 22.5 (30.0 to 75.0); 2 censored | 4 |') in text
-    assert ('| lateral push | correction thresholded | two pushes of 45 N s survived | 4 of 4 | '
+    assert ('| lateral push | correction sway free | two pushes of 45 N s survived | 4 of 4 | '
             '4 | the support after a push still holds a second one |') in text
-    assert ('| lateral push | correction thresholded vs off | two pushes: survived with on, not '
+    assert ('| lateral push | correction sway free vs off | two pushes: survived with on, not '
             'with off (+1) or the reverse (-1), per phase and seed | 0.75 ± 0.50 (0.00 to 1.00) '
             '| 4 | foothold correction helps against a second push | not resolved (better at 3, '
             'worse at 0, equal at 1 pairs, p = 0.25) |') in text
     assert '- correction off, phase 1: 45.0, 30.0 N s over the seeds (+: censored).' in text
     assert '## Lateral pushes and foothold correction (ideal)' in text
-    assert '| lateral push | correction thresholded vs off (ideal) |' in text
+    assert '| lateral push | correction sway free vs off (ideal) |' in text
     assert 'survived 4 of 4 times with it, 1 of 4 without.' in text
     assert (tmp_path / 'results_plots' / 'push_impulse_ideal.png').is_file()
 
