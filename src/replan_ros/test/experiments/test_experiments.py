@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from replan_ros.experiments.claims import bisect_impulse, second_push
+from replan_ros.experiments.claims import _steady_error, bisect_impulse, second_push
 from replan_ros.experiments.page import write_page
 from replan_ros.experiments.plan import (
     ExperimentError,
@@ -190,7 +190,12 @@ def _row(**kw):
 
 
 def test_page_from_results(tmp_path):
-    windows = [_row(window=w, seed=s, setpoint=0.15, linear_error_mps=0.01 * w + 0.001 * s,
+    # The steady error (last whole cycles) lower at window 1, the error from 2 s (the walk-off
+    # included) the opposite: the page gives each its own verdict.
+    windows = [_row(window=w, seed=s, setpoint=0.15, steady_error_mps=0.001 * w + 0.0001 * s,
+                    linear_error_mps=0.03 - 0.01 * w + 0.001 * s,
+                    commanded=[0.15, 0.0, 0.0],
+                    cycle_velocities=[{'velocity': [0.15 * (0.95 if w == 1 else 0.8), 0, 0]}],
                     cop_margin_p5_m=0.03 - 0.005 * w + 0.001 * s, mpc_solve_ms_median=3.0,
                     mpc_solve_ms_p99=6.0) for w in (1, 2) for s in range(5)]
     results = {
@@ -222,8 +227,14 @@ def test_page_from_results(tmp_path):
     page = tmp_path / 'results.md'
     write_page(page, results, meta)
     text = page.read_text()
-    assert '| replan window | 1 vs 2 | velocity error (m/s) | 0.0120 vs 0.0220 | 10 |' in text
-    assert 'window 2 worse than 1 (model errors grow) | holds (5 pairs), p = ' in text
+    assert ('| replan window | 1 vs 2 | steady velocity error (m/s) | 0.0012 vs 0.0022 | 10 | '
+            'window 2 worse than 1 (model errors grow) | holds (5 pairs), p = ') in text
+    assert ('| replan window | 1 vs 2 | velocity error from 2 s (m/s) | 0.0220 vs 0.0120 | 10 | '
+            'window 2 worse than 1 (model errors grow) | does not hold (the opposite) (5 pairs)'
+            ) in text
+    assert ('steady velocity error (last 2 whole cycles) 1.2 mm/s at window 1, 2.2 mm/s at '
+            'window 2; 1 vs 2: holds (5 pairs)') in text
+    assert 'the first whole cycle walked 95 %, 80 % of the set-point at windows 1, 2' in text
     assert '| haptic | flat: off vs on | touchdown pitch peak (deg) | 3.10 vs 1.10 | 6 |' in text
     assert 'haptic off disturbs the pitch | holds (3 pairs), p = ' in text
     assert 'faster than the paper (28x)' in text
@@ -445,3 +456,9 @@ def test_an_unresolved_paired_comparison_says_how_many_pairs_would_resolve_it():
     assert verdict.startswith('not resolved (within the spread, 4 pairs; at this mean '
                               'difference and spread about ')
     assert verdict.endswith(' pairs would resolve it (80% power))')
+
+
+def test_the_steady_error_is_the_last_whole_cycles_against_the_set_point():
+    segment = {'achieved_steady': [0.147, 0.004, 0.01], 'commanded': [0.15, 0.0, 0.0]}
+    assert _steady_error(segment) == pytest.approx(0.005, abs=1e-12)   # 3-4-5, yaw left out
+    assert _steady_error({'achieved_steady': None, 'commanded': [0.15, 0.0, 0.0]}) is None
