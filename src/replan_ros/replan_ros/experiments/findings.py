@@ -114,7 +114,10 @@ def findings(page, name: str, data, results: dict) -> None:
 
         text = 'Replan window:'
         steady_holds = False
-        for key, label in (('steady_error_mps', 'steady velocity error (last 2 whole cycles)'),
+        cycles = sorted({r['steady_cycles'] for r in sel if r.get('steady_cycles')})
+        last = ' or '.join(str(n) for n in cycles) if cycles else 'few'
+        for key, label in (('steady_error_mps',
+                            f'steady velocity error (last {last} whole cycles)'),
                            ('linear_error_mps', 'velocity error from 2 s to the end')):
             err = {w: values(window(w), key) for w in windows}
             parts = ', '.join(f'{np.mean(v) * 1000:.1f} mm/s at window {w}'
@@ -183,10 +186,10 @@ def findings(page, name: str, data, results: dict) -> None:
         page.finding(text)
     elif name == 'velocity_term':
         steady = [r for r in data if r.get('setpoint') != 'step']
-        on = [r['achieved'][0] / r['commanded'][0] for r in steady
-              if r['velocity_term'] and r.get('achieved') and r['commanded'][0]]
-        off = [r['achieved'][0] / r['commanded'][0] for r in steady
-               if not r['velocity_term'] and r.get('achieved') and r['commanded'][0]]
+        on = [steady_velocity(r)[0] / r['commanded'][0] for r in steady
+              if r['velocity_term'] and steady_velocity(r) and r['commanded'][0]]
+        off = [steady_velocity(r)[0] / r['commanded'][0] for r in steady
+               if not r['velocity_term'] and steady_velocity(r) and r['commanded'][0]]
         if on and off:
             better = 'closer to' if abs(1 - np.mean(on)) < abs(1 - np.mean(off)) else \
                 'further from'

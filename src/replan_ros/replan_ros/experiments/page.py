@@ -31,6 +31,7 @@ from replan_ros.experiments.stats import (
     push_sign_test,
     sign_test,
     spread,
+    steady_velocity,
     values,
 )
 
@@ -384,7 +385,8 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
                  {r['setpoint'] for r in sel})) + ' m/s, seeds '
              + ', '.join(str(s) for s in sorted({r['seed'] for r in sel}))
              + '. Steady velocity error: |achieved - commanded| with the achieved velocity '
-               'the mean over the last 2 whole crawl cycles (each from a true touchdown of a '
+               f'the mean over the last {_steady_cycles(sel)} whole crawl cycles (each from a '
+               'true touchdown of a '
                'leg to its next, as every steady speed of this page). Velocity error from 2 s: '
                'the same with the mean velocity from 2 s after the set-point to the end of the '
                'run, the measure of earlier pages: it holds the end of the walk-off and lets a '
@@ -409,6 +411,12 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
         link = page.plot('replan_window.png', lambda plt: _plot_windows(plt, sel, windows))
         lines.append(f'![velocity error and CoP margin per replan window]({link})')
     page.section('\n'.join(lines))
+
+
+def _steady_cycles(rows: list[dict]) -> str:
+    """How many whole cycles the runs' steady state is the mean of (``steady_cycles``)."""
+    counts = sorted({r['steady_cycles'] for r in rows if r.get('steady_cycles')})
+    return ' or '.join(str(n) for n in counts) if counts else 'few'
 
 
 def _first_cycle_shares(rows: list[dict], windows: list[int]) -> str:
@@ -518,11 +526,12 @@ def _plot_haptic(plt, rows):
 def _velocity_term(page: Page, rows: list[dict], _all) -> None:
     steady = [r for r in rows if r.get('setpoint') != 'step']
     steps = [r for r in rows if r.get('setpoint') == 'step']
-    # The speed of each straight walk against its set-point, once per run.
-    measured = {on: [dict(r, speed_ratio=r['achieved'][0] / r['commanded'][0],
-                          speed_error=abs(1 - r['achieved'][0] / r['commanded'][0]))
+    # The steady speed of each straight walk (its last whole crawl cycles) against its
+    # set-point, once per run.
+    measured = {on: [dict(r, speed_ratio=steady_velocity(r)[0] / r['commanded'][0],
+                          speed_error=abs(1 - steady_velocity(r)[0] / r['commanded'][0]))
                      for r in steady if r['velocity_term'] == on and r.get('ok')
-                     and r.get('achieved') and r['commanded'][0]] for on in (True, False)}
+                     and steady_velocity(r) and r['commanded'][0]] for on in (True, False)}
     for on in (True, False):
         runs = [r for r in steady if r['velocity_term'] == on]
         page.row('velocity term', 'on (weight 300)' if on else 'off (weight 0)',
@@ -538,7 +547,7 @@ def _velocity_term(page: Page, rows: list[dict], _all) -> None:
     _trunk_travel(page, steady, ('seed', 'setpoint'), 'straight walks')
     text = ('## Velocity-tracking term\n\nThe same runs with the MPC\'s velocity weight at its '
             'default and at 0 (eq. 6 without the optional term): straight walks (the steady '
-            'speed)')
+            f'speed: the mean over the last {_steady_cycles(steady)} whole crawl cycles)')
     if steps:
         on = [r for r in steps if r['velocity_term']]
         off = [r for r in steps if not r['velocity_term']]

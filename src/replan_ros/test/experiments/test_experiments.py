@@ -194,7 +194,7 @@ def test_page_from_results(tmp_path):
     # included) the opposite: the page gives each its own verdict.
     windows = [_row(window=w, seed=s, setpoint=0.15, steady_error_mps=0.001 * w + 0.0001 * s,
                     linear_error_mps=0.03 - 0.01 * w + 0.001 * s,
-                    commanded=[0.15, 0.0, 0.0],
+                    commanded=[0.15, 0.0, 0.0], steady_cycles=2,
                     cycle_velocities=[{'velocity': [0.15 * (0.95 if w == 1 else 0.8), 0, 0]}],
                     cop_margin_p5_m=0.03 - 0.005 * w + 0.001 * s, mpc_solve_ms_median=3.0,
                     mpc_solve_ms_p99=6.0) for w in (1, 2) for s in range(5)]
