@@ -124,6 +124,8 @@ def findings(page, name: str, data, results: dict) -> None:
                               for w, v in err.items() if v)
             verdict, p = compare_paired(window(1), window(2), key, ('seed', 'setpoint'),
                                         'lower')
+            if text.endswith('.'):
+                label = label[0].upper() + label[1:]
             text += f' {label} {parts}; 1 vs 2: {verdict}{p_text(p)}.'
             steady_holds = steady_holds or (key == 'steady_error_mps'
                                             and verdict.startswith('holds'))
@@ -186,17 +188,23 @@ def findings(page, name: str, data, results: dict) -> None:
         page.finding(text)
     elif name == 'velocity_term':
         steady = [r for r in data if r.get('setpoint') != 'step']
-        on = [steady_velocity(r)[0] / r['commanded'][0] for r in steady
-              if r['velocity_term'] and steady_velocity(r) and r['commanded'][0]]
-        off = [steady_velocity(r)[0] / r['commanded'][0] for r in steady
-               if not r['velocity_term'] and steady_velocity(r) and r['commanded'][0]]
+        measured = {on: [dict(r, speed_error=abs(1 - steady_velocity(r)[0] / r['commanded'][0]),
+                              speed_ratio=steady_velocity(r)[0] / r['commanded'][0])
+                         for r in steady if r['velocity_term'] == on and steady_velocity(r)
+                         and r['commanded'][0]] for on in (True, False)}
+        on, off = (values(measured[key], 'speed_ratio') for key in (True, False))
         if on and off:
-            better = 'closer to' if abs(1 - np.mean(on)) < abs(1 - np.mean(off)) else \
-                'further from'
+            verdict, p = compare_paired(measured[True], measured[False], 'speed_error',
+                                        ('seed', 'setpoint'), 'lower')
+            effect = ('the term brings the speed closer to the set-point'
+                      if verdict.startswith('holds') else
+                      'the term takes the speed further from the set-point'
+                      if verdict.startswith('does not hold') else
+                      'no difference beyond the spread of the runs')
             page.finding(
                 f'Velocity term: with it the robot walks at {np.mean(on) * 100:.1f} % of the '
-                f'set-point, without it at {np.mean(off) * 100:.1f} %: the term brings the '
-                f'speed {better} the set-point. Both settings take their speed from the '
+                f'set-point, without it at {np.mean(off) * 100:.1f} % (the steady state): '
+                f'{effect} ({verdict}{p_text(p)}). Both settings take their speed from the '
                 f'same footholds (the gait\'s strides and the velocity feedback), so this '
                 f'steady-state figure does not test the paper\'s "faster motion"; the rise '
                 f'time after a set-point step (table) does.')

@@ -235,6 +235,10 @@ def test_page_from_results(tmp_path):
     assert ('steady velocity error (last 2 whole cycles) 1.2 mm/s at window 1, 2.2 mm/s at '
             'window 2; 1 vs 2: holds (5 pairs)') in text
     assert 'the first whole cycle walked 95 %, 80 % of the set-point at windows 1, 2' in text
+    assert '. Velocity error from 2 s to the end 22.0 mm/s at window 1' in text
+    # The same speeds with and without the term: no effect claimed in prose.
+    assert ('(the steady state): no difference beyond the spread of the runs (not resolved '
+            '(equal in every pair, 3 pairs), p = 1)') in text
     assert '| haptic | flat: off vs on | touchdown pitch peak (deg) | 3.10 vs 1.10 | 6 |' in text
     assert 'haptic off disturbs the pitch | holds (3 pairs), p = ' in text
     assert 'faster than the paper (28x)' in text
