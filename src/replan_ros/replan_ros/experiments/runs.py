@@ -85,8 +85,11 @@ class RunResult:
 
     @property
     def ok(self) -> bool:
-        """The run completed and its metrics can be used (a fall is a valid outcome)."""
-        return bool(self.metrics.get('sim_time_s')) and self.metrics.get('fell') is not None
+        """The run completed and its metrics can be used (a fall is a valid outcome): its
+        graph ran to the scenario's duration and exited cleanly (``completed``). A run cut
+        short, e.g. by a stopped call, still writes metrics of what it ran: never used."""
+        return (bool(self.metrics.get('sim_time_s')) and self.metrics.get('fell') is not None
+                and self.metrics.get('completed') is True)
 
     @property
     def fell(self) -> bool:

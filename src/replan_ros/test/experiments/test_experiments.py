@@ -3,6 +3,7 @@ of scripts/experiments.sh is a node-graph test in test/test_experiments.py)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -89,7 +90,8 @@ class ThresholdRunner:
         impulse = abs(push['force'][1]) * push['duration']
         self.impulses.append(round(impulse, 6))
         fell = impulse > self.limit
-        return RunResult('k', doc, {'sim_time_s': 9.0, 'fell': fell, 'pushes': [{}]}, Path())
+        return RunResult('k', doc, {'sim_time_s': 9.0, 'fell': fell, 'completed': True,
+                                    'pushes': [{}]}, Path())
 
 
 @pytest.mark.parametrize('limit, survived, fallen', [(50.0, 45.0, 52.5), (20.0, 18.75, 22.5),
@@ -341,7 +343,7 @@ class RecordingRunner:
     def run(self, doc: dict, bag: bool = False) -> RunResult:
         self.docs.append(doc)
         return RunResult('k', doc, {'sim_time_s': doc['duration'], 'fell': False,
-                                    'pushes': [{}]}, Path('/nonexistent'))
+                                    'completed': True, 'pushes': [{}]}, Path('/nonexistent'))
 
 
 @pytest.mark.parametrize('quick', [False, True])
@@ -416,13 +418,15 @@ class FolderRunner(Runner):
     """A Runner whose runs write their folder at once (no graph): what each made, and with a
     bag or not."""
 
-    def __init__(self, out_dir: Path) -> None:
+    def __init__(self, out_dir: Path, completed: bool = True) -> None:
         super().__init__(out_dir, CONFIG)
         self.made: list[bool] = []
+        self.completed = completed
 
     def _execute(self, folder: Path, bag: bool) -> int:
         self.made.append(bag)
-        (folder / 'metrics.json').write_text('{"sim_time_s": 8.0, "fell": false}')
+        (folder / 'metrics.json').write_text(json.dumps(
+            {'sim_time_s': 8.0, 'fell': False, 'completed': self.completed}))
         if bag:
             (folder / 'bag').mkdir()
         return 0
@@ -466,3 +470,21 @@ def test_the_steady_error_is_the_last_whole_cycles_against_the_set_point():
     segment = {'achieved_steady': [0.147, 0.004, 0.01], 'commanded': [0.15, 0.0, 0.0]}
     assert _steady_error(segment) == pytest.approx(0.005, abs=1e-12)   # 3-4-5, yaw left out
     assert _steady_error({'achieved_steady': None, 'commanded': [0.15, 0.0, 0.0]}) is None
+
+
+def test_a_run_cut_short_is_not_used():
+    """A run whose graph was stopped before its duration (a stopped call: the scenario still
+    analyses what it ran and writes metrics) is not ok, so the cache makes it again."""
+    done = {'sim_time_s': 18.0, 'fell': False, 'completed': True}
+    assert RunResult('a', {}, done, Path('a')).ok
+    assert not RunResult('a', {}, {**done, 'sim_time_s': 13.08, 'completed': False}, Path('a')).ok
+    assert not RunResult('a', {}, {'sim_time_s': 18.0, 'fell': False}, Path('a')).ok
+    assert RunResult('a', {}, {**done, 'fell': True}, Path('a')).ok      # a fall is an outcome
+
+
+def test_a_cached_run_that_was_cut_short_is_made_again(tmp_path):
+    doc = variant(FolderRunner(tmp_path).scenario('exp_walk'), seed=0, setpoint=(0.1, 0.0, 0.0))
+    cut = FolderRunner(tmp_path, completed=False)
+    assert not cut.run(doc).ok and cut.made == [False]
+    again = FolderRunner(tmp_path)
+    assert again.run(doc).ok and again.made == [False]      # not read back: made again

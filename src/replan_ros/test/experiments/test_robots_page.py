@@ -54,7 +54,7 @@ class StandInRunner:
         terrain = doc.get('terrain') or {}
         share = float(doc['name'].rsplit('_', 1)[1]) if 'step_down' in doc['name'] else 0.0
         fell |= share > self.step_limit
-        metrics = {'sim_time_s': doc['duration'], 'fell': fell,
+        metrics = {'sim_time_s': doc['duration'], 'fell': fell, 'completed': True,
                    'fall_time_s': 2.9 if fell else None, 'real_time_factor': 1.2,
                    'mpc_solve_ms_median': 1.5, 'mpc_solve_ms_p99': 4.0,
                    'final_position_m': [2.0 if terrain and not fell else 0.1, 0.0, 0.3],
@@ -120,7 +120,8 @@ def test_drift_is_the_trunks_displacement_and_touchdowns_count_after_the_cycle()
 
 
 def test_timing_leaves_out_runs_that_failed():
-    good = RunResult('a', {}, {'sim_time_s': 5.0, 'fell': False, 'real_time_factor': 2.0,
+    good = RunResult('a', {}, {'sim_time_s': 5.0, 'fell': False, 'completed': True,
+                               'real_time_factor': 2.0,
                                'mpc_solve_ms_median': 1.0, 'mpc_solve_ms_p99': 3.0}, Path('a'))
     failed = RunResult('b', {}, {}, Path('b'))
     assert timing([good, failed]) == {'runs': 1, 'rtf_median': 2.0, 'rtf_min': 2.0,
@@ -133,7 +134,7 @@ def test_a_walk_reads_its_speed_over_whole_crawl_cycles():
     sway averaged out), else the one after the settling, marked by ``cycles`` 0."""
     segment = {'commanded': [0.0, 0.033, 0.0], 'achieved': [0.0, 0.0289, 0.0],
                'achieved_cycles': [0.0, 0.0327, 0.0], 'cycles': 3}
-    metrics = {'sim_time_s': 14.0, 'fell': False,
+    metrics = {'sim_time_s': 14.0, 'fell': False, 'completed': True,
                'velocity_tracking': [{'commanded': [0.0, 0.0, 0.0], 'achieved': [0.0] * 3},
                                      segment]}
     row = walk_row(RunResult('w', {}, metrics, Path('w')), 'lateral', 0.033)
