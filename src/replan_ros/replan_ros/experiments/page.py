@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from replan_ros.experiments.findings import findings
+from replan_ros.experiments.page_plots import plot_haptic, plot_push, plot_windows
 from replan_ros.experiments.stats import (
     P_VALUE,
     PAPER_QP_MS,
@@ -337,27 +338,9 @@ def _lateral_push(page: Page, data: dict, _all) -> None:
                          len(both), 'foothold correction helps against a second push',
                          sign_test(both, None, unit='pairs'))
         link = page.plot('push_impulse.png' if not ideal else 'push_impulse_ideal.png',
-                         lambda plt: _plot_push(plt, table))
+                         lambda plt: plot_push(plt, table))
         lines += ['', f'![largest impulse survived per phase]({link})']
     page.section('\n'.join(lines))
-
-
-def _plot_push(plt, table: dict):
-    fig, ax = plt.subplots(figsize=(8, 3.6))
-    width = 0.8 / max(len(table), 1)
-    for i, (name, entries) in enumerate(table.items()):
-        phases = sorted({p['phase'] for p in entries})
-        values = [[p['survived_ns'] for p in entries if p['phase'] == k] for k in phases]
-        mean = np.array([np.mean(v) for v in values])
-        low = mean - np.array([min(v) for v in values])
-        high = np.array([max(v) for v in values]) - mean
-        ax.bar(np.arange(len(phases)) + i * width, mean, width, yerr=[low, high], capsize=2,
-               label=name.replace('_', ' '))
-    ax.axhline(30.0, color='tab:red', lw=0.8, label='target 30 N s')
-    ax.set_xlabel('push phase (mean over the seeds, bars from the least to the most)')
-    ax.set_ylabel('largest impulse survived [N s]')
-    ax.legend(fontsize=7)
-    return fig
 
 
 def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic') -> None:
@@ -408,7 +391,7 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
                      f'{np.mean(one) * scale:.{digits}f} vs {np.mean(other) * scale:.{digits}f}'
                      if one and other else '-', len(one) + len(other), claim, verdict + p_text(p))
     if world == 'realistic' and len(windows) > 1:
-        link = page.plot('replan_window.png', lambda plt: _plot_windows(plt, sel, windows))
+        link = page.plot('replan_window.png', lambda plt: plot_windows(plt, sel, windows))
         lines.append(f'![velocity error and CoP margin per replan window]({link})')
     page.section('\n'.join(lines))
 
@@ -433,20 +416,6 @@ def _first_cycle_shares(rows: list[dict], windows: list[int]) -> str:
         return 'unmeasured'
     return (', '.join(f'{v * 100:.0f} %' for v in shares.values()) + ' of the set-point at '
             'window' + ('s ' if len(shares) > 1 else ' ') + ', '.join(str(w) for w in shares))
-
-
-def _plot_windows(plt, rows, windows):
-    fig, axes = plt.subplots(1, 2, figsize=(8, 3.2))
-    for ax, key, label, scale in ((axes[0], 'steady_error_mps', 'steady velocity error [m/s]',
-                                   1.0),
-                                  (axes[1], 'cop_margin_p5_m', 'CoP margin p5 [cm]', 100.0)):
-        data = [np.asarray(values([r for r in rows if r['window'] == w], key)) * scale
-                for w in windows]
-        ax.boxplot(data)
-        ax.set_xticks(range(1, len(windows) + 1), [str(w) for w in windows])
-        ax.set_xlabel('replan window [touchdowns]')
-        ax.set_ylabel(label)
-    return fig
 
 
 def _haptic(page: Page, rows: list[dict], results, world: str = 'realistic') -> None:
@@ -502,25 +471,9 @@ def _haptic(page: Page, rows: list[dict], results, world: str = 'realistic') -> 
                  if values(off, 'pitch_peak_mean_deg') and values(on, 'pitch_peak_mean_deg')
                  else '-', len(on) + len(off), 'haptic off disturbs the pitch', verdict + p_text(p))
     if world == 'realistic' and sel:
-        link = page.plot('haptic_pitch.png', lambda plt: _plot_haptic(plt, sel))
+        link = page.plot('haptic_pitch.png', lambda plt: plot_haptic(plt, sel))
         lines.append(f'![touchdown pitch peaks, haptic on and off]({link})')
     page.section('\n'.join(lines))
-
-
-def _plot_haptic(plt, rows):
-    terrains = list(dict.fromkeys(r['terrain'] for r in rows))
-    fig, ax = plt.subplots(figsize=(8, 3.4))
-    for k, mode in enumerate((True, False)):
-        data = [values([r for r in rows if r['terrain'] == t and r['haptic'] == mode],
-                       'pitch_peak_mean_deg') for t in terrains]
-        x = np.arange(len(terrains)) + (k - 0.5) * 0.3
-        means = [np.mean(d) if d else np.nan for d in data]
-        errs = [np.std(d, ddof=1) if len(d) > 1 else 0.0 for d in data]
-        ax.bar(x, means, 0.3, yerr=errs, label='haptic on' if mode else 'haptic off')
-    ax.set_xticks(np.arange(len(terrains)), [t.replace('_', ' ') for t in terrains])
-    ax.set_ylabel('touchdown pitch peak [deg]')
-    ax.legend(fontsize=7)
-    return fig
 
 
 def _velocity_term(page: Page, rows: list[dict], _all) -> None:

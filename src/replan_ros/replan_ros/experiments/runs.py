@@ -32,6 +32,7 @@ _SHAPING = ('src/replan_core/replan_core/**/*.py', 'src/replan_ros/replan_ros/**
             'config/*.yaml', 'config/profiles/**/*', 'config/scenarios/**/*',
             'config/robots/**/*', 'urdf/**/*')
 _NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
+                'replan_ros/experiments/page_plots.py',
                 'replan_ros/experiments/claims.py', 'replan_ros/experiments/plan.py',
                 'replan_ros/experiments/runner.py', 'replan_ros/experiments/runs.py',
                 'replan_ros/experiments/push_effects.py', 'replan_ros/experiments/stats.py',
