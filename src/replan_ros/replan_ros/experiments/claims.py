@@ -20,6 +20,7 @@ from replan_ros.experiments.motion_effects import cached_motion_effects
 from replan_ros.experiments.plan import node_settings, variant
 from replan_ros.experiments.push_effects import cached_push_effects
 from replan_ros.experiments.runs import Runner, RunResult
+from replan_ros.experiments.stats import steady_error
 
 
 @dataclass
@@ -49,15 +50,6 @@ def _parallel(jobs: list[Callable[[], object]]) -> list:
     return out
 
 
-def _steady_error(segment: dict) -> float | None:
-    """m/s, |achieved - commanded| of the horizontal velocity in the steady state (the mean of
-    the segment's last whole crawl cycles, ``achieved_steady``); None without it."""
-    steady, commanded = segment.get('achieved_steady'), segment.get('commanded')
-    if not steady or not commanded:
-        return None
-    return float(math.hypot(steady[0] - commanded[0], steady[1] - commanded[1]))
-
-
 def _summary(result: RunResult, **extra) -> dict:
     m = result.metrics
     row = {'run': result.key, 'fell': result.fell, 'ok': result.ok,
@@ -81,7 +73,7 @@ def _summary(result: RunResult, **extra) -> dict:
                    settle_time_s=last.get('settle_time_s'), settle_steps=last.get('settle_steps'),
                    rise_time_s=last.get('rise_time_s'), rise_steps=last.get('rise_steps'),
                    yaw_rate_error_radps=last.get('yaw_rate_error_radps'),
-                   steady_error_mps=_steady_error(last))
+                   steady_error_mps=steady_error(last))
     pitch = m.get('touchdown_pitch_peak_deg') or {}
     timing = m.get('touchdown_timing_error_s') or {}
     row.update(pitch_peak_mean_deg=pitch.get('mean'), pitch_peak_max_deg=pitch.get('max'),

@@ -11,10 +11,12 @@ from replan_ros.experiments.stats import (
     against_paper,
     compare_paired,
     cycles_to_within,
+    forward_speed_rows,
     p_text,
     prompt_by_cycles,
     push_resolution,
     push_sign_test,
+    steady_cycles_text,
     steady_velocity,
     values,
 )
@@ -82,7 +84,9 @@ def findings(page, name: str, data, results: dict) -> None:
                      'move little and the footholds about them differ little from the ones '
                      'about the feet (the sway-free rule moves the footholds with the hips '
                      'as a whole only beyond '
-                     f'{settings.get("correction_threshold_m", 0.1) * 100:.0f} cm); the '
+                     + (f'{settings["correction_threshold_m"] * 100:.0f} cm'
+                        if settings.get('correction_threshold_m') is not None
+                        else 'its threshold') + '); the '
                      'sustained push moves them further.')
         res = push_resolution(cfg)
         shown = False
@@ -114,10 +118,8 @@ def findings(page, name: str, data, results: dict) -> None:
 
         text = 'Replan window:'
         steady_holds = False
-        cycles = sorted({r['steady_cycles'] for r in sel if r.get('steady_cycles')})
-        last = ' or '.join(str(n) for n in cycles) if cycles else 'few'
-        for key, label in (('steady_error_mps',
-                            f'steady velocity error (last {last} whole cycles)'),
+        for key, label in (('steady_error_mps', 'steady velocity error (last '
+                            f'{steady_cycles_text(sel)} whole cycles)'),
                            ('linear_error_mps', 'velocity error from 2 s to the end')):
             err = {w: values(window(w), key) for w in windows}
             parts = ', '.join(f'{np.mean(v) * 1000:.1f} mm/s at window {w}'
@@ -188,10 +190,8 @@ def findings(page, name: str, data, results: dict) -> None:
         page.finding(text)
     elif name == 'velocity_term':
         steady = [r for r in data if r.get('setpoint') != 'step']
-        measured = {on: [dict(r, speed_error=abs(1 - steady_velocity(r)[0] / r['commanded'][0]),
-                              speed_ratio=steady_velocity(r)[0] / r['commanded'][0])
-                         for r in steady if r['velocity_term'] == on and steady_velocity(r)
-                         and r['commanded'][0]] for on in (True, False)}
+        measured = {on: [r for r in forward_speed_rows(steady) if r['velocity_term'] == on]
+                    for on in (True, False)}
         on, off = (values(measured[key], 'speed_ratio') for key in (True, False))
         if on and off:
             verdict, p = compare_paired(measured[True], measured[False], 'speed_error',

@@ -26,13 +26,15 @@ from replan_ros.experiments.stats import (
     against_paper,
     compare_paired,
     cycles_to_within,
+    forward_speed_rows,
     p_text,
     prompt_by_cycles,
     push_resolution,
     push_sign_test,
     sign_test,
     spread,
-    steady_velocity,
+    steady_cycles_text,
+    steady_error,
     values,
 )
 
@@ -237,8 +239,7 @@ def _steady_rows(page: Page, setting: str, sel: list[dict]) -> None:
     tolerance = float(steady[0]['steady_tolerance'])
     last = steady[0].get('steady_cycles')
     # The planar velocity error (speed and direction) over the planar set-point.
-    error = [float(np.hypot(*np.subtract(r['achieved_steady'][:2], r['commanded'][:2]))
-                   / np.hypot(*r['commanded'][:2])) for r in steady]
+    error = [steady_error(r) / math.hypot(*r['commanded'][:2]) for r in steady]
     within = sum(1 for e in error if e <= tolerance)
     page.row('velocity change', setting,
              f'steady velocity error / set-point speed (last {last} cycles), %',
@@ -368,7 +369,7 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
                  {r['setpoint'] for r in sel})) + ' m/s, seeds '
              + ', '.join(str(s) for s in sorted({r['seed'] for r in sel}))
              + '. Steady velocity error: |achieved - commanded| with the achieved velocity '
-               f'the mean over the last {_steady_cycles(sel)} whole crawl cycles (each from a '
+               f'the mean over the last {steady_cycles_text(sel)} whole crawl cycles (each from a '
                'true touchdown of a '
                'leg to its next, as every steady speed of this page). Velocity error from 2 s: '
                'the same with the mean velocity from 2 s after the set-point to the end of the '
@@ -394,12 +395,6 @@ def _replan_window(page: Page, rows: list[dict], _all, world: str = 'realistic')
         link = page.plot('replan_window.png', lambda plt: plot_windows(plt, sel, windows))
         lines.append(f'![velocity error and CoP margin per replan window]({link})')
     page.section('\n'.join(lines))
-
-
-def _steady_cycles(rows: list[dict]) -> str:
-    """How many whole cycles the runs' steady state is the mean of (``steady_cycles``)."""
-    counts = sorted({r['steady_cycles'] for r in rows if r.get('steady_cycles')})
-    return ' or '.join(str(n) for n in counts) if counts else 'few'
 
 
 def _first_cycle_shares(rows: list[dict], windows: list[int]) -> str:
@@ -481,10 +476,8 @@ def _velocity_term(page: Page, rows: list[dict], _all) -> None:
     steps = [r for r in rows if r.get('setpoint') == 'step']
     # The steady speed of each straight walk (its last whole crawl cycles) against its
     # set-point, once per run.
-    measured = {on: [dict(r, speed_ratio=steady_velocity(r)[0] / r['commanded'][0],
-                          speed_error=abs(1 - steady_velocity(r)[0] / r['commanded'][0]))
-                     for r in steady if r['velocity_term'] == on and r.get('ok')
-                     and steady_velocity(r) and r['commanded'][0]] for on in (True, False)}
+    measured = {on: [r for r in forward_speed_rows(steady) if r['velocity_term'] == on]
+                for on in (True, False)}
     for on in (True, False):
         runs = [r for r in steady if r['velocity_term'] == on]
         page.row('velocity term', 'on (weight 300)' if on else 'off (weight 0)',
@@ -500,7 +493,7 @@ def _velocity_term(page: Page, rows: list[dict], _all) -> None:
     _trunk_travel(page, steady, ('seed', 'setpoint'), 'straight walks')
     text = ('## Velocity-tracking term\n\nThe same runs with the MPC\'s velocity weight at its '
             'default and at 0 (eq. 6 without the optional term): straight walks (the steady '
-            f'speed: the mean over the last {_steady_cycles(steady)} whole crawl cycles)')
+            f'speed: the mean over the last {steady_cycles_text(steady)} whole crawl cycles)')
     if steps:
         on = [r for r in steps if r['velocity_term']]
         off = [r for r in steps if not r['velocity_term']]

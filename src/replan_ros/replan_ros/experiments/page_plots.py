@@ -15,10 +15,10 @@ def plot_push(plt, table: dict):
     width = 0.8 / max(len(table), 1)
     for i, (name, entries) in enumerate(table.items()):
         phases = sorted({p['phase'] for p in entries})
-        values = [[p['survived_ns'] for p in entries if p['phase'] == k] for k in phases]
-        mean = np.array([np.mean(v) for v in values])
-        low = mean - np.array([min(v) for v in values])
-        high = np.array([max(v) for v in values]) - mean
+        survived = [[p['survived_ns'] for p in entries if p['phase'] == k] for k in phases]
+        mean = np.array([np.mean(v) for v in survived])
+        low = mean - np.array([min(v) for v in survived])
+        high = np.array([max(v) for v in survived]) - mean
         ax.bar(np.arange(len(phases)) + i * width, mean, width, yerr=[low, high], capsize=2,
                label=name.replace('_', ' '))
     ax.axhline(30.0, color='tab:red', lw=0.8, label='target 30 N s')

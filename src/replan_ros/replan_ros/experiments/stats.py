@@ -38,6 +38,33 @@ def steady_velocity(row: dict) -> list | None:
     return whole or row.get('achieved')
 
 
+def steady_error(row: dict) -> float | None:
+    """m/s, |achieved - commanded| of the planar velocity in the steady state (the mean of the
+    last whole crawl cycles, ``achieved_steady``: speed and direction); None without it."""
+    steady, commanded = row.get('achieved_steady'), row.get('commanded')
+    if not steady or not commanded:
+        return None
+    return float(math.hypot(steady[0] - commanded[0], steady[1] - commanded[1]))
+
+
+def steady_cycles_text(rows: list[dict]) -> str:
+    """How many whole cycles the runs' steady state is the mean of (``steady_cycles``)."""
+    counts = sorted({r['steady_cycles'] for r in rows if r.get('steady_cycles')})
+    return ' or '.join(str(n) for n in counts) if counts else 'few'
+
+
+def forward_speed_rows(rows: list[dict]) -> list[dict]:
+    """The straight walks that completed with a steady state and a forward set-point, each
+    with ``speed_ratio`` (steady forward speed / set-point) and ``speed_error`` (|1 - ratio|)."""
+    out = []
+    for r in rows:
+        steady = steady_velocity(r)
+        if r.get('ok') and steady and r['commanded'][0]:
+            ratio = steady[0] / r['commanded'][0]
+            out.append(dict(r, speed_ratio=ratio, speed_error=abs(1 - ratio)))
+    return out
+
+
 def cycles_to_within(row: dict, tolerance: float) -> int | None:
     """Whole crawl cycles from the start of a row's segment before every later cycle's mean
     velocity (``cycle_velocities``) is within ``tolerance`` (a share) of the set-point: planar

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from replan_ros.experiments.claims import _steady_error, bisect_impulse, second_push
+from replan_ros.experiments.claims import bisect_impulse, second_push
 from replan_ros.experiments.page import write_page
 from replan_ros.experiments.plan import (
     ExperimentError,
@@ -26,6 +26,7 @@ from replan_ros.experiments.stats import (
     cycles_to_within,
     pairs_to_resolve,
     spread,
+    steady_error,
 )
 
 CONFIG = Path(__file__).resolve().parents[4] / 'config'
@@ -468,8 +469,8 @@ def test_an_unresolved_paired_comparison_says_how_many_pairs_would_resolve_it():
 
 def test_the_steady_error_is_the_last_whole_cycles_against_the_set_point():
     segment = {'achieved_steady': [0.147, 0.004, 0.01], 'commanded': [0.15, 0.0, 0.0]}
-    assert _steady_error(segment) == pytest.approx(0.005, abs=1e-12)   # 3-4-5, yaw left out
-    assert _steady_error({'achieved_steady': None, 'commanded': [0.15, 0.0, 0.0]}) is None
+    assert steady_error(segment) == pytest.approx(0.005, abs=1e-12)   # 3-4-5, yaw left out
+    assert steady_error({'achieved_steady': None, 'commanded': [0.15, 0.0, 0.0]}) is None
 
 
 def test_a_run_cut_short_is_not_used():
