@@ -64,8 +64,8 @@ def test_a_wrong_robot_is_refused_in_one_line(tool, case, ros_domain, tmp_path):
     """``--robot go2`` (no such robot file) or a robot file whose names do not match its URDF:
     one line, exit 2, nothing started (issue 30)."""
     if case == 'unknown_name':
-        robot, expected = 'go2', ("unknown robot 'go2' (known: anymal_c, b1, go1, hyq; or a "
-                                  'robot file, docs/robot_files.md)')
+        robot, expected = 'go2', ("unknown robot 'go2' (known: a1, anymal_b, anymal_c, b1, "
+                                  'go1, hyq; or a robot file, docs/robot_files.md)')
     else:
         path, expected = _wrong_go1(tmp_path)
         robot = str(path)
@@ -117,7 +117,8 @@ def test_node_started_alone_with_an_unknown_robot_exits_non_zero(node, launcher)
                              params={'robot_file': 'go2'})
     process.process.wait(30)
     assert process.process.returncode == 2
-    assert "config error: unknown robot 'go2' (known: anymal_c, b1, go1, hyq" in process.log()
+    assert ("config error: unknown robot 'go2' (known: a1, anymal_b, anymal_c, b1, go1, hyq"
+            in process.log())
 
 
 def test_wbc_refuses_an_observer_gain_at_its_control_rate(launcher):

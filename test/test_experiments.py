@@ -31,12 +31,19 @@ def test_quick_experiments_write_the_results_page(quick_experiments, ros_domain)
     assert len(runs) == data['meta']['runs'] >= 7
     assert all(r['completed'] and r['profile'] == 'realistic' for r in runs)
     # --no-bag (analysed, then gone) but where the page reads the bag: the velocity term's
-    # runs, how their trunk travels (motion_effects.json beside the bag).
+    # runs, how their trunk travels (motion_effects.json beside the bag), and the large
+    # push's, what it did to the support (push_effects.json).
     with_bag = {f for f in folders if (f / 'bag').is_dir()}
-    assert with_bag == {f for f in folders if (f / 'motion_effects.json').is_file()}
-    assert len(with_bag) == 2                                 # on and off, one seed
+    travel = {f for f in folders if (f / 'motion_effects.json').is_file()}
+    support = {f for f in folders if (f / 'push_effects.json').is_file()}
+    assert with_bag == travel | support
+    assert len(travel) == 2 and len(support) == 2      # on and off, one seed (and phase)
     assert all(json.loads((f / 'motion_effects.json').read_text())['effects'][
-        'swing_travel_share'] is not None for f in with_bag)
+        'swing_travel_share'] is not None for f in travel)
+    assert all(json.loads((f / 'push_effects.json').read_text())['effects'][
+        'trunk_shift_max_m'] > 0.05 for f in support)
+    assert ('| large push | correction sway free vs off, 75 N s | capture point in the '
+            'support, 5th percentile (cm) |') in page
     assert '| velocity term | straight walks: on vs off | share of the travel made' in page
     pushed = [r for r in runs if r['pushes']]
     assert pushed and all(r['pushes'][0]['support_inradius_before_m'] > 0 for r in pushed)

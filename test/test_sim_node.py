@@ -320,3 +320,19 @@ def test_topic_without_reader_is_served_to_a_late_reader(launcher, probe):
         assert {stamp_to_ns(m.header.stamp) for m in msgs} == {TICK_NS * 5}
     assert 0.55 < odom[-1].pose.pose.position.z < 0.62
     assert contacts_from_msg(contacts[-1]).foot_position.shape == (4, 3)
+
+
+def test_a_second_graph_on_the_domain_stops_the_sim_with_one_line(launcher, probe):
+    """Two graphs on one ROS domain mix their topics (two scenario runs started without their
+    own ROS_DOMAIN_ID read each other's clocks and torques): a second /clock publisher stops
+    the sim with one line naming the domain, instead of a run on mixed inputs."""
+    sim = start_sim(launcher)
+    driver = Driver(probe)
+    assert driver.wait_ready(), launcher.logs()
+    probe.spin_for(1.5)
+    assert sim.alive, launcher.logs()            # its own /clock alone: no complaint
+    probe.node.create_publisher(Clock, '/clock', qos.CLOCK)
+    assert probe.spin_until(lambda: not sim.alive, 10.0), launcher.logs()
+    assert sim.process.returncode == 3
+    assert (f'another graph publishes /clock on ROS_DOMAIN_ID {launcher.domain_id} (1 other '
+            'publisher(s))') in sim.log()

@@ -7,7 +7,8 @@ leg length l, ``time`` sqrt(l / g),
 ``speed`` sqrt(g l), ``rate`` sqrt(g / l), ``torque`` m g l, ``stiffness`` m g / l, ``damping``
 m sqrt(g / l), ``press_depth`` l m_leg / m (a leg's weight over the swing stiffness),
 ``joint_inertia`` the smallest joint inertia, ``position_cost`` l^-3; a list
-parameter scales each value. Values
+parameter scales each value. ``actuator_kinds``: a parameter scaled by a figure of the robot
+file's actuator kind (hydraulic, series-elastic, geared electric) over the reference's. Values
 ``measured`` on the model (CoM height, feet about the hips, foot frame height) are set, not
 scaled.
 """
@@ -58,25 +59,38 @@ def _split(key: str) -> tuple[str, str]:
 
 def derived_parameters(facts: RobotFacts, reference: RobotFacts,
                        reference_values: Mapping[str, Mapping], rules: Mapping,
-                       measure: bool = True) -> dict:
+                       measure: bool = True,
+                       actuators: tuple[str, str] | None = None) -> dict:
     """node -> {parameter: value} for the robot of ``facts``: each parameter of
     ``rules['rules']`` scaled from ``reference_values`` (node -> {parameter: value}, the
     reference robot's), each of ``rules['measured']`` set from ``facts`` (with ``measure``;
-    the reference robot itself keeps its files' tuned values: measure=False). ValueError
-    names an unknown scale, measurement or parameter."""
+    the reference robot itself keeps its files' tuned values: measure=False); with
+    ``actuators`` (the robot's actuator kind, the reference's), each parameter of
+    ``rules['actuator_kinds']`` scaled by its figure for the one kind over the other's.
+    ValueError names an unknown scale, measurement, kind or parameter."""
     out: dict[str, dict] = {}
+
+    def scaled(key: str, ratio: float) -> None:
+        node, name = _split(key)
+        if name not in reference_values.get(node, {}):
+            raise ValueError(f'{key}: the reference has no such parameter')
+        value = reference_values[node][name]
+        out.setdefault(node, {})[name] = (
+            [float(v) * ratio for v in value] if isinstance(value, (list, tuple))
+            else float(value) * ratio)
+
     for scale, keys in rules.get('rules', {}).items():
         if scale not in SCALES:
             raise ValueError(f'unknown scale {scale!r} (known: {", ".join(SCALES)})')
         ratio = SCALES[scale](facts) / SCALES[scale](reference)
         for key in keys:
-            node, name = _split(key)
-            if name not in reference_values.get(node, {}):
-                raise ValueError(f'{key}: the reference has no such parameter')
-            value = reference_values[node][name]
-            out.setdefault(node, {})[name] = (
-                [float(v) * ratio for v in value] if isinstance(value, (list, tuple))
-                else float(value) * ratio)
+            scaled(key, ratio)
+    for key, figures in (rules.get('actuator_kinds', {}) if actuators else {}).items():
+        missing = [kind for kind in actuators if kind not in figures]
+        if missing:
+            raise ValueError(f'actuator_kinds.{key}: no figure for {", ".join(missing)}')
+        # A profile without the dynamics (0, the ideal world) stays without them.
+        scaled(key, float(figures[actuators[0]]) / float(figures[actuators[1]]))
     for key, what in (rules.get('measured', {}) if measure else {}).items():
         if what not in MEASURED:
             raise ValueError(f'{key}: unknown measurement {what!r} (known: '

@@ -26,9 +26,10 @@ ROBOTS = ROOT / 'config' / 'robots'
 # kg, total mass; m, standing height over the ground (measured with PyBullet and pinocchio
 # for the notes, independently of this code).
 EXPECTED = {'hyq': (86.76, 0.60), 'anymal_c': (52.13, 0.54), 'go1': (13.10, 0.27),
-            'b1': (55.69, 0.53)}
+            'b1': (55.69, 0.53), 'anymal_b': (30.48, 0.49), 'a1': (13.74, 0.27)}
 # kg, one leg (the links below its abduction joint), summed from each URDF's leg links.
-LEG_MASS = {'hyq': 6.45, 'anymal_c': 6.44, 'go1': 1.88, 'b1': 7.47}
+LEG_MASS = {'hyq': 6.45, 'anymal_c': 6.44, 'go1': 1.88, 'b1': 7.47, 'anymal_b': 3.41,
+            'a1': 1.93}
 
 
 @pytest.fixture(scope='module')
@@ -100,7 +101,8 @@ def test_a_robot_is_a_name_of_config_robots_or_a_file():
     assert robot_file_path('/x/my_go1.yaml', ROOT / 'config') == Path('/x/my_go1.yaml')
     for wrong in ('go2', 'scaling'):
         with pytest.raises(RobotFileError, match=re.escape(
-                f"unknown robot '{wrong}' (known: anymal_c, b1, go1, hyq; or a robot file")):
+                f"unknown robot '{wrong}' (known: a1, anymal_b, anymal_c, b1, go1, hyq; "
+                "or a robot file")):
             robot_file_path(wrong, ROOT / 'config')
 
 
@@ -210,3 +212,26 @@ def test_unknown_scales_measurements_and_parameters_are_refused(facts):
         derived_parameters(hyq, hyq, VALUES, {'measured': {'mpc.com_height': 'height'}})
     with pytest.raises(ValueError, match=re.escape('is not node.parameter')):
         derived_parameters(hyq, hyq, VALUES, {'rules': {'weight': ['fz_max']}})
+
+
+def test_the_actuator_lag_follows_the_actuator_kind_and_nothing_else(facts):
+    """The project's rule (scaling.yaml actuator_kinds): each robot file's kind gets its
+    figure, whatever its size; a profile without the lag (0) keeps none."""
+    project = yaml.safe_load((ROBOTS / 'scaling.yaml').read_text())
+    rules = {'actuator_kinds': project['actuator_kinds']}
+    figures = rules['actuator_kinds']['sim.actuator_time_constant']
+    realistic = {'sim': {'actuator_time_constant': 0.003}}
+    kinds = {name: load_robot_file(ROBOTS / f'{name}.yaml', ROOT).actuator for name in facts}
+    assert kinds['hyq'] == 'hydraulic' and kinds['anymal_c'] == 'series_elastic'
+    for name, robot in facts.items():
+        lag = derived_parameters(robot, facts['hyq'], realistic, rules, measure=False,
+                                 actuators=(kinds[name], 'hydraulic'))
+        assert lag['sim']['actuator_time_constant'] == pytest.approx(figures[kinds[name]]), name
+        ideal = derived_parameters(robot, facts['hyq'], {'sim': {'actuator_time_constant': 0.0}},
+                                   rules, measure=False, actuators=(kinds[name], 'hydraulic'))
+        assert ideal['sim']['actuator_time_constant'] == 0.0
+    # Without the kinds nothing is derived from them; a kind without a figure is refused.
+    assert derived_parameters(facts['go1'], facts['hyq'], realistic, rules) == {}
+    with pytest.raises(ValueError, match='no figure for pneumatic'):
+        derived_parameters(facts['go1'], facts['hyq'], realistic, rules,
+                           actuators=('pneumatic', 'hydraulic'))

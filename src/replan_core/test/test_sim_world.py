@@ -107,7 +107,7 @@ def test_any_robot_file_spawns_standing_with_its_feet_touching(name):
         w.close()
 
 
-@pytest.mark.parametrize('name', ['hyq', 'anymal_c', 'go1', 'b1'])
+@pytest.mark.parametrize('name', ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1'])
 def test_sim_mass_and_inertia_equal_the_model(name):
     """The sim's robot weighs what the controller's model (pinocchio) says, and its links
     merged (urdf_merge.py: ANYmal C 77 -> 16 PyBullet links) turn as the model does: the

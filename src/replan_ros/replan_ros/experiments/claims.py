@@ -183,31 +183,63 @@ def lateral_push(ctx: Context, cfg: dict, world: str = 'realistic') -> dict:
             'robot_mass_kg': _robot_mass(ctx.runner)}
 
 
+def _push_support(runner: Runner, base: dict, params: dict, seed: int, start: float,
+                  force: np.ndarray, length: float, horizon: float, duration: float | None,
+                  **labels) -> dict:
+    """One run with a lateral ``force`` (N, xy) from ``start`` for ``length`` s, its bag kept:
+    its row, with what the push did to the support over ``horizon`` s after it
+    (``push_effects``) unless it fell or failed. ``params``: the setting's node parameters."""
+    push = (start, (float(force[0]), float(force[1]), 0.0), length)
+    doc = variant(base, params=params, seed=seed, push=push, duration=duration)
+    result = runner.run(doc, bag=True)
+    effects = (cached_push_effects(result.folder, start, length, horizon)
+               if result.ok and not result.fell else None)
+    return _summary(result, seed=seed, **labels, **(effects or {}))
+
+
+def _unit(direction) -> np.ndarray:
+    vector = np.asarray(direction, dtype=float)
+    return vector / np.linalg.norm(vector)
+
+
 def sustained_push(ctx: Context, cfg: dict) -> list[dict]:
     """A lateral force held for ``push_duration`` s while walking, per setting (foothold
     correction off, literal, sway-free), force and seed: whether the robot falls, and what
     the push does to its support over the steps that follow (``push_effects``, from the run's
     bag, which these runs keep). Paired by seed and force across the settings."""
-    runner = ctx.runner
-    base = runner.scenario(cfg['scenario'])
-    direction = np.asarray(cfg.get('direction', [0.0, 1.0]), dtype=float)
-    direction = direction / np.linalg.norm(direction)
+    base = ctx.runner.scenario(cfg['scenario'])
+    direction = _unit(cfg.get('direction', [0.0, 1.0]))
     start, length = float(cfg['push_start']), float(cfg['push_duration'])
     horizon = float(cfg.get('horizon', 6.0))
+    jobs = [lambda name=name, setting=setting, force=float(force), seed=seed: _push_support(
+                ctx.runner, base, setting, seed, start, force * direction, length, horizon,
+                cfg.get('duration'), setting=name, force_n=force)
+            for name, setting in cfg['settings'].items()
+            for force in cfg['forces'] for seed in cfg['seeds']]
+    return _parallel(jobs)
+
+
+def large_push(ctx: Context, cfg: dict) -> list[dict]:
+    """One short lateral push of ``impulse`` N s, large enough to move the trunk 10-20 cm over
+    its feet (issue 31), per setting, phase of the crawl cycle and seed: whether the robot
+    falls, and what the push does to its support over the ``horizon`` s after it
+    (``push_effects``). Paired by phase and seed across the settings. Each run ends
+    ``horizon`` s after its push."""
+    base = ctx.runner.scenario(cfg['scenario'])
+    direction = _unit(cfg['direction'])
+    length, impulse = float(cfg['push_duration']), float(cfg['impulse'])
+    horizon, phases = float(cfg['horizon']), int(cfg['phases'])
+    cycle = ctx.settings['crawl_cycle_s']
+    force = direction * impulse / length
     jobs = []
     for name, setting in cfg['settings'].items():
-        for force in cfg['forces']:
+        for k in range(phases):
+            start = float(cfg['first_push']) + cycle * k / phases
             for seed in cfg['seeds']:
-                def make(name=name, setting=setting, force=float(force), seed=seed):
-                    push = (start, (force * direction[0], force * direction[1], 0.0), length)
-                    doc = variant(base, params=setting, seed=seed, push=push,
-                                  duration=cfg.get('duration'))
-                    result = runner.run(doc, bag=True)
-                    effects = (cached_push_effects(result.folder, start, length, horizon)
-                               if result.ok and not result.fell else None)
-                    return _summary(result, setting=name, force_n=force, seed=seed,
-                                    **(effects or {}))
-                jobs.append(make)
+                jobs.append(lambda name=name, setting=setting, k=k, start=start, seed=seed:
+                            _push_support(ctx.runner, base, setting, seed, start, force, length,
+                                          horizon, start + length + horizon, setting=name,
+                                          phase=k, push_time_s=start, impulse_ns=impulse))
     return _parallel(jobs)
 
 
@@ -403,6 +435,7 @@ def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
         'haptic': lambda: haptic(ctx, plan['haptic']),
         'velocity_term': lambda: velocity_term(ctx, plan['velocity_term']),
         'sustained_push': lambda: sustained_push(ctx, plan['sustained_push']),
+        'large_push': lambda: large_push(ctx, plan['large_push']),
         'fastest_crawl': lambda: fastest_crawl(ctx, plan['fastest_crawl']),
         'ideal_world': lambda: ideal_world(ctx, plan['ideal_world'], plan),
     }

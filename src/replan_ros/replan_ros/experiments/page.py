@@ -17,6 +17,7 @@ import numpy as np
 
 from replan_ros.experiments.findings import findings
 from replan_ros.experiments.page_plots import plot_haptic, plot_push, plot_windows
+from replan_ros.experiments.page_push import large_push_section, sustained_push_section
 from replan_ros.experiments.stats import (
     P_VALUE,
     PAPER_QP_MS,
@@ -83,7 +84,8 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
     for name, writer in (('velocity_changes', _velocity_changes),
                          ('lateral_push', _lateral_push), ('replan_window', _replan_window),
                          ('haptic', _haptic), ('velocity_term', _velocity_term),
-                         ('sustained_push', _sustained_push),
+                         ('sustained_push', sustained_push_section),
+                         ('large_push', large_push_section),
                          ('qp_timing', _qp_timing), ('fastest_crawl', _fastest_crawl),
                          ('ideal_world', _ideal_world)):
         if name in results:
@@ -549,55 +551,6 @@ def _trunk_travel(page: Page, rows: list[dict], by: tuple[str, ...], label: str)
              else '-', len(share_on) + len(share_off),
              'the velocity term gives faster motion (the trunk moves through the swings)',
              verdict + p_text(p))
-
-
-_SUSTAINED_METRICS = (
-    ('trunk_shift_max_m', 'largest trunk shift over its feet (cm)', 100.0, None),
-    ('capture_margin_p5_m', 'capture point in the support, 5th percentile (cm)', 100.0,
-     'higher'),
-    ('capture_margin_min_m', 'capture point in the support, least (cm)', 100.0, 'higher'),
-    ('foot_offset_change_m', 'feet off their places about the hips, mean (cm)', 100.0, None))
-
-
-def _sustained_push(page: Page, rows: list[dict], results) -> None:
-    settings = list(dict.fromkeys(r['setting'] for r in rows))
-    claim = 'foothold correction keeps the support from degenerating'
-    lines = ['## Sustained lateral push: the support over the following steps', '',
-             'Walking at 0.1 m/s, a lateral force to the robot\'s left held for a few seconds '
-             '(table: the force; the page\'s plan file: start and duration), so the trunk moves '
-             'over its feet for several steps, the situation the paper\'s foothold correction '
-             '(V.B) is for. From the truth over the push and the steps after it '
-             '(`replan_ros/experiments/push_effects.py`): the trunk\'s shift over its feet; the '
-             'capture point\'s distance to the edges of the polygon of the feet in contact '
-             '(positive inside; the base stands for the CoM); how far the feet left their '
-             'places about the hips. Paired by seed and force: a setting is compared with '
-             'correction off on the capture point\'s 5th percentile (higher: a support that '
-             'did not degenerate). A second push some steps later is not tested yet.', '']
-    for force in sorted({r['force_n'] for r in rows}):
-        for name in settings:
-            runs = [r for r in rows if r['setting'] == name and r['force_n'] == force]
-            falls = sum(r['fell'] for r in runs)
-            label = f'{name.replace("_", " ")}, {force:.0f} N'
-            for key, metric, scale, _ in _SUSTAINED_METRICS:
-                page.row('sustained push', label, metric,
-                         spread(values(runs, key), 1, scale), len(runs),
-                         'no fall' if key == 'trunk_shift_max_m' else '',
-                         f'{falls} falls' if key == 'trunk_shift_max_m' else '')
-        off = [r for r in rows if r['setting'] == 'correction_off' and r['force_n'] == force]
-        for name in [n for n in settings if n != 'correction_off']:
-            on = [r for r in rows if r['setting'] == name and r['force_n'] == force]
-            verdict, p = compare_paired(on, off, 'capture_margin_p5_m', ('seed',), 'higher')
-            a, b = values(on, 'capture_margin_p5_m'), values(off, 'capture_margin_p5_m')
-            page.row('sustained push', f'{name.replace("_", " ")} vs off, {force:.0f} N',
-                     'capture point in the support, 5th percentile (cm)',
-                     f'{np.mean(a) * 100:.1f} vs {np.mean(b) * 100:.1f}' if a and b else '-',
-                     len(on) + len(off), claim, verdict + p_text(p))
-            falls_on, falls_off = sum(r['fell'] for r in on), sum(r['fell'] for r in off)
-            if falls_on or falls_off:
-                lines.append(f'- {force:.0f} N: falls {falls_on} of {len(on)} with '
-                             f'{name.replace("_", " ")}, {falls_off} of {len(off)} with '
-                             'correction off (a fallen run has no support measures).')
-    page.section('\n'.join(lines))
 
 
 def _qp_timing(page: Page, data: dict, results: dict) -> None:

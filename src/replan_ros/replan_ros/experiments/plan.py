@@ -21,6 +21,8 @@ PLAN_KEYS = {
                       'motion_after'},
     'sustained_push': {'scenario', 'push_start', 'push_duration', 'forces', 'direction',
                        'horizon', 'duration', 'seeds', 'settings'},
+    'large_push': {'scenario', 'phases', 'first_push', 'push_duration', 'impulse', 'direction',
+                   'horizon', 'seeds', 'settings'},
     'qp_timing': {'replans', 'formulations'},
     'fastest_crawl': {'scenario', 'setpoints', 'velocity_clamp', 'seed'},
     'ideal_world': {'replan_window', 'haptic', 'velocity_changes', 'lateral_push'},
@@ -94,6 +96,8 @@ def planned_runs(plan: dict, selected: list[str]) -> int:
             n += 2 * len(cfg['seeds']) * (len(cfg['setpoints']) + bool(cfg.get('step_scenario')))
         elif name == 'sustained_push':
             n += len(cfg['settings']) * len(cfg['seeds']) * len(cfg['forces'])
+        elif name == 'large_push':
+            n += len(cfg['settings']) * int(cfg['phases']) * len(cfg['seeds'])
         elif name == 'fastest_crawl':
             n += len(cfg['setpoints'])
         elif name == 'ideal_world':

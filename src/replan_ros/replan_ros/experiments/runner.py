@@ -164,7 +164,8 @@ def main(argv=None) -> int:
     made = sum(1 for r in runner.results.values()
                if isinstance(r, RunResult) and r.ok)
     meta = {'command': command.strip(), 'machine': machine_description(),
-            'revision': git_revision(root), 'code': runner.code,
+            'revision': git_revision(root),
+            'code': runner.code_for({'robot': runner.robot} if runner.robot else {}),
             'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
             'wall_time_min': round(wall / 60.0, 1), 'runs': made,
             'reused': progress.reused,

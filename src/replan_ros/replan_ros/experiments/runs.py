@@ -20,6 +20,7 @@ from pathlib import Path
 import yaml
 
 from replan_ros.experiments.plan import ExperimentError
+from replan_ros.launch.param_files import DEFAULT_ROBOT
 
 DEFAULT_DOMAIN_BASE = 150      # the node tests reserve 2..101 (test/harness.py)
 
@@ -36,6 +37,7 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
                 'replan_ros/experiments/claims.py', 'replan_ros/experiments/plan.py',
                 'replan_ros/experiments/runner.py', 'replan_ros/experiments/runs.py',
                 'replan_ros/experiments/push_effects.py', 'replan_ros/experiments/stats.py',
+                'replan_ros/experiments/page_push.py',
                 'replan_ros/experiments/motion_effects.py',
                 'replan_ros/experiments/findings.py', 'replan_ros/experiments/ray_runs.py',
                 'config/robots_page.yaml', 'replan_ros/experiments/robots_page.py',
@@ -43,18 +45,42 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
                 'replan_ros/benchmarks/', 'replan_ros/tools/planner_loop.py')
 
 
-def code_fingerprint(root: Path) -> str:
+def code_fingerprint(root: Path, robot: str | None = None) -> str:
     """A hash of every file under ``root`` (the repository) that shapes a run (``_SHAPING``):
     a change to any of them gives every run a new key, so the cache never serves a run of
-    other code."""
+    other code. With ``robot`` (a name of ``config/robots/``), of the robot files only those
+    that shape that robot's runs count (its own, the scaling rules, the reference robot's):
+    a file added or changed for another robot leaves its runs' keys as they were."""
     digest = hashlib.sha1()
     files = {path for pattern in _SHAPING for path in root.glob(pattern) if path.is_file()}
+    robot_files = _robot_files(root, robot) if robot else None
     for path in sorted(files):
         rel = path.relative_to(root).as_posix()
         if '__pycache__' in rel or any(part in rel for part in _NOT_SHAPING):
             continue
+        if robot_files is not None and rel.startswith(_ROBOTS) and rel not in robot_files:
+            continue
         digest.update(rel.encode() + b'\0' + path.read_bytes() + b'\0')
     return digest.hexdigest()[:12]
+
+
+_ROBOTS = 'config/robots/'
+
+
+def _robot_files(root: Path, robot: str) -> set[str] | None:
+    """The robot files that shape a run of ``robot``: its file, ``scaling.yaml`` and the
+    reference robot's file it names; None (every robot file) for a robot given as a path."""
+    if '/' in robot or robot.endswith('.yaml'):
+        return None
+    wanted = {f'{_ROBOTS}{robot}.yaml', f'{_ROBOTS}scaling.yaml'}
+    try:
+        reference = (yaml.safe_load((root / _ROBOTS / 'scaling.yaml').read_text()) or {}).get(
+            'reference')
+    except (OSError, yaml.YAMLError, AttributeError):
+        reference = None
+    if reference:
+        wanted.add(f'{_ROBOTS}{reference}.yaml')
+    return wanted
 
 
 def git_revision(root: Path) -> str:
@@ -140,7 +166,10 @@ class Runner:
                  lock_file: Path | None = None, robot: str | None = None) -> None:
         self.out_dir, self.config_dir = out_dir, config_dir
         self.robot = robot          # None: each scenario's own robot (HyQ unless it names one)
+        # The whole checkout's (the page names it; Ray nodes must run it); a run's key has
+        # its robot's (``code_for``).
         self.code = code_fingerprint(config_dir.resolve().parent)
+        self._robot_codes: dict[str, str] = {}
         self.lock_file = lock_file
         self.fresh, self.progress = fresh, progress
         self.slots = [domain_base + i for i in range(jobs)]
@@ -148,6 +177,14 @@ class Runner:
         self.results: dict[str, RunResult | threading.Event] = {}
         self.lock = threading.Lock()
         self.failures: list[str] = []
+
+    def code_for(self, doc: dict) -> str:
+        """The fingerprint in the key of scenario ``doc``'s run: the code and configuration
+        that shape a run of its robot (``code_fingerprint`` with the robot)."""
+        robot = str(doc.get('robot') or DEFAULT_ROBOT)
+        if robot not in self._robot_codes:
+            self._robot_codes[robot] = code_fingerprint(self.config_dir.resolve().parent, robot)
+        return self._robot_codes[robot]
 
     def scenario(self, name: str) -> dict:
         """The scenario file ``name``; with ``robot``, its document runs that robot (a
@@ -165,7 +202,7 @@ class Runner:
         """The run of scenario ``doc``: made now, or read if made before or under way.
         ``bag``: keep its bag (in its folder's ``bag/``); a run made before without one, in an
         earlier call or in this one (two experiments can share a run), is made again."""
-        key = run_key(doc, self.code)
+        key = run_key(doc, self.code_for(doc))
         while True:
             with self.lock:
                 entry = self.results.get(key)

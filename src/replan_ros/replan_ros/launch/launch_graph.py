@@ -46,8 +46,9 @@ def add_robot_option(parser: argparse.ArgumentParser, default: str | None = DEFA
                      ) -> None:
     """``--robot NAME|FILE``, shared by launch.sh and scenario.sh."""
     parser.add_argument('--robot', default=default, metavar='NAME|FILE',
-                        help='the robot: a name of config/robots/ (hyq, anymal_c, go1, b1) or '
-                             'a robot file (docs/robot_files.md); its parameters are derived '
+                        help='the robot: a name of config/robots/ (hyq, anymal_c, go1, b1, '
+                             'anymal_b, a1) or a robot file (docs/robot_files.md); its '
+                             'parameters are derived '
                              f'from the reference robot\'s (default {DEFAULT_ROBOT})')
 
 

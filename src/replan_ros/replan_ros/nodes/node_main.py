@@ -3,6 +3,7 @@ external shutdown, then destroyed and rclpy down, whatever happened in between."
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import time
@@ -43,6 +44,26 @@ def load_node_robot(node: Node, p: dict, default_urdf: str = '') -> NodeRobot:
     except ConfigError as err:
         node.get_logger().fatal(f'config error: {err}')
         raise SystemExit(2) from None
+
+
+# The exit code of a node that found another graph on its ROS domain.
+EXIT_SHARED_DOMAIN = 3
+
+
+def stop_if_domain_shared(node: Node, own_topic: str) -> None:
+    """Two graphs on one ROS domain mix their topics (each controller answers both sims, each
+    sim takes both controllers' torques): neither run is what it claims. A second publisher
+    of ``own_topic``, which only one node of a graph publishes (the sim's ``/clock``), is
+    another graph: stop with one line rather than run on mixed inputs."""
+    others = node.count_publishers(own_topic) - 1
+    if others > 0:
+        domain = os.environ.get('ROS_DOMAIN_ID', '0')
+        node.get_logger().fatal(
+            f'another graph publishes {own_topic} on ROS_DOMAIN_ID {domain} ({others} other '
+            'publisher(s)): two graphs on one domain mix their topics; stopping. Give each '
+            'graph its own domain: ROS_DOMAIN_ID=N before the script (experiments.sh --jobs '
+            'does this itself)')
+        raise SystemExit(EXIT_SHARED_DOMAIN)
 
 
 DRAIN_QUIET = 0.3     # s without anything drained: done

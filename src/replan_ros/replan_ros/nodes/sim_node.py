@@ -47,7 +47,7 @@ from replan_core.types import JOINT_NAMES
 from replan_ros.messages.joint_state import torque_command_from_cdr
 from replan_ros.messages.stamps import ns_to_stamp, sec_to_ns
 from replan_ros.messages.wrench import wrench_from_msg, wrench_to_msg
-from replan_ros.nodes.node_main import load_node_robot, log_at, run_node
+from replan_ros.nodes.node_main import load_node_robot, log_at, run_node, stop_if_domain_shared
 from replan_ros.nodes.sim_outputs import TickOutputs
 from replan_ros.params import (
     actuator_params,
@@ -64,6 +64,7 @@ from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
 _LOG_THROTTLE = 1.0          # wall s between two log lines of the same kind
 _WATCHDOG_PERIOD = 0.02      # wall s
+_GRAPH_CHECK_PERIOD = 1.0    # wall s between two looks for another graph on the domain
 
 
 def _default_urdf() -> str:
@@ -159,6 +160,7 @@ class SimNode(Node):
                                             self._on_free_run_timer)
         self.free_timer.cancel()
         self.create_timer(_WATCHDOG_PERIOD, self._on_watchdog)
+        self.create_timer(_GRAPH_CHECK_PERIOD, lambda: stop_if_domain_shared(self, '/clock'))
         self.create_timer(p['diagnostics_period'], self._on_diagnostics)
         self.outputs.sense()
         self.outputs.sense_truth()

@@ -142,7 +142,8 @@ def robot_layer(robot: str, configs: Path, root: Path,
     try:
         # The reference keeps its tuned values (a ratio of exactly 1, nothing measured).
         derived = derived_parameters(facts, reference_facts, reference_values, rules,
-                                     measure=not is_reference)
+                                     measure=not is_reference,
+                                     actuators=(spec.actuator, reference.actuator))
     except ValueError as err:
         raise ConfigError(f'{rules_path}: {err}') from None
     # A name stays a name (the run can be made again from its bag on another machine).

@@ -80,6 +80,35 @@ def test_the_run_key_changes_with_the_code_and_configuration_that_shape_a_run(tm
     assert code_fingerprint(Path(__file__).resolve().parents[4]) != first   # the repository
 
 
+def test_a_robot_file_shapes_only_its_own_robots_runs(tmp_path):
+    """A run's key has its robot's fingerprint: a robot file added or changed for another
+    robot leaves HyQ's runs (and so the results page's cache) as they were; its own file, the
+    scaling rules and the reference robot's file change them. Without a robot: every file."""
+    files = {'src/replan_core/replan_core/gait.py': 'A = 1\n',
+             'config/robots/scaling.yaml': 'reference: hyq\n',
+             'config/robots/hyq.yaml': 'name: hyq\n', 'config/robots/go1.yaml': 'name: go1\n'}
+    for rel, text in files.items():
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text(text)
+    before = {robot: code_fingerprint(tmp_path, robot) for robot in ('hyq', 'go1', None)}
+    (tmp_path / 'config/robots/a1.yaml').write_text('name: a1\n')
+    assert code_fingerprint(tmp_path, 'hyq') == before['hyq']
+    assert code_fingerprint(tmp_path, 'go1') == before['go1']
+    assert code_fingerprint(tmp_path) != before[None]
+    (tmp_path / 'config/robots/go1.yaml').write_text('name: go1\nactuator: x\n')
+    assert code_fingerprint(tmp_path, 'hyq') == before['hyq']
+    assert code_fingerprint(tmp_path, 'go1') != before['go1']
+    for rel in ('config/robots/hyq.yaml', 'config/robots/scaling.yaml'):   # the reference
+        go1 = code_fingerprint(tmp_path, 'go1')
+        (tmp_path / rel).write_text((tmp_path / rel).read_text() + '# changed\n')
+        assert code_fingerprint(tmp_path, 'go1') != go1, rel
+    # The runner keys a scenario without robot: as HyQ's (the launcher's default).
+    runner = Runner(tmp_path / 'out', tmp_path / 'config')
+    assert runner.code_for({}) == runner.code_for({'robot': 'hyq'}) == code_fingerprint(
+        tmp_path, 'hyq')
+    assert runner.code_for({'robot': 'go1'}) == code_fingerprint(tmp_path, 'go1')
+
+
 class ThresholdRunner:
     """Stands in for the graph in the bisection's arithmetic: a push falls above ``limit``."""
 
@@ -216,6 +245,19 @@ def test_page_from_results(tmp_path):
                  capture_margin_p5_m=(0.02 if name == 'correction_off' else 0.03) + 0.001 * s,
                  capture_margin_min_m=0.0, foot_offset_change_m=0.05)
             for name in ('correction_off', 'correction_sway_free') for s in range(5)],
+        # The literal rule keeps the feet at their places about the hips (lower offsets in
+        # every pair), the support no better; one phase of sway-free fell.
+        'large_push': [
+            _row(setting=name, impulse_ns=60.0, phase=k, seed=s, push_time_s=4.5 + 0.75 * k,
+                 fell=False, trunk_shift_max_m=0.12 + 0.01 * k,
+                 capture_margin_p5_m=0.03 + 0.001 * s - 0.002 * k,
+                 capture_margin_min_m=-0.01,
+                 foot_offset_change_m=(0.05 if name == 'correction_off' else 0.02)
+                 + 0.002 * s + 0.001 * k)
+            if not (name == 'correction_sway_free' and k == 1 and s == 0) else
+            _row(setting=name, impulse_ns=60.0, phase=k, seed=s, push_time_s=5.25, fell=True)
+            for name in ('correction_off', 'correction_literal', 'correction_sway_free')
+            for k in range(2) for s in range(3)],
         'velocity_term': (
             [_row(velocity_term=on, seed=s, setpoint=0.15, achieved=[0.15 - 0.001 * s, 0, 0],
                   commanded=[0.15, 0, 0], swing_travel_share=(0.6 if on else 0.5) + 0.01 * s,
@@ -258,6 +300,20 @@ def test_page_from_results(tmp_path):
     assert ('| sustained push | correction sway free vs off, 60 N | capture point in the '
             'support, 5th percentile (cm) | 3.2 vs 2.2 | 10 | foothold correction keeps the '
             'support from degenerating | holds (5 pairs)') in text
+    # The large push: paired by phase and seed; a fallen run leaves its pair out.
+    assert ('| large push | correction off, 60 N s | largest trunk shift over its feet (cm) | '
+            '12.5 ± 0.5 (12.0 to 13.0) | 6 | no fall | 0 falls |') in text
+    assert ('| large push | correction literal vs off, 60 N s | feet off their places about '
+            'the hips, mean (cm) | 2.3 vs 5.2 | 12 | foothold correction keeps the support '
+            'from degenerating | holds (6 pairs), p = ') in text
+    assert ('| large push | correction sway free vs off, 60 N s | feet off their places about '
+            'the hips, mean (cm) | 2.3 vs 5.2 | 12 | foothold correction keeps the support '
+            'from degenerating | holds (5 pairs; 2 runs without the measure left out)') in text
+    assert ('| large push | correction literal vs off, 60 N s | capture point in the support, '
+            '5th percentile (cm) | 3.0 vs 3.0 | 12 | foothold correction keeps the support '
+            'from degenerating | not resolved (equal in every pair, 6 pairs)') in text
+    assert '- 60 N s: falls 1 of 6 with correction sway free, 0 of 6 with correction off' in text
+    assert 'without correction the largest shift was 12.0 to 13.0 cm' in text
     # The velocity term: the steady speed from the straight walks alone, "faster motion" from
     # the rise time after the set-point step, paired by seed.
     assert '| velocity term | on vs off | |1 - achieved / commanded| | 0.007 vs 0.007 | 6 |' \

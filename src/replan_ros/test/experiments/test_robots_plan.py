@@ -38,9 +38,9 @@ def synthetic(name: str = 'go1', mass: float = 10.0, leg: float = 0.5, swing: fl
                                'max_linear_x': 0.2}})
 
 
-def test_the_committed_plan_loads_with_the_four_robots():
+def test_the_committed_plan_loads_with_the_six_robots():
     full = load_robots_plan(PLAN)
-    assert list(full.robots) == ['hyq', 'anymal_c', 'go1', 'b1']
+    assert list(full.robots) == ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1']
     assert full.robots['go1'] == {'forward': 0.05, 'lateral': 0.033, 'yaw': 0.067}
     assert full.profile == 'realistic'
     quick = load_robots_plan(PLAN, quick=True, only=['go1'])

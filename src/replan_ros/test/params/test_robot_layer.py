@@ -50,8 +50,8 @@ def test_a_node_with_a_robot_file_loads_its_model_and_names():
 def test_a_node_with_an_unknown_robot_gets_one_line():
     with pytest.raises(ConfigError) as error:
         node_robot('go2', '', '')
-    assert str(error.value) == ("unknown robot 'go2' (known: anymal_c, b1, go1, hyq; or a "
-                                'robot file, docs/robot_files.md)')
+    assert str(error.value) == ("unknown robot 'go2' (known: a1, anymal_b, anymal_c, b1, go1, "
+                                'hyq; or a robot file, docs/robot_files.md)')
 
 
 @pytest.mark.parametrize('profile', ['realistic', 'ideal'])
@@ -85,6 +85,19 @@ def test_another_robot_gets_its_pose_derived_values_and_names(tmp_path):
         hyq['wbc']['estimator.contact_force_threshold'] * 1.88 / 6.45, rel=5e-3)   # leg weight
     assert resolved['mpc']['com_height'] == pytest.approx(0.255, abs=0.005)   # measured
     assert resolved['wbc']['estimator.foot_radius'] == pytest.approx(0.02, abs=1e-6)
+
+
+@pytest.mark.parametrize('robot, lag', [('go1', 0.001), ('b1', 0.001), ('anymal_c', 0.0023)])
+def test_the_realistic_actuator_lag_is_the_robots_actuator_kinds(robot, lag):
+    """config/robots/scaling.yaml actuator_kinds: HyQ's hydraulic 3 ms becomes the robot
+    kind's; the ideal profile has no lag for any robot."""
+    for profile, wanted in (('realistic', lag), ('ideal', 0.0)):
+        path = profile_file(CONFIG, profile)
+        layer = robot_parameters(CONFIG, robot, path)
+        resolved = check_run_files(CONFIG, [path, layer.derived, layer.overrides]).values
+        assert resolved['sim']['actuator_time_constant'] == pytest.approx(wanted, abs=1e-12)
+        assert resolved['sim']['actuator_delay'] == check_run_files(
+            CONFIG, [path]).values['sim']['actuator_delay']
 
 
 def _robot_file(tmp_path: Path, change) -> Path:
