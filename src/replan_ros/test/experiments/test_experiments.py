@@ -314,6 +314,10 @@ def test_page_from_results(tmp_path):
             'from degenerating | not resolved (equal in every pair, 6 pairs)') in text
     assert '- 60 N s: falls 1 of 6 with correction sway free, 0 of 6 with correction off' in text
     assert 'without correction the largest shift was 12.0 to 13.0 cm' in text
+    assert ('- Large push (60 N s, 6 runs per setting): correction off moved the trunk '
+            '12.0-13.0 cm over its feet (0 falls);') in text
+    assert ('correction literal vs off: the capture point\'s margin not resolved (equal in '
+            'every pair, 6 pairs), p = 1, the feet kept about the hips holds (6 pairs)') in text
     # The velocity term: the steady speed from the straight walks alone, "faster motion" from
     # the rise time after the set-point step, paired by seed.
     assert '| velocity term | on vs off | |1 - achieved / commanded| | 0.007 vs 0.007 | 6 |' \
