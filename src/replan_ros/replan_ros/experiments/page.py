@@ -45,6 +45,22 @@ _PAPER_QP = f'{PAPER_QP_MS:.0f} ± {PAPER_QP_STD_MS:.0f} ms'
 # -- the page --------------------------------------------------------------------------------
 
 
+def _bag_gaps(gaps: dict | None) -> list[str]:
+    """The header's paragraph on how complete the runs' bags are (``runs.bag_gaps``)."""
+    if not gaps or not gaps.get('runs'):
+        return []
+    if not gaps['short']:
+        return [f'Every measure is read from the run\'s bag; the bags of all {gaps["runs"]} '
+                'completed runs that did not fall hold every tick of the estimate and the '
+                'truth.', '']
+    return [f'Every measure is read from the run\'s bag, which holds what DDS delivered to '
+            f'the recorder: the bags of {gaps["short"]} of {gaps["runs"]} completed runs that '
+            'did not fall miss some ticks of the estimate (`/odom`) or the truth, at most '
+            f'{gaps["most_missing"]} of a run\'s {gaps["ticks"]}; their measures come from the '
+            'ticks recorded (a cause of small differences between two runs of one scenario '
+            'that are otherwise the same to the bit).', '']
+
+
 class Page:
     def __init__(self, path: Path) -> None:
         self.path = path
@@ -128,6 +144,7 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         f'a difference as large as the runs\' mean one at their spread ({POWER:.0%} power of the '
         'paired t-test; an estimate: if the true difference is smaller, more).',
         '',
+        *_bag_gaps(meta.get('bag_gaps')),
         '| Experiment | Setting | Metric | Mean ± spread (min to max) | Runs | Paper\'s claim '
         '| Holds? |',
         '|---|---|---|---|---|---|---|',

@@ -162,9 +162,12 @@ def node_settings(config_dir: Path, robot: str | None = None) -> dict:
                'max_extension_s': float(gait['max_extension']),
                'correction_threshold_m': float(gait['correction_threshold']),
                'touchdown_depth_m': float(wbc['touchdown_depth']),
-               'haptic_velocity_mps': float(wbc['haptic_velocity'])}
+               'haptic_velocity_mps': float(wbc['haptic_velocity']),
+               # s, the sim's tick: how many ticks a run's bag holds (runs.bag_gaps)
+               'control_period_s': float(yaml.safe_load((config_dir / 'sim.yaml').read_text())[
+                   'sim']['ros__parameters']['control_period'])}
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
-        raise ExperimentError(f'cannot read the gait and wbc settings in {config_dir}: '
+        raise ExperimentError(f'cannot read the gait, wbc and sim settings in {config_dir}: '
                               f'{err!r}') from err
     out['haptic_search_m'] = (out['touchdown_depth_m']
                               + out['haptic_velocity_mps'] * out['max_extension_s'])

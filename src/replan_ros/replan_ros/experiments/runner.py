@@ -46,6 +46,7 @@ from replan_ros.experiments.runs import (
     Progress,
     Runner,
     RunResult,
+    bag_gaps,
     git_revision,
 )
 from replan_ros.launch.launch_graph import add_robot_option
@@ -173,7 +174,9 @@ def main(argv=None) -> int:
                 r.metrics.get('wall_time_total_s') or 0.0 for r in runner.results.values()
                 if isinstance(r, RunResult)) / 60.0, 1),
             'quick': args.quick, 'failures': runner.failures, 'plan_file': str(plan_file),
-            'robot': args.robot}
+            'robot': args.robot,
+            'bag_gaps': bag_gaps(runner.results.values(),
+                                 results['settings']['control_period_s'])}
     (out / 'results.json').write_text(json.dumps({'meta': meta, 'results': results},
                                                  indent=1, default=str))
     write_page(page, results, meta)

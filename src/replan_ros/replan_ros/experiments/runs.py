@@ -123,6 +123,29 @@ class RunResult:
         return bool(self.metrics.get('fell'))
 
 
+def bag_gaps(results, control_period: float) -> dict:
+    """How complete the bags of the completed, unfallen ``results`` (RunResults) are: a run's
+    analysis pairs the estimate (``/odom``) with the truth at every tick both hold
+    (``estimator.samples``); a bag that lacks some ticks of either holds fewer than the run's
+    ticks (sim time / ``control_period`` + 1). The recorder writes what DDS delivered to it:
+    ``runs`` counted, ``short`` of them with fewer, ``most_missing`` ticks of one run, and
+    that run's ``ticks``."""
+    out = {'runs': 0, 'short': 0, 'most_missing': 0, 'ticks': 0}
+    for result in results:
+        if not isinstance(result, RunResult) or not result.ok or result.fell:
+            continue
+        samples = (result.metrics.get('estimator') or {}).get('samples')
+        if samples is None:
+            continue
+        ticks = round(float(result.metrics['sim_time_s']) / control_period) + 1
+        out['runs'] += 1
+        if samples < ticks:
+            out['short'] += 1
+            if ticks - samples > out['most_missing']:
+                out['most_missing'], out['ticks'] = ticks - samples, ticks
+    return out
+
+
 class Progress:
     """One line: runs done, running, left (an upper bound where a bisection may stop early)
     and the time to go at the pace so far."""

@@ -19,7 +19,13 @@ from replan_ros.experiments.plan import (
     planned_runs,
     variant,
 )
-from replan_ros.experiments.runs import Runner, RunResult, code_fingerprint, run_key
+from replan_ros.experiments.runs import (
+    Runner,
+    RunResult,
+    bag_gaps,
+    code_fingerprint,
+    run_key,
+)
 from replan_ros.experiments.stats import (
     compare,
     compare_paired,
@@ -78,6 +84,21 @@ def test_the_run_key_changes_with_the_code_and_configuration_that_shape_a_run(tm
     assert run_key(BASE, first) != run_key(BASE, now)
     assert run_key(BASE, now) == run_key(yaml.safe_load(yaml.safe_dump(BASE)), now)
     assert code_fingerprint(Path(__file__).resolve().parents[4]) != first   # the repository
+
+
+def test_a_bag_that_lacks_ticks_is_counted(tmp_path):
+    """runs.bag_gaps: a completed run whose estimate and truth share fewer ticks than it ran
+    (sim time / tick + 1) is counted; fallen, cut-short and unmeasured runs are not."""
+    def result(samples, **metrics):
+        base = {'sim_time_s': 14.0, 'fell': False, 'completed': True,
+                'estimator': {'samples': samples}}
+        return RunResult('k', {}, {**base, **metrics}, tmp_path)
+    results = [result(3501), result(3424), result(3490), result(100, fell=True),
+               result(100, completed=False), RunResult('k', {}, {'sim_time_s': 14.0,
+                                                                  'fell': False,
+                                                                  'completed': True}, tmp_path)]
+    assert bag_gaps(results, 0.004) == {'runs': 3, 'short': 2, 'most_missing': 77,
+                                        'ticks': 3501}
 
 
 def test_a_robot_file_shapes_only_its_own_robots_runs(tmp_path):
@@ -268,10 +289,13 @@ def test_page_from_results(tmp_path):
                     commanded=[0.2, 0, 0]) for on in (True, False) for s in range(3)]),
     }
     meta = {'command': 'scripts/experiments.sh', 'machine': 'test', 'revision': 'abc',
-            'date': 'today', 'wall_time_min': 1.0, 'runs': 16, 'failures': ['x: exit 1']}
+            'date': 'today', 'wall_time_min': 1.0, 'runs': 16, 'failures': ['x: exit 1'],
+            'bag_gaps': {'runs': 40, 'short': 2, 'most_missing': 77, 'ticks': 3501}}
     page = tmp_path / 'results.md'
     write_page(page, results, meta)
     text = page.read_text()
+    assert ('the bags of 2 of 40 completed runs that did not fall miss some ticks of the '
+            'estimate (`/odom`) or the truth, at most 77 of a run\'s 3501;') in text
     assert ('| replan window | 1 vs 2 | steady velocity error (m/s) | 0.0012 vs 0.0022 | 10 | '
             'window 2 worse than 1 (model errors grow) | holds (5 pairs), p = ') in text
     assert ('| replan window | 1 vs 2 | velocity error from 2 s (m/s) | 0.0220 vs 0.0120 | 10 | '
