@@ -91,14 +91,19 @@ def large_push_section(page, rows: list[dict], results) -> None:
     impulse = rows[0]['impulse_ns'] if rows else 0.0
     phases = sorted({r['phase'] for r in rows})
     seeds = sorted({r['seed'] for r in rows})
-    shifts = values([r for r in rows if r['setting'] == 'correction_off'], 'trunk_shift_max_m')
+    off_rows = [r for r in rows if r['setting'] == 'correction_off']
+    shifts = values(off_rows, 'trunk_shift_max_m')
+    by_phase = [(k, values([r for r in off_rows if r['phase'] == k], 'trunk_shift_max_m'))
+                for k in phases]
     lines = ['## Large lateral push: the support over the following steps', '',
              f'Walking at 0.1 m/s, one push of {impulse:.0f} N s to the robot\'s left over '
              f'0.25 s at {len(phases)} phases of the crawl cycle, each with the sim noise seeds '
-             f'{seeds} (the same in every setting: the runs pair by phase and seed), so that '
-             'the trunk moves 10-20 cm over its feet (issue 31) without a fall'
+             f'{seeds} (the same in every setting: the runs pair by phase and seed), an impulse '
+             'chosen to move the trunk 10-20 cm over its feet (issue 31) without a fall'
              + (f': without correction the largest shift was {np.min(shifts) * 100:.1f} to '
-                f'{np.max(shifts) * 100:.1f} cm' if shifts else '') + '. '
+                f'{np.max(shifts) * 100:.1f} cm (mean by phase: '
+                + ', '.join(f'{k}: {np.mean(v) * 100:.1f} cm' for k, v in by_phase if v) + ')'
+                if shifts else '') + '. '
              + _MEASURES + ' Each run ends the plan\'s horizon after its push. A setting is '
              'compared with correction off on the capture point\'s 5th percentile (higher: a '
              'support that did not degenerate) and on how far the feet left their places about '

@@ -337,7 +337,8 @@ def test_page_from_results(tmp_path):
             '5th percentile (cm) | 3.0 vs 3.0 | 12 | foothold correction keeps the support '
             'from degenerating | not resolved (equal in every pair, 6 pairs)') in text
     assert '- 60 N s: falls 1 of 6 with correction sway free, 0 of 6 with correction off' in text
-    assert 'without correction the largest shift was 12.0 to 13.0 cm' in text
+    assert ('without correction the largest shift was 12.0 to 13.0 cm (mean by phase: 0: '
+            '12.0 cm, 1: 13.0 cm)') in text
     assert ('- Large push (60 N s, 6 runs per setting): correction off moved the trunk '
             '12.0-13.0 cm over its feet (0 falls);') in text
     assert ('correction literal vs off: the capture point\'s margin not resolved (equal in '
