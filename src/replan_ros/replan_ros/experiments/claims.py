@@ -220,7 +220,7 @@ def sustained_push(ctx: Context, cfg: dict) -> list[dict]:
 
 
 def large_push(ctx: Context, cfg: dict) -> list[dict]:
-    """One short lateral push of ``impulse`` N s, large enough to move the trunk 10-20 cm over
+    """One short lateral push of ``impulse`` N s, chosen to move the trunk 10-20 cm over
     its feet (issue 31), per setting, phase of the crawl cycle and seed: whether the robot
     falls, and what the push does to its support over the ``horizon`` s after it
     (``push_effects``). Paired by phase and seed across the settings. Each run ends
