@@ -5,12 +5,6 @@ a run that failed to produce metrics is reported as such, never as a figure."""
 
 from __future__ import annotations
 
-_UNITS = {'gait.swing_duration': 's', 'gait.four_feet_duration': 's', 'gait.max_linear_x': 'm/s',
-          'gait.max_linear_y': 'm/s', 'gait.max_angular_z': 'rad/s', 'wbc.fz_max': 'N',
-          'wbc.fz_min': 'N', 'sim.contact_threshold': 'N', 'wbc.swing_kp': 'N/m',
-          'wbc.swing_kd': 'N s/m', 'wbc.stand_up_kd': 'N m s/rad',
-          'wbc.fall_damping': 'N m s/rad', 'sim.payload_mass': 'kg',
-          'sim.contact_stiffness': 'N/m'}
 _AXES = {'forward': ('forward', 'm/s'), 'lateral': ('lateral', 'm/s'), 'yaw': ('yaw', 'rad/s')}
 
 
@@ -25,10 +19,13 @@ def _num(value, digits: int = 3) -> str:
     return f'{value:.{digits}g}'
 
 
-def _unit(name: str) -> str:
-    if name in _UNITS:
-        return _UNITS[name]
-    return 'm' if name.endswith(('_height', '_margin', '_length_x', '_length_y')) else ''
+def _unit(key: str) -> str:
+    """The unit of parameter ``node.name`` from its declaration (``params.tables``), the one
+    source of its unit; '' for one it does not know."""
+    from replan_ros.params.tables import TABLES, table
+    node, _, name = key.partition('.')
+    spec = table(node).get(name) if node in TABLES else None
+    return spec.unit if spec is not None else ''
 
 
 def _fall(row: dict) -> str:

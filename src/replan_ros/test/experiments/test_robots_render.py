@@ -97,3 +97,13 @@ def test_push_and_step_cells_at_the_edges():
     stopped = [{**GO1['step_down'][0], 'crossed': False, 'final_x_m': 0.4}]
     assert step_cell(stopped, None) == 'none (< 0.05); 0.05: stopped at x 0.40 m of 0.68'
     assert step_cell([], 'falls walking forward on flat ground').startswith('not run')
+
+
+def test_a_parameters_unit_is_its_declarations():
+    """The facts table names each parameter's unit from params.tables, the one source of it
+    (a hand-kept table there had left sim.actuator_time_constant without one)."""
+    from replan_ros.experiments.robots_render import _unit
+    assert _unit('sim.actuator_time_constant') == 's'
+    assert _unit('wbc.fz_max') == 'N' and _unit('mpc.zmp_margin') == 'm'
+    assert _unit('wbc.estimator.contact_force_threshold') == 'N'
+    assert _unit('nosuch.node') == '' and _unit('wbc.nosuch') == ''
