@@ -5,14 +5,15 @@
 #  1. the four nodes alone (scripts/launch.sh --duration 20: zero set-point, so the robot steps
 #     in place for one crawl cycle and then stands: idle stance, docs/gait.md), ideal
 #     and realistic profile;
-#  2. the forward scenario (0.15 m/s, 22 s of sim time) with the recorder on, as users run it,
-#     ideal and realistic.
+#  2. the robot's forward walk with the recorder on, as users run it, ideal and realistic:
+#     config/scenarios/<robot>_forward.yaml where the robot has one (its robot-appropriate
+#     set-point, e.g. Go1 0.05 m/s), else forward.yaml (0.15 m/s); 22 s of sim time
+#     (bench_speed.walk_scenario, which bench_speed.sh walks too).
 # Prints one JSON line: real-time factors (sim s per wall s, from the first tick; median, min,
 # max and every run) per profile, the realistic/ideal ratio of each round, peak memory, MPC
 # solve times, distance.
 #   Usage: scripts/bench_graph.sh [--runs N] [--robot NAME|FILE] [OUT_DIR]
-#   --robot: the robot of every run (default hyq; config/robots/, docs/robot_files.md); the
-#            forward scenario keeps its 0.15 m/s set-point.
+#   --robot: the robot of every run (default hyq; config/robots/, docs/robot_files.md).
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 runs=3
 robot=hyq
@@ -28,15 +29,17 @@ done
 replan_env
 out="${1:-$(mktemp -d)/bench_graph}"
 mkdir -p "$out"
+walk=$(python -c 'import sys; from replan_ros.benchmarks.bench_speed import walk_scenario
+print(walk_scenario(sys.argv[1]))' "$robot")
 for k in $(seq 1 "$runs"); do
     for profile in ideal realistic; do
         "$ROOT/scripts/launch.sh" --profile "$profile" --robot "$robot" --duration 20 \
             --run-dir "$out/graph_${profile}_$k" > "$out/graph_${profile}_$k.log" 2>&1
-        "$ROOT/scripts/scenario.sh" "$ROOT/config/scenarios/forward.yaml" --profile "$profile" \
+        "$ROOT/scripts/scenario.sh" "$walk" --profile "$profile" \
             --robot "$robot" --out "$out/forward_${profile}_$k" >/dev/null
     done
 done
-python - "$out" "$runs" <<'PY'
+python - "$out" "$runs" "$robot" "$walk" <<'PY'
 import json, re, statistics, sys
 from pathlib import Path
 out, runs = Path(sys.argv[1]), int(sys.argv[2])
@@ -45,7 +48,7 @@ def summary(values):
     return {'median': round(statistics.median(values), 3), 'min': min(values),
             'max': max(values), 'runs': values}
 
-result = {}
+result = {'robot': sys.argv[3], 'walk_scenario': Path(sys.argv[4]).name}
 for profile in ('ideal', 'realistic'):
     rtf, memory = [], []
     for k in range(1, runs + 1):

@@ -2,7 +2,7 @@
 # The main job: set up if needed, then run the demo scenario headless (30 s of sim time:
 # forward, sideways, turn, stop) and print a summary with where the bag and plots are.
 # Usage: scripts/demo.sh [OUT_DIR] [--live [PORT]] [--robot NAME|FILE]   (default runs/demo-<time>)
-#   --robot: hyq (default), anymal_c, go1, b1, anymal_b, a1 or a robot file (docs/robot_files.md)
+#   --robot: a name of config/robots/ (default hyq) or a robot file (docs/robot_files.md)
 #   --live [PORT]: watch it in Foxglove/Lichtblick at ws://localhost:PORT (default 8765)
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 # Options first, before any set-up: an option is never taken for the output folder.

@@ -4,7 +4,7 @@
 #                          [--no-respawn] [--run-dir DIR] [--profile NAME] [--live [PORT]]
 #                          [--robot NAME|FILE]
 # Ctrl-C stops every node (SIGINT, then SIGKILL after 10 s). Logs: <run folder>/logs/<node>.log
-# --robot: hyq (default), anymal_c, go1, b1, anymal_b, a1 (config/robots/) or a robot file
+# --robot: a name of config/robots/ (default hyq; the list: ls config/robots) or a robot file
 #          (docs/robot_files.md); its parameters are derived from HyQ's by the scaling rules.
 # --live [PORT]: watch it in Foxglove/Lichtblick at ws://localhost:PORT (default 8765).
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"

@@ -17,7 +17,7 @@ import numpy as np
 import yaml
 
 from replan_ros.experiments.motion_effects import cached_motion_effects
-from replan_ros.experiments.plan import node_settings, variant
+from replan_ros.experiments.plan import node_settings, phase_impulses, variant
 from replan_ros.experiments.push_effects import cached_push_effects
 from replan_ros.experiments.runs import Runner, RunResult
 from replan_ros.experiments.stats import steady_error
@@ -220,23 +220,26 @@ def sustained_push(ctx: Context, cfg: dict) -> list[dict]:
 
 
 def large_push(ctx: Context, cfg: dict) -> list[dict]:
-    """One short lateral push of ``impulse`` N s, chosen to move the trunk 10-20 cm over
-    its feet (issue 31), per setting, phase of the crawl cycle and seed: whether the robot
-    falls, and what the push does to its support over the ``horizon`` s after it
+    """One short lateral push of ``impulse`` N s (one figure, or one per phase: the crawl
+    resists a push less at some phases than at others), chosen to move the trunk 10-20 cm
+    over its feet (issue 31), per setting, phase of the crawl cycle and seed: whether the
+    robot falls, and what the push does to its support over the ``horizon`` s after it
     (``push_effects``). Paired by phase and seed across the settings. Each run ends
     ``horizon`` s after its push."""
     base = ctx.runner.scenario(cfg['scenario'])
     direction = _unit(cfg['direction'])
-    length, impulse = float(cfg['push_duration']), float(cfg['impulse'])
-    horizon, phases = float(cfg['horizon']), int(cfg['phases'])
+    length, phases = float(cfg['push_duration']), int(cfg['phases'])
+    impulses = phase_impulses(cfg['impulse'], phases)
+    horizon = float(cfg['horizon'])
     cycle = ctx.settings['crawl_cycle_s']
-    force = direction * impulse / length
     jobs = []
     for name, setting in cfg['settings'].items():
-        for k in range(phases):
+        for k, impulse in enumerate(impulses):
             start = float(cfg['first_push']) + cycle * k / phases
+            force = direction * impulse / length
             for seed in cfg['seeds']:
-                jobs.append(lambda name=name, setting=setting, k=k, start=start, seed=seed:
+                jobs.append(lambda name=name, setting=setting, k=k, start=start, seed=seed,
+                            force=force, impulse=impulse:
                             _push_support(ctx.runner, base, setting, seed, start, force, length,
                                           horizon, start + length + horizon, setting=name,
                                           phase=k, push_time_s=start, impulse_ns=impulse))

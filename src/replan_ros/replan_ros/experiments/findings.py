@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from replan_ros.experiments.page_push import impulse_label
 from replan_ros.experiments.stats import (
     PAPER_QP_MS,
     against_paper,
@@ -116,8 +117,7 @@ def findings(page, name: str, data, results: dict) -> None:
         off = [r for r in data if r['setting'] == 'correction_off']
         if not data or not off:
             return
-        impulse = data[0]['impulse_ns']
-        text = f'Large push ({impulse:.0f} N s, {len(off)} runs per setting):'
+        text = f'Large push ({impulse_label(data)}, {len(off)} runs per setting):'
         for setting in dict.fromkeys(r['setting'] for r in data):
             rows = [r for r in data if r['setting'] == setting]
             shift = values(rows, 'trunk_shift_max_m')

@@ -86,21 +86,33 @@ def sustained_push_section(page, rows: list[dict], results) -> None:
     page.section('\n'.join(lines))
 
 
+def impulse_label(rows: list[dict]) -> str:
+    """The large push's impulse as the page names it: '75 N s', or '75-120 N s' where it
+    differs between phases."""
+    impulses = sorted({r['impulse_ns'] for r in rows}) or [0.0]
+    if len(impulses) == 1:
+        return f'{impulses[0]:.0f} N s'
+    return f'{impulses[0]:.0f}-{impulses[-1]:.0f} N s'
+
+
 def large_push_section(page, rows: list[dict], results) -> None:
     settings = list(dict.fromkeys(r['setting'] for r in rows))
-    impulse = rows[0]['impulse_ns'] if rows else 0.0
     phases = sorted({r['phase'] for r in rows})
+    by_phase_impulse = {r['phase']: r['impulse_ns'] for r in rows}
+    impulse = impulse_label(rows)
     seeds = sorted({r['seed'] for r in rows})
     off_rows = [r for r in rows if r['setting'] == 'correction_off']
     shifts = values(off_rows, 'trunk_shift_max_m')
     by_phase = [(k, values([r for r in off_rows if r['phase'] == k], 'trunk_shift_max_m'))
                 for k in phases]
     lines = ['## Large lateral push: the support over the following steps', '',
-             f'Walking at 0.1 m/s, one push of {impulse:.0f} N s to the robot\'s left over '
-             f'0.25 s at {len(phases)} phases of the crawl cycle, each with the sim noise seeds '
-             f'{seeds} (the same in every setting: the runs pair by phase and seed), an impulse '
-             'chosen to move the trunk 10-20 cm over its feet (issue 31) without a fall'
-             + (f': without correction the largest shift was {np.min(shifts) * 100:.1f} to '
+             'Walking at 0.1 m/s, one push to the robot\'s left over 0.25 s at '
+             f'{len(phases)} phases of the crawl cycle, each with the sim noise seeds '
+             f'{seeds} (the same in every setting: the runs pair by phase and seed), of '
+             + ', '.join(f'{by_phase_impulse[k]:.0f}' for k in phases) + ' N s at phases '
+             + ', '.join(str(k) for k in phases) + ' (the plan file gives how each was chosen), to '
+             'move the trunk 10-20 cm over its feet (issue 31) without a fall'
+             + (f'; without correction the largest shift was {np.min(shifts) * 100:.1f} to '
                 f'{np.max(shifts) * 100:.1f} cm (mean by phase: '
                 + ', '.join(f'{k}: {np.mean(v) * 100:.1f} cm' for k, v in by_phase if v) + ')'
                 if shifts else '') + '. '
@@ -113,13 +125,13 @@ def large_push_section(page, rows: list[dict], results) -> None:
                 ('foot_offset_change_m', 'feet off their places about the hips, mean (cm)',
                  'lower'))
     for name in settings:
-        _setting_rows(page, 'large push', f'{_label(name)}, {impulse:.0f} N s',
+        _setting_rows(page, 'large push', f'{_label(name)}, {impulse}',
                       [r for r in rows if r['setting'] == name])
     off = [r for r in rows if r['setting'] == 'correction_off']
     for name in [n for n in settings if n != 'correction_off']:
         on = [r for r in rows if r['setting'] == name]
-        verdicts = _compare_rows(page, 'large push', f'{_label(name)} vs off, {impulse:.0f} N s',
+        verdicts = _compare_rows(page, 'large push', f'{_label(name)} vs off, {impulse}',
                                  on, off, ('phase', 'seed'), compared)
         lines.append(f'- {_label(name)} vs off: ' + '; '.join(verdicts) + '.')
-        lines += _falls(name, on, off, f'{impulse:.0f} N s')
+        lines += _falls(name, on, off, impulse)
     page.section('\n'.join(lines))

@@ -41,6 +41,20 @@ class ExperimentError(ValueError):
     """A plan file or option that cannot be run, with the reason."""
 
 
+def phase_impulses(impulse, phases: int) -> list[float]:
+    """The large push's impulse at each of ``phases`` phases (N s): ``impulse`` is one figure
+    for all, or a list of one per phase; ExperimentError if it is neither or not positive."""
+    values = impulse if isinstance(impulse, list) else [impulse] * phases
+    try:
+        values = [float(v) for v in values]
+    except (TypeError, ValueError):
+        values = []
+    if len(values) != phases or not all(v > 0 for v in values):
+        raise ExperimentError(f'large_push.impulse: one positive figure (N s) or a list of '
+                              f'{phases} (one per phase), got {impulse!r}')
+    return values
+
+
 def variant(base: dict, *, params: dict | None = None,
             world: str = 'realistic', seed: int | None = None, terrain: dict | None = None,
             setpoint: tuple[float, float, float] | None = None, duration: float | None = None,
@@ -134,6 +148,15 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
         for key, meaning in required.items():
             if name in plan and key not in (plan[name] or {}):
                 raise ExperimentError(f'{path}: {section}.{name}: {key} missing ({meaning})')
+    large = plan.get('large_push')
+    if isinstance(large, dict):
+        try:
+            phase_impulses(large.get('impulse'), int(large.get('phases', 0)))
+        except ExperimentError as err:
+            raise ExperimentError(f'{path}: {section}.{err}') from err
+        except (TypeError, ValueError) as err:
+            raise ExperimentError(f'{path}: {section}.large_push.phases: a whole number, got '
+                                  f'{large.get("phases")!r}') from err
     bad = set(only) - set(plan)
     if bad:
         raise ExperimentError(f'--only: {sorted(bad)} not in the {section} plan '

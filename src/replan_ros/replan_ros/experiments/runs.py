@@ -73,13 +73,13 @@ def _robot_files(root: Path, robot: str) -> set[str] | None:
     if '/' in robot or robot.endswith('.yaml'):
         return None
     wanted = {f'{_ROBOTS}{robot}.yaml', f'{_ROBOTS}scaling.yaml'}
+    rules = root / _ROBOTS / 'scaling.yaml'
     try:
-        reference = (yaml.safe_load((root / _ROBOTS / 'scaling.yaml').read_text()) or {}).get(
-            'reference')
-    except (OSError, yaml.YAMLError, AttributeError):
-        reference = None
-    if reference:
-        wanted.add(f'{_ROBOTS}{reference}.yaml')
+        reference = yaml.safe_load(rules.read_text())['reference']
+    except (OSError, yaml.YAMLError, KeyError, TypeError) as err:
+        # A key without the reference robot's file would reuse runs made with another one.
+        raise ExperimentError(f'{rules}: cannot read the reference robot: {err!r}') from err
+    wanted.add(f'{_ROBOTS}{reference}.yaml')
     return wanted
 
 

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
 from replan_core.bench.sim_bench import PD_GAINS
 from replan_ros.benchmarks.bench_speed import (
@@ -22,6 +23,7 @@ from replan_ros.benchmarks.bench_speed import (
     parse_args,
     speed_robot,
     summarise,
+    walk_scenario,
 )
 from replan_ros.launch.graph import EXIT_CONFIG
 from replan_ros.params import ConfigError
@@ -66,9 +68,25 @@ def test_a_robot_file_given_by_path_is_named_by_its_name():
     assert (robot.name, robot.given) == ('go1', path)
 
 
+def test_each_robot_benches_its_own_walk():
+    """The graph benches walk a robot's own forward scenario (its robot-appropriate set-point,
+    the one docs/robots.md measures), HyQ the 0.15 m/s of forward.yaml."""
+    assert walk_scenario('hyq').name == 'forward.yaml'
+    assert walk_scenario(str(CONFIG / 'robots' / 'go1.yaml')).name == 'go1_forward.yaml'
+    for path in (CONFIG / 'robots').glob('*.yaml'):
+        doc = yaml.safe_load(path.read_text())
+        if path.stem in ('scaling', 'hyq'):
+            continue
+        walk = walk_scenario(doc['name'])
+        assert walk.name == f'{doc["name"]}_forward.yaml', path
+        assert yaml.safe_load(walk.read_text())['robot'] == doc['name']
+
+
 def test_header_and_json_name_the_robot(tmp_path):
     assert header('go1', 1, 4.0, tmp_path).startswith('bench_speed: robot go1, 1 rounds, '
-                                                      'forward walk 4 sim s, ')
+                                                      'walk go1_forward 4 sim s, ')
+    assert header('hyq', 1, 4.0, tmp_path).startswith('bench_speed: robot hyq, 1 rounds, '
+                                                      'walk forward 4 sim s, ')
     rtf = dict.fromkeys(SETUPS, 2.0)
     rounds = [{'physics': {'ideal': 9.0, 'realistic': 8.0},
                'graph': {s: {'real_time_factor': rtf[s], 'exit_code': 0, 'mpc': {}}

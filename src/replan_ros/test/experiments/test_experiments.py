@@ -16,6 +16,7 @@ from replan_ros.experiments.plan import (
     ExperimentError,
     load_plan,
     node_settings,
+    phase_impulses,
     planned_runs,
     variant,
 )
@@ -128,6 +129,10 @@ def test_a_robot_file_shapes_only_its_own_robots_runs(tmp_path):
     assert runner.code_for({}) == runner.code_for({'robot': 'hyq'}) == code_fingerprint(
         tmp_path, 'hyq')
     assert runner.code_for({'robot': 'go1'}) == code_fingerprint(tmp_path, 'go1')
+    # Without the reference robot named, a key could serve runs of another reference: refused.
+    (tmp_path / 'config/robots/scaling.yaml').write_text('rules: {}\n')
+    with pytest.raises(ExperimentError, match=r'scaling.yaml: cannot read the reference robot'):
+        code_fingerprint(tmp_path, 'go1')
 
 
 class ThresholdRunner:
@@ -231,6 +236,11 @@ def test_shipped_plan_loads_and_rejects_unknown_names(tmp_path):
     bad.write_text('full: {velocity_term: {scenario: exp_walk, seeds: [0], setpoints: [0.1]}}\n')
     with pytest.raises(ExperimentError, match='velocity_term: motion_after missing'):
         load_plan(bad, False, [])
+    bad.write_text('full: {large_push: {phases: 4, impulse: [75.0, 90.0]}}\n')
+    with pytest.raises(ExperimentError, match=r'full.large_push.impulse: one positive figure '
+                       r'\(N s\) or a list of 4 \(one per phase\), got \[75.0, 90.0\]'):
+        load_plan(bad, False, [])
+    assert phase_impulses([75, 90.0], 2) == [75.0, 90.0] and phase_impulses(60, 3) == [60.0] * 3
     bad.write_text('full: {ideal_world: {haptic: {terains: [flat]}}}\n')
     with pytest.raises(ExperimentError, match=r"full.ideal_world.haptic: unknown keys"):
         load_plan(bad, False, [])
@@ -269,14 +279,15 @@ def test_page_from_results(tmp_path):
         # The literal rule keeps the feet at their places about the hips (lower offsets in
         # every pair), the support no better; one phase of sway-free fell.
         'large_push': [
-            _row(setting=name, impulse_ns=60.0, phase=k, seed=s, push_time_s=4.5 + 0.75 * k,
+            _row(setting=name, impulse_ns=60.0 + 15.0 * k, phase=k, seed=s,
+                 push_time_s=4.5 + 0.75 * k,
                  fell=False, trunk_shift_max_m=0.12 + 0.01 * k,
                  capture_margin_p5_m=0.03 + 0.001 * s - 0.002 * k,
                  capture_margin_min_m=-0.01,
                  foot_offset_change_m=(0.05 if name == 'correction_off' else 0.02)
                  + 0.002 * s + 0.001 * k)
             if not (name == 'correction_sway_free' and k == 1 and s == 0) else
-            _row(setting=name, impulse_ns=60.0, phase=k, seed=s, push_time_s=5.25, fell=True)
+            _row(setting=name, impulse_ns=75.0, phase=k, seed=s, push_time_s=5.25, fell=True)
             for name in ('correction_off', 'correction_literal', 'correction_sway_free')
             for k in range(2) for s in range(3)],
         'velocity_term': (
@@ -324,22 +335,24 @@ def test_page_from_results(tmp_path):
     assert ('| sustained push | correction sway free vs off, 60 N | capture point in the '
             'support, 5th percentile (cm) | 3.2 vs 2.2 | 10 | foothold correction keeps the '
             'support from degenerating | holds (5 pairs)') in text
-    # The large push: paired by phase and seed; a fallen run leaves its pair out.
-    assert ('| large push | correction off, 60 N s | largest trunk shift over its feet (cm) | '
+    # The large push (an impulse per phase): paired by phase and seed; a fallen run leaves its
+    # pair out.
+    assert ('of 60, 75 N s at phases 0, 1 (the plan file gives how each was chosen)') in text
+    assert ('| large push | correction off, 60-75 N s | largest trunk shift over its feet (cm) | '
             '12.5 ± 0.5 (12.0 to 13.0) | 6 | no fall | 0 falls |') in text
-    assert ('| large push | correction literal vs off, 60 N s | feet off their places about '
+    assert ('| large push | correction literal vs off, 60-75 N s | feet off their places about '
             'the hips, mean (cm) | 2.3 vs 5.2 | 12 | foothold correction keeps the support '
             'from degenerating | holds (6 pairs), p = ') in text
-    assert ('| large push | correction sway free vs off, 60 N s | feet off their places about '
+    assert ('| large push | correction sway free vs off, 60-75 N s | feet off their places about '
             'the hips, mean (cm) | 2.3 vs 5.2 | 12 | foothold correction keeps the support '
             'from degenerating | holds (5 pairs; 2 runs without the measure left out)') in text
-    assert ('| large push | correction literal vs off, 60 N s | capture point in the support, '
+    assert ('| large push | correction literal vs off, 60-75 N s | capture point in the support, '
             '5th percentile (cm) | 3.0 vs 3.0 | 12 | foothold correction keeps the support '
             'from degenerating | not resolved (equal in every pair, 6 pairs)') in text
-    assert '- 60 N s: falls 1 of 6 with correction sway free, 0 of 6 with correction off' in text
+    assert '- 60-75 N s: falls 1 of 6 with correction sway free, 0 of 6 with correction off' in text
     assert ('without correction the largest shift was 12.0 to 13.0 cm (mean by phase: 0: '
             '12.0 cm, 1: 13.0 cm)') in text
-    assert ('- Large push (60 N s, 6 runs per setting): correction off moved the trunk '
+    assert ('- Large push (60-75 N s, 6 runs per setting): correction off moved the trunk '
             '12.0-13.0 cm over its feet (0 falls);') in text
     assert ('correction literal vs off: the capture point\'s margin not resolved (equal in '
             'every pair, 6 pairs), p = 1, the feet kept about the hips holds (6 pairs)') in text
