@@ -29,8 +29,15 @@ done
 replan_env
 out="${1:-$(mktemp -d)/bench_graph}"
 mkdir -p "$out"
-walk=$(python -c 'import sys; from replan_ros.benchmarks.bench_speed import walk_scenario
-print(walk_scenario(sys.argv[1]))' "$robot")
+# The robot's walk; a robot that cannot be used stops here in one line, before any run.
+walk=$(python -c 'import sys
+from replan_core.robot_file import RobotFileError
+from replan_ros.benchmarks.bench_speed import walk_scenario
+try:
+    print(walk_scenario(sys.argv[1]))
+except RobotFileError as err:
+    print(f"config error: {err}", file=sys.stderr)
+    sys.exit(2)' "$robot") || exit 2
 for k in $(seq 1 "$runs"); do
     for profile in ideal realistic; do
         "$ROOT/scripts/launch.sh" --profile "$profile" --robot "$robot" --duration 20 \

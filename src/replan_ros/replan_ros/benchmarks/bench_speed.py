@@ -61,6 +61,7 @@ import yaml
 from replan_core.bench import bench_robots
 from replan_core.bench.mpc_bench import BenchCrawl, bench_crawl
 from replan_core.bench.mpc_bench import run as mpc_bench_run
+from replan_core.robot_file import load_robot_file, robot_file_path
 from replan_ros.benchmarks.tick_table import read_budgets, table
 from replan_ros.experiments.analysis import read_messages, replan_wall_latency
 from replan_ros.experiments.runner import git_revision, machine_description
@@ -83,15 +84,13 @@ def walk_scenario(robot: str) -> Path:
     """The walk the graph benches (this one and ``bench_graph.sh``) run for ``robot`` (a name
     of ``config/robots/`` or a robot file): ``config/scenarios/<name>_forward.yaml``, its
     robot-appropriate set-point, where the robot has one; else ``forward.yaml`` (0.15 m/s,
-    HyQ's). A robot file that cannot be read is the launcher's to refuse: forward.yaml."""
-    name = robot
-    if robot.endswith('.yaml') or '/' in robot:
-        try:
-            name = str(yaml.safe_load(Path(robot).read_text())['name'])
-        except (OSError, yaml.YAMLError, KeyError, TypeError):
-            name = ''
+    HyQ's). RobotFileError (one line) for a robot that cannot be used, as the launcher's."""
+    path = robot_file_path(robot, CONFIG)
+    name = path.stem if path.parent == CONFIG / 'robots' else load_robot_file(path, ROOT).name
     own = CONFIG / 'scenarios' / f'{name}_forward.yaml'
     return own if own.is_file() else CONFIG / 'scenarios' / 'forward.yaml'
+
+
 # name -> (profile, recorder, live view with a viewer)
 SETUPS = {
     'ideal': ('ideal', False, False),
@@ -164,13 +163,13 @@ def physics_alone(robot: BenchRobot) -> dict:
                 for profile, realistic in (('ideal', False), ('realistic', True))}
 
 
-def graph_run(setup: str, out: Path, duration: float, log, robot: str = DEFAULT_ROBOT,
-              walk: Path | None = None) -> dict:
+def graph_run(setup: str, out: Path, duration: float, log, walk: Path,
+              robot: str = DEFAULT_ROBOT) -> dict:
     """One headless run of ``setup`` with ``robot`` (as ``--robot`` gives it) walking
-    ``walk`` (a scenario file; default ``walk_scenario(DEFAULT_ROBOT)``): real-time factor,
-    mean tick, MPC solve times."""
+    ``walk`` (a scenario file, ``walk_scenario``): real-time factor, mean tick, MPC solve
+    times."""
     profile, record, live = SETUPS[setup]
-    scenario = load_scenario(walk or walk_scenario(DEFAULT_ROBOT))
+    scenario = load_scenario(walk)
     out.mkdir(parents=True, exist_ok=True)
     params_file = out / 'params.yaml'
     params_file.write_text(yaml.safe_dump(params_document(scenario), sort_keys=False))
@@ -477,6 +476,7 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as err:
         print(f'config error: {err}', file=sys.stderr)
         return EXIT_CONFIG
+    walk = walk_scenario(robot.name)
     out = args.out or Path(tempfile.mkdtemp(prefix='bench_speed_'))
 
     def log(text: str, quiet: bool = False) -> None:
@@ -492,8 +492,8 @@ def main(argv: list[str] | None = None) -> int:
         physics = physics_alone(robot.physics)
         graph = {}
         for setup in SETUPS:
-            result = graph_run(setup, out / f'{setup}_{k}', args.duration, log, robot.given,
-                               walk_scenario(robot.name))
+            result = graph_run(setup, out / f'{setup}_{k}', args.duration, log, walk,
+                               robot.given)
             graph[setup] = result
             log(f'round {k}: {setup}: real-time factor {result["real_time_factor"]}, '
                 f'tick {result.get("tick_ms_mean")} ms, mpc {result["mpc"]}')
@@ -512,7 +512,7 @@ def main(argv: list[str] | None = None) -> int:
                 'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
                 'machine': machine_description(), 'revision': revision,
                 'duration': args.duration, 'robot': robot.name,
-                'walk': walk_scenario(robot.name).stem}
+                'walk': walk.stem}
         args.page.parent.mkdir(parents=True, exist_ok=True)
         args.page.write_text(render_page(rows, summary, rounds, mpc_bench, mpc_idle, meta))
         log(f'bench_speed: page written to {args.page}')

@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from replan_core.bench.sim_bench import PD_GAINS
+from replan_core.robot_file import RobotFileError
 from replan_ros.benchmarks.bench_speed import (
     CONFIG,
     SETUPS,
@@ -80,6 +81,18 @@ def test_each_robot_benches_its_own_walk():
         walk = walk_scenario(doc['name'])
         assert walk.name == f'{doc["name"]}_forward.yaml', path
         assert yaml.safe_load(walk.read_text())['robot'] == doc['name']
+
+
+def test_a_robot_without_a_walk_is_refused_not_sent_on_hyqs(tmp_path):
+    """An unknown name or a robot file that does not fit its model is the launcher's one-line
+    refusal, not HyQ's walk run with a robot that then cannot start."""
+    with pytest.raises(RobotFileError, match="unknown robot 'nosuch'"):
+        walk_scenario('nosuch')
+    broken = tmp_path / 'my_go1.yaml'
+    broken.write_text((CONFIG / 'robots' / 'go1.yaml').read_text().replace(
+        'FL_hip_joint', 'FL_hip_jont'))
+    with pytest.raises(RobotFileError, match='FL_hip_jont'):
+        walk_scenario(str(broken))
 
 
 def test_header_and_json_name_the_robot(tmp_path):
