@@ -72,15 +72,14 @@ def _robot_files(root: Path, robot: str) -> set[str] | None:
     reference robot's file it names; None (every robot file) for a robot given as a path."""
     if '/' in robot or robot.endswith('.yaml'):
         return None
-    wanted = {f'{_ROBOTS}{robot}.yaml', f'{_ROBOTS}scaling.yaml'}
-    rules = root / _ROBOTS / 'scaling.yaml'
+    from replan_core.bench import scaling_rules
+    from replan_core.robot_file import RobotFileError
     try:
-        reference = yaml.safe_load(rules.read_text())['reference']
-    except (OSError, yaml.YAMLError, KeyError, TypeError) as err:
+        reference = scaling_rules(root)['reference']
+    except RobotFileError as err:
         # A key without the reference robot's file would reuse runs made with another one.
-        raise ExperimentError(f'{rules}: cannot read the reference robot: {err!r}') from err
-    wanted.add(f'{_ROBOTS}{reference}.yaml')
-    return wanted
+        raise ExperimentError(f'cannot read the reference robot: {err}') from err
+    return {f'{_ROBOTS}{robot}.yaml', f'{_ROBOTS}scaling.yaml', f'{_ROBOTS}{reference}.yaml'}
 
 
 def git_revision(root: Path) -> str:

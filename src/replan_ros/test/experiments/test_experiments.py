@@ -131,7 +131,8 @@ def test_a_robot_file_shapes_only_its_own_robots_runs(tmp_path):
     assert runner.code_for({'robot': 'go1'}) == code_fingerprint(tmp_path, 'go1')
     # Without the reference robot named, a key could serve runs of another reference: refused.
     (tmp_path / 'config/robots/scaling.yaml').write_text('rules: {}\n')
-    with pytest.raises(ExperimentError, match=r'scaling.yaml: cannot read the reference robot'):
+    with pytest.raises(ExperimentError,
+                       match=r'cannot read the reference robot: .*scaling.yaml: no reference'):
         code_fingerprint(tmp_path, 'go1')
 
 
