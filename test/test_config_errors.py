@@ -61,11 +61,12 @@ def _wrong_go1(tmp_path):
 @pytest.mark.parametrize('tool', ['launch', 'scenario'])
 @pytest.mark.parametrize('case', ['unknown_name', 'wrong_joint_name'])
 def test_a_wrong_robot_is_refused_in_one_line(tool, case, ros_domain, tmp_path):
-    """``--robot go2`` (no such robot file) or a robot file whose names do not match its URDF:
+    """``--robot solo12`` (no such robot file) or a robot file whose names do not match its
+    URDF:
     one line, exit 2, nothing started (issue 30)."""
     if case == 'unknown_name':
-        robot, expected = 'go2', ("unknown robot 'go2' (known: a1, anymal_b, anymal_c, b1, "
-                                  'go1, hyq; or a robot file, docs/robot_files.md)')
+        robot, expected = 'solo12', ("unknown robot 'solo12' (known: a1, anymal_b, anymal_c, "
+                                     'b1, go1, go2, hyq; or a robot file, docs/robot_files.md)')
     else:
         path, expected = _wrong_go1(tmp_path)
         robot = str(path)
@@ -114,10 +115,11 @@ def test_node_started_alone_with_a_bad_value_exits_non_zero(launcher):
 @pytest.mark.parametrize('node', ['sim', 'wbc'])
 def test_node_started_alone_with_an_unknown_robot_exits_non_zero(node, launcher):
     process = launcher.start(f'{node}_node', params_file=CONFIG_DIR / f'{node}.yaml',
-                             params={'robot_file': 'go2'})
+                             params={'robot_file': 'solo12'})
     process.process.wait(30)
     assert process.process.returncode == 2
-    assert ("config error: unknown robot 'go2' (known: a1, anymal_b, anymal_c, b1, go1, hyq"
+    assert ("config error: unknown robot 'solo12' (known: a1, anymal_b, anymal_c, b1, go1, "
+            "go2, hyq"
             in process.log())
 
 

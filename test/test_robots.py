@@ -15,7 +15,8 @@ from test_walk import run_scenario, segment
 
 # robot -> (set-point m/s, relative tolerance on the achieved forward speed: issue 30's 5 %).
 WALKS = {'anymal_c': (0.10, 0.05), 'b1': (0.10, 0.05), 'go1': (0.05, 0.05),
-         'anymal_b': (0.10, 0.05), 'a1': (0.05, 0.05)}
+         'anymal_b': (0.10, 0.05), 'a1': (0.05, 0.05),
+         'go2': (0.05, 0.05)}
 
 
 @pytest.mark.parametrize('robot', sorted(WALKS))

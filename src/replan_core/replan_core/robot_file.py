@@ -186,13 +186,18 @@ def robot_file_path(robot: str, config_dir: str | Path) -> Path:
     YAML file; RobotFileError (one line, with the known names) for an unknown name."""
     if robot.endswith(('.yaml', '.yml')) or '/' in robot:
         return Path(robot)
-    folder = Path(config_dir) / 'robots'
-    path = folder / f'{robot}.yaml'
+    path = Path(config_dir) / 'robots' / f'{robot}.yaml'
     if robot == 'scaling' or not path.is_file():
-        known = sorted(p.stem for p in folder.glob('*.yaml') if p.stem != 'scaling')
-        raise RobotFileError(f'unknown robot {robot!r} (known: {", ".join(known)}; or a robot '
-                             'file, docs/robot_files.md)')
+        raise RobotFileError(f'unknown robot {robot!r} (known: '
+                             f'{", ".join(robot_names(config_dir))}; or a robot file, '
+                             'docs/robot_files.md)')
     return path
+
+
+def robot_names(config_dir: str | Path) -> list[str]:
+    """The robots of ``<config_dir>/robots/`` by name, sorted (not ``scaling.yaml``)."""
+    return sorted(p.stem for p in (Path(config_dir) / 'robots').glob('*.yaml')
+                  if p.stem != 'scaling')
 
 
 def load_robot_file(path: str | Path, project_root: str | Path) -> RobotSpec:

@@ -43,7 +43,7 @@ from replan_core.types import (
     ContactState,
     JointState,
 )
-from replan_core.urdf_merge import merged_fixed_links
+from replan_core.urdf_merge import simulator_model
 
 GRAVITY = 9.81                    # m/s^2
 TERRAINS = ('flat', 'step_down', 'step_up', 'rough')
@@ -119,7 +119,8 @@ class SimWorld:
                  contact_stiffness: float = 0.0, contact_damping: float = 0.0,
                  joint_names: tuple[str, ...] = JOINT_NAMES,
                  foot_frames: tuple[str, ...] = FOOT_FRAMES,
-                 foot_offset: np.ndarray | None = None) -> None:
+                 foot_offset: np.ndarray | None = None,
+                 foot_radius: float | None = None) -> None:
         """Build the world and spawn the robot at rest, base at x = y = 0, level.
 
         initial_joint_positions: (12,) rad in JOINT_NAMES order (None: HyQ standing pose).
@@ -134,6 +135,9 @@ class SimWorld:
         foot_offset: (3,) m, the centre of each foot's contact sphere in its foot frame (a
             robot file's ``foot_contact.offset``; ANYmal's sphere sits 2.25 cm above its foot
             frame); None: at the foot frame.
+        foot_radius: m, the robot file's ``foot_contact.radius``: a foot whose collision in the
+            model is not one sphere (Go2's mesh) gets this sphere at ``foot_offset``; None:
+            the model's foot collisions as they are.
         """
         substeps = control_period / physics_dt
         if physics_dt <= 0 or substeps < 1 or abs(substeps - round(substeps)) > 1e-9:
@@ -172,9 +176,12 @@ class SimWorld:
             terrain, {**_TERRAIN_DEFAULTS, **(terrain_params or {})}, seed)
 
         # The links fixed to others merged into them (not the feet): fewer bodies, the same
-        # motion, a cheaper physics step (urdf_merge.py). Load high above the terrain so that
-        # the ground ray casts below never hit the robot.
-        urdf_path = merged_fixed_links(urdf_path, keep=foot_frames)
+        # motion, a cheaper physics step; mesh feet made the robot file's sphere; no visual
+        # meshes without a window (urdf_merge.py). Load high above the terrain so that the
+        # ground ray casts below never hit the robot.
+        sphere = None if foot_radius is None else (
+            float(foot_radius), np.zeros(3) if foot_offset is None else np.asarray(foot_offset))
+        urdf_path = simulator_model(urdf_path, keep=foot_frames, foot_sphere=sphere, visuals=gui)
         self._robot = p.loadURDF(urdf_path, basePosition=[0.0, 0.0, 100.0],
                                  flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
         joints, links = {}, {}

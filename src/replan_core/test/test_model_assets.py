@@ -22,7 +22,7 @@ def mesh_names(urdf: Path) -> list[str]:
     return sorted({m.get('filename') for m in ET.parse(urdf).getroot().iter('mesh')})
 
 
-@pytest.mark.parametrize('robot', ['go1', 'b1', 'anymal_c', 'anymal_b', 'a1'])
+@pytest.mark.parametrize('robot', ['go1', 'b1', 'anymal_c', 'anymal_b', 'a1', 'go2'])
 def test_every_mesh_of_the_example_robot_data_models_is_served(robot):
     spec = load_robot_file(ROOT / 'config' / 'robots' / f'{robot}.yaml', ROOT)
     assets = served_model_assets(ROOT)

@@ -26,10 +26,11 @@ ROBOTS = ROOT / 'config' / 'robots'
 # kg, total mass; m, standing height over the ground (measured with PyBullet and pinocchio
 # for the notes, independently of this code).
 EXPECTED = {'hyq': (86.76, 0.60), 'anymal_c': (52.13, 0.54), 'go1': (13.10, 0.27),
-            'b1': (55.69, 0.53), 'anymal_b': (30.48, 0.49), 'a1': (13.74, 0.27)}
+            'b1': (55.69, 0.53), 'anymal_b': (30.48, 0.49), 'a1': (13.74, 0.27),
+            'go2': (16.09, 0.335)}
 # kg, one leg (the links below its abduction joint), summed from each URDF's leg links.
 LEG_MASS = {'hyq': 6.45, 'anymal_c': 6.44, 'go1': 1.88, 'b1': 7.47, 'anymal_b': 3.41,
-            'a1': 1.93}
+            'a1': 1.93, 'go2': 2.20}
 
 
 @pytest.fixture(scope='module')
@@ -99,9 +100,9 @@ def test_a_wrong_robot_file_stops_with_one_line_naming_file_and_key(change, key,
 def test_a_robot_is_a_name_of_config_robots_or_a_file():
     assert robot_file_path('go1', ROOT / 'config') == ROBOTS / 'go1.yaml'
     assert robot_file_path('/x/my_go1.yaml', ROOT / 'config') == Path('/x/my_go1.yaml')
-    for wrong in ('go2', 'scaling'):
+    for wrong in ('solo12', 'scaling'):
         with pytest.raises(RobotFileError, match=re.escape(
-                f"unknown robot '{wrong}' (known: a1, anymal_b, anymal_c, b1, go1, hyq; "
+                f"unknown robot '{wrong}' (known: a1, anymal_b, anymal_c, b1, go1, go2, hyq; "
                 "or a robot file")):
             robot_file_path(wrong, ROOT / 'config')
 

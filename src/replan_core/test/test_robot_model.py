@@ -142,7 +142,7 @@ def test_update_matches_queries(robot):
         [robot.data.oMf[f].translation for f in robot.foot_frame_ids], feet, atol=1e-12)
 
 
-@pytest.mark.parametrize('name', ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1'])
+@pytest.mark.parametrize('name', ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1', 'go2'])
 def test_any_robot_file_gives_a_model_in_the_project_order(name):
     """The model of each robot file, built with its own joint and foot names: hips and feet
     come out in LEGS order (front left ahead and to the left, and so on), the standing feet

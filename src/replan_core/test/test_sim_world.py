@@ -81,7 +81,7 @@ def test_spawn_standing_feet_touching(world_factory):
     assert not c.touchdown.any() and not c.liftoff.any()
 
 
-@pytest.mark.parametrize('name', ['anymal_c', 'go1', 'b1'])
+@pytest.mark.parametrize('name', ['anymal_c', 'go1', 'b1', 'go2'])
 def test_any_robot_file_spawns_standing_with_its_feet_touching(name):
     """Another robot, from its robot file (its own joint and foot names, its standing pose,
     its contact sphere): spawned with the lowest point of the lowest foot sphere on the
@@ -93,11 +93,13 @@ def test_any_robot_file_spawns_standing_with_its_feet_touching(name):
     root = Path(__file__).resolve().parents[3]
     spec = load_robot_file(root / 'config' / 'robots' / f'{name}.yaml', root)
     w = SimWorld(str(spec.urdf), joint_names=spec.joints, foot_frames=spec.feet,
-                 initial_joint_positions=spec.standing_pose, foot_offset=spec.foot_offset)
+                 initial_joint_positions=spec.standing_pose, foot_offset=spec.foot_offset,
+                 foot_radius=spec.foot_radius)
     try:
         c = w.contact_state()
         radius = np.array([w._foot_radius(link) for link in w._feet])
-        np.testing.assert_allclose(radius, spec.foot_radius)        # the file says the URDF's
+        # The model's sphere (the file says the URDF's), or the file's in place of a mesh (Go2).
+        np.testing.assert_allclose(radius, spec.foot_radius)
         # The sphere centre is about the offset above the frame (which tilts with the shank).
         sole = c.foot_position[:, 2] + spec.foot_offset[2] - radius
         assert min(sole) == pytest.approx(0.0, abs=3e-3)
@@ -107,7 +109,7 @@ def test_any_robot_file_spawns_standing_with_its_feet_touching(name):
         w.close()
 
 
-@pytest.mark.parametrize('name', ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1'])
+@pytest.mark.parametrize('name', ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1', 'go2'])
 def test_sim_mass_and_inertia_equal_the_model(name):
     """The sim's robot weighs what the controller's model (pinocchio) says, and its links
     merged (urdf_merge.py: ANYmal C 77 -> 16 PyBullet links) turn as the model does: the
@@ -126,7 +128,8 @@ def test_sim_mass_and_inertia_equal_the_model(name):
     mass_matrix = pin.crba(model, data, q)
     pin.centerOfMass(model, data, q)
     w = SimWorld(str(spec.urdf), joint_names=spec.joints, foot_frames=spec.feet,
-                 initial_joint_positions=spec.standing_pose, foot_offset=spec.foot_offset)
+                 initial_joint_positions=spec.standing_pose, foot_offset=spec.foot_offset,
+                 foot_radius=spec.foot_radius)
     try:
         p, robot = w._p, w._robot
         assert p.getNumJoints(robot) == 16        # 12 moving links and the 4 feet

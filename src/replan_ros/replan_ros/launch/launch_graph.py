@@ -33,10 +33,12 @@ import socket
 import sys
 from pathlib import Path
 
+from replan_core.robot_file import robot_names
 from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
 from replan_ros.launch.param_files import DEFAULT_PROFILE, DEFAULT_ROBOT, PROFILES, profile_file
 from replan_ros.launch.progress import ProgressLine
 from replan_ros.params import ConfigError
+from replan_ros.params.robot import config_dir
 
 LIVE_DEFAULT_PORT = 8765       # Foxglove's default WebSocket port
 LIVE_HOST = '127.0.0.1'        # config/live_view.yaml's host: this machine only (ssh -L)
@@ -46,9 +48,9 @@ def add_robot_option(parser: argparse.ArgumentParser, default: str | None = DEFA
                      ) -> None:
     """``--robot NAME|FILE``, shared by launch.sh and scenario.sh."""
     parser.add_argument('--robot', default=default, metavar='NAME|FILE',
-                        help='the robot: a name of config/robots/ (hyq, anymal_c, go1, b1, '
-                             'anymal_b, a1) or a robot file (docs/robot_files.md); its '
-                             'parameters are derived '
+                        help='the robot: a name of config/robots/ ('
+                             f'{", ".join(robot_names(config_dir()))}) or a robot file '
+                             '(docs/robot_files.md); its parameters are derived '
                              f'from the reference robot\'s (default {DEFAULT_ROBOT})')
 
 

@@ -111,7 +111,7 @@ class SimNode(Node):
                 contact_threshold=p['contact_threshold'], debounce_ticks=p['debounce_ticks'],
                 friction=p['friction'], gui=p['gui'], seed=p['seed'],
                 joint_names=robot.joints, foot_frames=robot.feet,
-                foot_offset=robot.spec.foot_offset if robot.spec is not None else None)
+                **robot.foot_contact())
         except Exception as err:   # a missing or malformed URDF (PyBullet, XML, OS errors)
             self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')
             raise SystemExit(1) from None

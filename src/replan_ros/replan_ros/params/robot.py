@@ -58,6 +58,13 @@ class NodeRobot:
     root_link: str                   # the model's floating base
     spec: RobotSpec | None           # the robot file, if one was given
 
+    def foot_contact(self) -> dict[str, Any]:
+        """The robot file's foot sphere as ``SimWorld`` takes it (``foot_offset`` m,
+        ``foot_radius`` m); none without a robot file (the model's own feet)."""
+        if self.spec is None:
+            return {}
+        return {'foot_offset': self.spec.foot_offset, 'foot_radius': self.spec.foot_radius}
+
 
 def node_robot(robot_file: str, urdf_path: str, default_urdf: str) -> NodeRobot:
     """What a node with parameters ``robot_file`` and ``urdf_path`` loads: the robot file's

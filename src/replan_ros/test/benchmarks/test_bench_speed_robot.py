@@ -125,7 +125,7 @@ def _refused(capsys, argv: list[str], out: Path) -> str:
 def test_an_unknown_robot_stops_in_one_line_before_anything_runs(capsys, tmp_path):
     line = _refused(capsys, ['--robot', 'nosuch'], tmp_path / 'run')
     assert line == ("config error: unknown robot 'nosuch' (known: a1, anymal_b, anymal_c, b1, "
-                    "go1, hyq; or a robot file, docs/robot_files.md)")
+                    "go1, go2, hyq; or a robot file, docs/robot_files.md)")
 
 
 def test_the_command_prints_only_the_config_error(tmp_path):
@@ -136,8 +136,8 @@ def test_the_command_prints_only_the_config_error(tmp_path):
     assert done.returncode == EXIT_CONFIG
     assert done.stdout == ''
     assert done.stderr.splitlines() == [
-        "config error: unknown robot 'nosuch' (known: a1, anymal_b, anymal_c, b1, go1, hyq; "
-        "or a robot file, docs/robot_files.md)"]
+        "config error: unknown robot 'nosuch' (known: a1, anymal_b, anymal_c, b1, go1, go2, "
+        "hyq; or a robot file, docs/robot_files.md)"]
     assert not (tmp_path / 'run').exists()
 
 

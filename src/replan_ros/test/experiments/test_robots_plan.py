@@ -40,7 +40,7 @@ def synthetic(name: str = 'go1', mass: float = 10.0, leg: float = 0.5, swing: fl
 
 def test_the_committed_plan_loads_with_the_six_robots():
     full = load_robots_plan(PLAN)
-    assert list(full.robots) == ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1']
+    assert list(full.robots) == ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1', 'go2']
     assert full.robots['go1'] == {'forward': 0.05, 'lateral': 0.033, 'yaw': 0.067}
     assert full.profile == 'realistic'
     quick = load_robots_plan(PLAN, quick=True, only=['go1'])
@@ -79,8 +79,8 @@ def test_a_bad_plan_is_one_line_naming_the_file_and_the_key(tmp_path, change, ke
 
 
 def test_an_unknown_robot_or_parameter_is_refused_by_name(tmp_path):
-    with pytest.raises(ExperimentError, match=r'--robot go2: not in .*robots_page.yaml'):
-        load_robots_plan(PLAN, only=['go2'])
+    with pytest.raises(ExperimentError, match=r'--robot solo12: not in .*robots_page.yaml'):
+        load_robots_plan(PLAN, only=['solo12'])
     plan = load_robots_plan(_mutated(tmp_path, lambda d: d.update(
         parameters=['gait.swing_duration', 'gait.swing_durationn'])))
     with pytest.raises(ExperimentError, match=r'parameters\[1\]: no node parameter '

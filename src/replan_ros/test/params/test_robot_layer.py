@@ -49,9 +49,9 @@ def test_a_node_with_a_robot_file_loads_its_model_and_names():
 
 def test_a_node_with_an_unknown_robot_gets_one_line():
     with pytest.raises(ConfigError) as error:
-        node_robot('go2', '', '')
-    assert str(error.value) == ("unknown robot 'go2' (known: a1, anymal_b, anymal_c, b1, go1, "
-                                'hyq; or a robot file, docs/robot_files.md)')
+        node_robot('solo12', '', '')
+    assert str(error.value) == ("unknown robot 'solo12' (known: a1, anymal_b, anymal_c, b1, "
+                                'go1, go2, hyq; or a robot file, docs/robot_files.md)')
 
 
 @pytest.mark.parametrize('profile', ['realistic', 'ideal'])
