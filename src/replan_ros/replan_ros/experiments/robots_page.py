@@ -282,6 +282,14 @@ def _arguments(argv) -> argparse.Namespace:
     return args
 
 
+def _shown(path: Path, root: Path) -> str:
+    """``path`` as the page names it: relative to the repository when inside it (a page made
+    in one checkout names no folder of that machine)."""
+    resolved = Path(path).resolve()
+    return (str(resolved.relative_to(root)) if resolved.is_relative_to(root)
+            else str(path))
+
+
 def main(argv=None) -> int:
     from replan_ros.experiments.robots_render import render_page
     from replan_ros.experiments.runner import machine_description
@@ -323,7 +331,7 @@ def main(argv=None) -> int:
             'date': time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()),
             'wall_time_min': round((time.monotonic() - started) / 60.0, 1),
             'runs': sum(r.ok for r in made), 'reused': progress.reused, 'quick': args.quick,
-            'jobs': args.jobs, 'failures': runner.failures, 'plan_file': str(plan_file),
+            'jobs': args.jobs, 'failures': runner.failures, 'plan_file': _shown(plan_file, root),
             'profile': plan.profile, 'seed': plan.seed, 'tests': plan.tests}
     data = {'meta': meta, 'facts': facts, 'robots': rows}
     (out / 'robots.json').write_text(json.dumps(data, indent=1, default=str))

@@ -159,3 +159,12 @@ def test_the_robots_page_and_its_plan_do_not_shape_a_run(tmp_path):
         assert code_fingerprint(tmp_path) == first, rel
     (tmp_path / 'config/robots/go1.yaml').write_text('a = 2\n')
     assert code_fingerprint(tmp_path) != first
+
+
+def test_the_page_names_its_plan_relative_to_the_repository(tmp_path):
+    """A page made in one checkout names no folder of that machine (it named
+    /work/regen/config/robots_page.yaml); a plan outside the repository keeps its path."""
+    from replan_ros.experiments.robots_page import _shown
+    root = tmp_path / 'repo'
+    assert _shown(root / 'config' / 'robots_page.yaml', root) == 'config/robots_page.yaml'
+    assert _shown(tmp_path / 'mine.yaml', root) == str(tmp_path / 'mine.yaml')
