@@ -42,6 +42,7 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_ros/experiments/page.py',
                 'replan_ros/experiments/findings.py', 'replan_ros/experiments/ray_runs.py',
                 'config/robots_page.yaml', 'replan_ros/experiments/robots_page.py',
                 'replan_ros/experiments/robots_plan.py', 'replan_ros/experiments/robots_render.py',
+                'replan_ros/experiments/page_status.py',
                 'replan_ros/benchmarks/', 'replan_ros/tools/planner_loop.py')
 
 
