@@ -104,7 +104,9 @@ class FakeSim:
 
 @pytest.fixture
 def sim(launcher, probe):
-    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml', params=TIMING)
+    # Stepping in place at a zero set-point (a robot never told to walk would stand).
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
+                   params={**TIMING, 'idle_stance': False})
     fake = FakeSim(probe)
     fake.wait_connected(launcher)
     return fake
@@ -220,41 +222,62 @@ def test_non_haptic_replans_at_the_planned_touchdown(launcher, probe):
 
 
 def test_idle_stance_stands_then_walks_off_at_the_next_trigger(launcher, probe):
-    """Zero set-point for idle_after: the plan before it ends at its trigger, the re-plan at
-    that touchdown publishes a stand plan (one zero-length replan trigger, no real step); the
-    trigger's tick re-plans, and with a new set-point the plan walks off after the four-feet
-    phase, the crawl order kept."""
+    """Zero set-point for idle_after after walking: the plan before it ends at its trigger, the
+    re-plan at that touchdown publishes a stand plan (one zero-length replan trigger, no real
+    step); the trigger's tick re-plans, and with a new set-point the plan walks off after the
+    four-feet phase, the crawl order kept."""
     launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml',
                    params={**TIMING, 'idle_after': 1.0, 'idle_replan_period': 0.5})
     sim = FakeSim(probe)
     sim.wait_connected(launcher)
-    first = sim.replan_at(0.0, launcher)              # zero set-point from the start
-    # Its trigger (lh) touches down 1.3 s into the zero run, when the re-plan will stand:
-    # the plan ends there (the MPC brings the CoM to rest during that swing).
-    assert len(first.steps) == 1 and LEGS[first.steps[0].leg] == 'lh'
-    assert first.steps[0].replan and first.steps[0].step_height > 0.0
+
+    def stamped(t, vx):
+        msg = TwistStamped()
+        msg.header.stamp = sec_to_stamp(t)
+        msg.twist.linear.x = vx
+        sim.stamped_pub.publish(msg)
+
+    stamped(0.0, 0.1)                                 # walking from the start...
+    stamped(0.5, 0.0)                                 # ...then told to stop
+    sim.probe.spin_for(0.3)
+    walk = sim.replan_at(0.0, launcher)
+    assert len(walk.steps) == 8 and LEGS[walk.steps[0].leg] == 'lh'
     sim.tick(1.0)                                     # lh lifts off
-    stand = sim.replan_at(1.3, launcher)              # lh touches down: zero for 1.3 s
+    last = sim.replan_at(1.3, launcher)               # lh touches down: the zero run starts
+    np.testing.assert_allclose(sim.setpoint_at(1.3), 0.0)
+    # Its trigger (lf) touches down 1.0 s into the zero run, when the re-plan will stand:
+    # the plan ends there (the MPC brings the CoM to rest during that swing).
+    assert len(last.steps) == 1 and LEGS[last.steps[0].leg] == 'lf'
+    assert last.steps[0].replan and last.steps[0].step_height > 0.0
+    sim.tick(1.8)                                     # lf lifts off
+    stand = sim.replan_at(2.3, launcher)              # lf touches down: zero for 1.0 s
     assert len(stand.steps) == 1
     trigger = stand.steps[0]
     assert trigger.liftoff_time == trigger.touchdown_time and trigger.step_height == 0.0
     assert trigger.replan and not trigger.haptic
-    assert 1.3 < trigger.liftoff_time < 1.3 + 0.5    # half a tick early (ticks here: 0.3 s)
+    assert 2.3 < trigger.liftoff_time < 2.3 + 0.5    # half a tick early
     np.testing.assert_allclose(trigger.target, sim.feet[trigger.leg])
-    np.testing.assert_allclose(sim.setpoint_at(1.3), 0.0)
 
-    stamped = TwistStamped()
-    stamped.header.stamp = sec_to_stamp(1.75)
-    stamped.twist.linear.x = 0.1
-    sim.stamped_pub.publish(stamped)
-    sim.tick(1.7)                                     # the trigger "lifts off"...
-    walk = sim.replan_at(1.8, launcher)               # ...and ends one tick later: re-plan
-    np.testing.assert_allclose(sim.setpoint_at(1.8), [0.1, 0.0, 0.0])
+    stamped(2.75, 0.1)
+    sim.tick(2.7)                                     # the trigger "lifts off"...
+    walk = sim.replan_at(2.8, launcher)               # ...and ends one tick later: re-plan
+    np.testing.assert_allclose(sim.setpoint_at(2.8), [0.1, 0.0, 0.0])
     assert len(walk.steps) == 8
-    assert LEGS[walk.steps[0].leg] == 'lf'            # the trigger did not advance the crawl
-    assert walk.steps[0].liftoff_time == pytest.approx(1.8 + TIMING['four_feet_duration'])
+    assert LEGS[walk.steps[0].leg] == 'rh'            # the trigger did not advance the crawl
+    assert walk.steps[0].liftoff_time == pytest.approx(2.8 + TIMING['four_feet_duration'])
     assert all(s.target[0] > FEET[s.leg, 0] for s in walk.steps)
-    assert 'idle stance at t=1.300' in launcher.processes[0].log()
+    assert 'idle stance at t=2.300' in launcher.processes[0].log()
+
+
+def test_a_robot_never_told_to_walk_stands_from_its_first_plan(launcher, probe):
+    launcher.start('gait_node', params_file=CONFIG_DIR / 'gait.yaml', params=TIMING)
+    sim = FakeSim(probe)
+    sim.wait_connected(launcher)
+    first = sim.replan_at(0.0, launcher)
+    assert len(first.steps) == 1 and first.steps[0].step_height == 0.0     # a stand plan
+    assert 0.0 < first.steps[0].liftoff_time < 0.5
+    np.testing.assert_allclose(first.steps[0].target, FEET[first.steps[0].leg])
+    assert 'standing still until a non-zero set-point' in launcher.processes[0].log()
 
 
 def test_no_contacts_after_the_start_says_so_then_plans_when_they_come(launcher, probe):

@@ -460,13 +460,15 @@ def stand_plan(initial_feet: np.ndarray, base_yaw: float, start_time: float,
 
 @dataclass
 class IdleMonitor:
-    """Decides, at each re-plan, whether the crawl stands still (issue 16).
+    """Decides, at each re-plan, whether the crawl stands still.
 
-    The zero run starts at the first re-plan tick whose set-point is zero and ends at the first
-    one whose set-point is not; the crawl stands at the first re-plan at least ``idle_after -
-    tolerance`` later. With the defaults (3 s, half a step) that is the fifth touchdown after
-    the change: the four steps of a cycle stepped in place, each leg once; the tolerance keeps
-    a few ms of haptic touchdown jitter over those four steps from costing a fifth.
+    Until the first non-zero set-point of a run the robot stands from its first re-plan on.
+    After walking, the zero run starts at the first re-plan tick whose set-point is zero and
+    ends at the first one whose set-point is not; the crawl stands at the first re-plan at
+    least ``idle_after - tolerance`` later. With the defaults (3 s, half a step) that is the
+    fifth touchdown after the change: the four steps of a cycle stepped in place, each leg
+    once; the tolerance keeps a few ms of haptic touchdown jitter over those four steps from
+    costing a fifth.
     Re-plan ticks, not the set-point's own stamp: ``scripts/rerun.sh`` replays a bag's
     set-points stamped with the re-plans that used them (``velocity_setpoint``), so the re-run
     reaches the same decisions. A non-zero set-point that came and went between two re-plans
@@ -477,11 +479,15 @@ class IdleMonitor:
     enabled: bool = True
     tolerance: float = 0.0                  # s
     zero_since: float | None = None         # s, re-plan tick that started the zero run
+    # No non-zero set-point yet in this run: the robot has not been told to walk, so it
+    # stands from the first re-plan on (no step in place, no sway: nothing to wait for).
+    never_walked: bool = True
 
     def update(self, t: float, set_point) -> bool:
         """The re-plan at sim time ``t`` uses ``set_point`` (vx, vy, wz); True: stand still."""
         if np.any(np.asarray(set_point, dtype=float) != 0.0):
             self.zero_since = None
+            self.never_walked = False
             return False
         if self.zero_since is None:
             self.zero_since = float(t)
@@ -490,5 +496,7 @@ class IdleMonitor:
     def stands_at(self, t: float) -> bool:
         """True if a re-plan at sim time ``t`` would stand still, the set-point staying zero
         until then (``update`` has seen the zero run start)."""
-        return (self.enabled and self.zero_since is not None
-                and t - self.zero_since >= self.idle_after - self.tolerance - _EPS)
+        if not self.enabled or self.zero_since is None:
+            return False
+        return (self.never_walked
+                or t - self.zero_since >= self.idle_after - self.tolerance - _EPS)

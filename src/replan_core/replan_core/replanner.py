@@ -166,7 +166,7 @@ class GaitReplanner:
                 if not cs.contact[leg] and leg in targets:
                     feet[leg, 2] = targets[leg][2]
         yaw = yaw_of(base.quaternion)
-        stand = self.idle.update(t, setpoint) and not initial
+        stand = self.idle.update(t, setpoint)
         was_standing = self.standing
         try:
             if stand:
@@ -198,7 +198,10 @@ class GaitReplanner:
         # The touchdown rule travels with the plan: the controller applies the same values.
         plan.min_swing_fraction = self.min_swing_fraction
         plan.max_extension = self.max_extension
-        if initial:
+        if initial and stand:
+            self.log('info', f'initial plan at t={t:.3f} s: standing still until a non-zero '
+                             'set-point')
+        elif initial:
             self.log('info', f'initial plan at t={t:.3f} s: stand {self.start_delay} s, then '
                              f'{LEGS[self.schedule.next_leg]} first')
         elif stand and not was_standing:

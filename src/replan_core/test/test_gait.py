@@ -471,7 +471,8 @@ def test_idle_monitor_stands_after_a_cycle_of_zero_set_point():
     idle = IdleMonitor(params.idle_after, tolerance=0.5 * params.step_period)   # as the node
     walk = np.array([0.1, 0.0, 0.0])
     assert not idle.update(5.28, walk)
-    # Zero from 6.0, first used by the re-plan at the touchdown of 6.03: the crawl steps in
+    # Zero from 6.0 (after walking), first used by the re-plan at the touchdown of 6.03: the
+    # crawl steps in
     # place for the four steps of a cycle, then stands at the fifth touchdown, also when the
     # four steps took a little less than 3 s (haptic touchdowns jitter).
     touchdowns = 6.03 + params.step_period * np.arange(6) - np.array([0, 0, 0, 0, 0.03, 0])
@@ -485,9 +486,19 @@ def test_idle_monitor_stands_after_a_cycle_of_zero_set_point():
     assert not idle.update(11.5, np.zeros(3))
     assert not idle.update(14.1, np.zeros(3))
     assert idle.update(14.125, np.zeros(3))
-    # Switched off: never stands (steps in place as before issue 16).
+    # Switched off: never stands (steps in place).
     off = IdleMonitor(params.idle_after, enabled=False)
     assert not off.update(0.0, np.zeros(3)) and not off.update(100.0, np.zeros(3))
+
+
+def test_idle_monitor_stands_from_the_start_until_the_first_set_point():
+    idle = IdleMonitor(3.0, tolerance=0.375)
+    assert idle.update(0.0, np.zeros(3)) and idle.update(0.504, np.zeros(3))
+    assert idle.stands_at(0.6)
+    assert not idle.update(1.008, np.array([0.1, 0.0, 0.0]))
+    # Once walked, a zero set-point stands only after idle_after.
+    assert not idle.update(2.0, np.zeros(3)) and not idle.stands_at(4.0)
+    assert idle.update(4.7, np.zeros(3))
 
 
 def test_restart_from_a_stand_walks_off_after_the_four_feet_phase():

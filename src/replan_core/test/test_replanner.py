@@ -119,14 +119,49 @@ def test_lost_ticks_are_warned_and_time_going_back_starts_a_new_run():
                                    'starting over with a new initial plan')
 
 
+def test_a_robot_never_told_to_walk_stands_from_its_first_plan_until_a_setpoint():
+    replanner, logs, _ = make()
+    replanner.tick(contacts(0.0))
+    plan = plan_now(replanner, ZERO)
+    assert is_stand_plan(plan) and replanner.standing
+    assert logs == [('info', 'initial plan at t=0.000 s: standing still until a non-zero '
+                             'set-point')]
+    # A trigger every idle_replan_period, each re-plan standing again: no step ever lifts off.
+    t = 0.0
+    for _ in range(6):
+        trigger = replanner.plan.steps[0]
+        assert trigger.liftoff_time == trigger.touchdown_time == pytest.approx(
+            t + 0.5 - 0.5 * TICK)
+        t = run_until_pending(replanner, round(t + TICK, 6))
+        assert is_stand_plan(plan_now(replanner, ZERO))
+    # The first set-point walks off after one four-feet phase, the first leg of the sequence.
+    t = run_until_pending(replanner, round(t + TICK, 6))
+    plan = plan_now(replanner, WALK)
+    assert not is_stand_plan(plan) and len(plan.steps) == 8
+    assert plan.steps[0].liftoff_time == pytest.approx(t + 0.25)
+    assert plan.steps[0].leg == 2                      # lh, the sequence's first
+    assert logs[-1][1].startswith(f'walking again at t={t:.3f} s (cmd_vel')
+
+
+def test_without_idle_stance_the_first_plan_steps_in_place_after_the_start_delay():
+    replanner, _, _ = make(idle_stance=False)
+    replanner.tick(contacts(0.0))
+    plan = plan_now(replanner, ZERO)
+    assert not is_stand_plan(plan) and plan.steps[0].liftoff_time == pytest.approx(1.0)
+
+
 def test_zero_setpoint_for_idle_after_stands_and_a_new_one_walks_off():
     replanner, logs, _ = make(idle_after=2.5)
     replanner.tick(contacts(0.0))
-    t, plans = 0.0, [plan_now(replanner, ZERO)]
+    t, plans = 0.0, [plan_now(replanner, WALK)]
+    on_time = late_touchdowns(replanner, 0.0)
+    t = run_until_pending(replanner, round(t + TICK, 6), on_time)
+    plans.append(plan_now(replanner, ZERO))
+    zero_at = t
     while not replanner.standing:
-        t = run_until_pending(replanner, round(t + TICK, 6))
+        t = run_until_pending(replanner, round(t + TICK, 6), on_time)
         plans.append(plan_now(replanner, ZERO))
-    assert t >= 2.5 - 0.5 * GaitParams().step_period
+    assert t - zero_at >= 2.5 - 0.5 * GaitParams().step_period
     # The plan before the stand ends at its trigger (the feet stay down from that touchdown
     # on, so the MPC settles the CoM during the last swing); the ones before it do not.
     before = plans[-2]
@@ -135,8 +170,8 @@ def test_zero_setpoint_for_idle_after_stands_and_a_new_one_walks_off():
     assert is_stand_plan(replanner.plan) and len(replanner.plan.steps) == 1
     trigger = replanner.plan.steps[0]
     assert trigger.liftoff_time == pytest.approx(t + 0.5 - 0.5 * TICK)   # off the tick grid
-    assert ('info', f'idle stance at t={t:.3f} s: set-point zero since 0.000 s, all four feet '
-                    'down') in logs
+    assert ('info', f'idle stance at t={t:.3f} s: set-point zero since {zero_at:.3f} s, all '
+                    'four feet down') in logs
     # The trigger's tick re-plans; a set-point then walks off: the reference trunk stands
     # through a four-feet phase first.
     t = run_until_pending(replanner, round(t + TICK, 6))

@@ -92,10 +92,10 @@ def _gait_table() -> tuple[ParamSpec, ...]:
            'planned swing (sent in footholds: the controller applies the same)', min=0.0, max=1.0),
         _p('max_extension', 0.3, 'haptic swing forced to end this long after its planned '
            'touchdown (sent in footholds)', 's', min=0.0, max=5.0),
-        _p('start_delay', 1.0, 'first plan: stand this long before the first lift-off', 's',
-           min=0.0, max=60.0),
-        _p('idle_stance', _G.idle_stance, 'stand still (all four feet down, no step) after '
-           'idle_after of zero set-point; false: step in place'),
+        _p('start_delay', 1.0, 'first plan with a set-point already non-zero: stand this long '
+           'before the first lift-off', 's', min=0.0, max=60.0),
+        _p('idle_stance', _G.idle_stance, 'stand still (all four feet down, no step) until the '
+           'first set-point and after idle_after of zero set-point; false: step in place'),
         _p('idle_after', _G.idle_after, 'zero set-point for this long before the crawl stands '
            'still (default: one crawl cycle)', 'sim s', min=0.0, max=3600.0),
         _p('idle_replan_period', _G.idle_replan_period, 'while standing, re-plan this often (a '
