@@ -1,4 +1,5 @@
-"""Idle stance end to end (issue 16): walk, stand still at a zero set-point, walk off again.
+"""Idle stance end to end: a robot never told to walk stands still from launch; walk, stand
+still at a zero set-point, walk off again.
 
 Runs ``config/scenarios/idle_stance.yaml`` with ``scripts/scenario.sh`` as ``test_walk.py``
 does (real processes, the default realistic profile: estimated state, noisy sensors) and
@@ -73,3 +74,19 @@ def test_idle_stance_stands_still_then_walks_off_within_one_step(ros_domain, tmp
         vx, vy, _ = cycles[-1]['velocity']
         assert vx == pytest.approx(SPEED, rel=0.15), metrics['velocity_tracking']
         assert abs(vy) < 0.03, metrics['velocity_tracking']
+
+
+def test_a_robot_never_told_to_walk_stands_still_from_launch(ros_domain, tmp_path):
+    """``config/scenarios/stand.yaml``: 12 s at zero set-point from the first tick. No real
+    step is ever planned, the four feet stay down on the truth, the trunk moves less than 1 cm
+    horizontally."""
+    out = tmp_path / 'stand'
+    run_scenario('stand', out, ros_domain)
+    messages = read_messages(out / 'bag', ('/footholds', '/ground_truth/contacts'))
+    plans = [footholds_from_msg(m) for _, m in messages['/footholds']]
+    assert plans and all(is_idle_trigger(s) for p in plans for s in p.steps)
+    flags = np.array([contacts_from_msg(m).contact for _, m in messages['/ground_truth/contacts']])
+    assert len(flags) > 0.9 * 12.0 / 0.004 and flags.all()
+    _times, positions, _ = trajectory(out)
+    travel = np.linalg.norm(positions[:, :2] - positions[0, :2], axis=1)
+    assert travel.max() < 0.01, travel.max()

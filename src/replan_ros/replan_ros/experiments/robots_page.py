@@ -1,11 +1,12 @@
-"""The robots page (docs/robots.md, issue 30): per robot its facts, its derived parameters and
+"""The robots page (docs/robots.md): per robot its facts, its derived parameters and
 what it does on the realistic profile, from scenario runs.
 
     scripts/robots_page.sh [--quick] [--jobs N] [--robot NAME ...] [--out DIR] [--page FILE]
 
 For each robot of ``config/robots_page.yaml`` (or those of ``--robot``): a stand at zero
-set-point (drift of the trunk on the truth, touchdowns after the first crawl cycle), a walk
-from standing at each of its forward, lateral and yaw set-points (achieved against commanded),
+set-point from launch (travel of the trunk on the truth, touchdowns), a walk from standing at
+each of its forward, lateral and yaw set-points (achieved against commanded), one run through
+the three set-points in turn (each whole crawl cycle after a change against the set-point),
 lateral pushes while walking forward, given as the velocity they give the free body (force =
 mass x dv / duration), at phases over its crawl cycle, level after level up to the first level
 that fells it at some phase, and blind step downs of shares of its leg length. Real-time
@@ -41,6 +42,7 @@ from replan_ros.experiments.robots_plan import (
     push_doc,
     push_force,
     push_times,
+    response_doc,
     robot_info,
     stand_doc,
     step_doc,
@@ -75,44 +77,66 @@ def walk_row(result: RunResult, axis: str, commanded: float) -> dict:
     return row
 
 
-def stand_measures(bag: Path, drift_from: float, cycle: float) -> dict | None:
-    """From the truth of a stand's bag: the trunk's horizontal displacement from
-    ``drift_from`` to the end, and the touchdowns (a foot's true contact flag rising) more
-    than one crawl cycle (``cycle`` s) after the first lift-off; None without the truth."""
+def stand_measures(bag: Path, drift_from: float) -> dict | None:
+    """From the truth of a stand's bag: the trunk's horizontal travel and the touchdowns (a
+    foot's true contact flag rising) from ``drift_from`` (s) to the end; None without the
+    truth."""
     base, contacts = read_truth(bag)
     return drift_and_touchdowns([(t, b.position) for t, b in base.items()],
                                 [(t, contacts[t].contact) for t in sorted(contacts)],
-                                drift_from, cycle)
+                                drift_from)
 
 
-def drift_and_touchdowns(positions: list, contacts: list, drift_from: float,
-                         cycle: float) -> dict | None:
-    """``stand_measures`` from (stamp, xyz) and (stamp, four contact flags), by stamp."""
-    window = [(t, p) for t, p in positions if t >= drift_from]
+def drift_and_touchdowns(positions: list, contacts: list, drift_from: float) -> dict | None:
+    """``stand_measures`` from (stamp, xyz) and (stamp, four contact flags), by stamp:
+    ``travel_m`` the largest horizontal distance from the trunk at ``drift_from``, ``drift_m``
+    its distance at the end, ``touchdowns`` the rising contact flags after ``drift_from``."""
+    window = [(t, np.asarray(p, float)) for t, p in positions if t >= drift_from]
     if len(window) < 2:
         return None
-    start, end = np.asarray(window[0][1], float), np.asarray(window[-1][1], float)
-    flags = np.array([np.asarray(c, bool) for _, c in contacts]) if contacts else None
-    # The first cycle starts with the first step (the first lift-off), not at t = 0: the
-    # gait's start-up steps are not the stand's.
-    touchdowns, after, last = 0, cycle, None
-    if flags is not None and len(flags) > 1:
-        stamps = np.array([t for t, _ in contacts])[1:]
-        rises, lifts = flags[1:] & ~flags[:-1], ~flags[1:] & flags[:-1]
-        if lifts.any():
-            after = float(stamps[np.flatnonzero(lifts.any(axis=1))[0]]) + cycle
-        touchdowns = int(rises[stamps > after].sum())
+    start = window[0][1]
+    distances = [float(np.linalg.norm(p[:2] - start[:2])) for _, p in window]
+    touchdowns, last = 0, None
+    after = [(t, np.asarray(c, bool)) for t, c in contacts if t >= drift_from]
+    if len(after) > 1:
+        flags = np.array([c for _, c in after])
+        stamps = np.array([t for t, _ in after])[1:]
+        rises = flags[1:] & ~flags[:-1]
+        touchdowns = int(rises.sum())
         if rises.any():
             last = round(float(stamps[np.flatnonzero(rises.any(axis=1))[-1]]), 3)
-    return {'drift_m': round(float(np.linalg.norm(end[:2] - start[:2])), 5),
+    return {'drift_m': round(distances[-1], 5), 'travel_m': round(max(distances), 5),
             'drift_window_s': [round(float(window[0][0]), 3), round(float(window[-1][0]), 3)],
-            'touchdowns_after': touchdowns, 'touchdowns_after_s': round(after, 3),
-            'last_touchdown_s': last}
+            'touchdowns': touchdowns, 'last_touchdown_s': last}
 
 
-def cached_stand_measures(folder: Path, drift_from: float, cycle: float) -> dict | None:
+def response_row(result: RunResult) -> dict:
+    """Per set-point of a response run (forward, lateral, yaw, in ``ROBOT_KEYS`` order): the
+    commanded component's mean over each whole crawl cycle after the change, as a share of the
+    set-point (``cycle_velocities`` of the truth), the first cycle's and the worst later
+    cycle's distance from 1, and the largest share (overshoot above 1); or the fall."""
+    row = {'run': result.key, 'ok': result.ok, 'fell': result.fell,
+           'fall_time_s': result.metrics.get('fall_time_s'), 'axes': {}}
+    segments = [s for s in result.metrics.get('velocity_tracking') or []
+                if any(s.get('commanded') or [])]
+    for segment in segments:
+        commanded = segment['commanded']
+        k = int(np.argmax(np.abs(commanded)))
+        shares = [c['velocity'][k] / commanded[k] for c in segment.get('cycle_velocities')
+                  or []]
+        row['axes'][ROBOT_KEYS[k]] = {
+            'commanded': commanded[k], 'start_s': segment.get('start_s'),
+            'shares': [round(x, 4) for x in shares],
+            'first_error': round(abs(shares[0] - 1.0), 4) if shares else None,
+            'later_error': (round(max(abs(x - 1.0) for x in shares[1:]), 4)
+                            if len(shares) > 1 else None),
+            'overshoot': round(max(shares) - 1.0, 4) if shares else None}
+    return row
+
+
+def cached_stand_measures(folder: Path, drift_from: float) -> dict | None:
     """``stand_measures`` of the run in ``folder``, kept in ``folder/stand.json``."""
-    key = {'drift_from': drift_from, 'cycle': round(cycle, 6)}
+    key = {'drift_from': drift_from, 'measures': 'travel'}
     cache = folder / 'stand.json'
     if cache.exists():
         try:
@@ -123,7 +147,7 @@ def cached_stand_measures(folder: Path, drift_from: float, cycle: float) -> dict
             pass
     if not (folder / 'bag').exists():
         return None
-    measures = stand_measures(folder / 'bag', drift_from, cycle)
+    measures = stand_measures(folder / 'bag', drift_from)
     cache.write_text(json.dumps({'key': key, 'measures': measures}))
     return measures
 
@@ -186,6 +210,7 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
     """Every run of one robot and what they measured (the page's column)."""
     walk_base = runner.scenario(plan.tests['walk']['scenario'])
     stand_base = runner.scenario(plan.tests['stand']['scenario'])
+    response_base = runner.scenario(plan.tests['response']['scenario'])
     step_base = runner.scenario(plan.tests['step_down']['scenario'])
     made: list[RunResult] = []
     row: dict = {'robot': info.name, 'setpoints': plan.robots[info.name],
@@ -194,6 +219,7 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
         walks = {axis: pool.submit(runner.run, walk_doc(walk_base, info, plan, axis))
                  for axis in ROBOT_KEYS}
         stand = pool.submit(runner.run, stand_doc(stand_base, info, plan), True)
+        response = pool.submit(runner.run, response_doc(response_base, info, plan))
         forward = walks['forward'].result()
         steps, row['push'] = [], None
         walks_on_flat = forward.ok and not forward.fell
@@ -210,9 +236,10 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
         row['stand'] = {'run': stand_run.key, 'ok': stand_run.ok, 'fell': stand_run.fell,
                         'fall_time_s': stand_run.metrics.get('fall_time_s'),
                         **((cached_stand_measures(stand_run.folder,
-                                                  plan.tests['stand']['drift_from'],
-                                                  info.cycle_s) or {})
+                                                  plan.tests['stand']['drift_from']) or {})
                            if stand_run.ok else {})}
+        made.append(response.result())
+        row['response'] = response_row(made[-1])
         row['step_down'] = []
         for share, future in steps:
             made.append(future.result())
@@ -229,10 +256,11 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
 
 
 def planned_runs(plan: RobotsPlan) -> int:
-    """Upper bound of the runs: per robot three walks, the stand, every step down and every
-    push level at every phase (the pushes stop at the first level that fells it)."""
+    """Upper bound of the runs: per robot three walks, the stand, the response, every step
+    down and every push level at every phase (the pushes stop at the first level that fells
+    it)."""
     push = plan.tests['push']
-    per_robot = (len(ROBOT_KEYS) + 1 + len(plan.tests['step_down']['shares'])
+    per_robot = (len(ROBOT_KEYS) + 2 + len(plan.tests['step_down']['shares'])
                  + len(push['levels']) * push['phases'])
     return per_robot * len(plan.robots)
 

@@ -22,6 +22,7 @@ ROBOT_KEYS = ('forward', 'lateral', 'yaw')
 TEST_KEYS = {
     'stand': {'scenario', 'duration', 'drift_from'},
     'walk': {'scenario', 'duration'},
+    'response': {'scenario', 'segment_cycles'},
     'push': {'levels', 'phases', 'push_duration', 'direction', 'first_push_cycles',
              'after_push_cycles'},
     'step_down': {'scenario', 'shares', 'step_x_legs', 'cross_legs', 'time_margin'},
@@ -99,10 +100,16 @@ def _check_test(name: str, cfg, source: str, where: str) -> dict:
                 raise _fail(source, at, f'expected a non-empty list of numbers, got {value!r}')
             out[key] = [_number(v, source, f'{at}[{i}]', positive=key != 'direction')
                         for i, v in enumerate(value)]
-        elif key == 'phases':
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise _fail(source, at, f'expected a whole number >= 1, got {value!r}')
+        elif key in ('phases', 'segment_cycles'):
+            # A response needs a first cycle and later ones to tell rise from steady state.
+            least = 2 if key == 'segment_cycles' else 1
+            if not isinstance(value, int) or isinstance(value, bool) or value < least:
+                raise _fail(source, at, f'expected a whole number >= {least}, got {value!r}')
             out[key] = value
+        elif key == 'drift_from':
+            out[key] = _number(value, source, at, positive=False)
+            if out[key] < 0:
+                raise _fail(source, at, f'expected a number >= 0, got {value!r}')
         else:
             out[key] = _number(value, source, at)
     for key in ('levels', 'shares'):
@@ -226,6 +233,23 @@ def walk_doc(base: dict, info: RobotInfo, plan: RobotsPlan, axis: str) -> dict:
     return _robot_doc(variant(base, world=plan.profile, seed=plan.seed,
                               duration=plan.tests['walk']['duration'],
                               setpoint=tuple(setpoint)), info, axis)
+
+
+def response_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
+    """From standing, the robot's forward set-point, then its lateral one, then its yaw one,
+    each for ``segment_cycles`` of its crawl cycles from the base scenario's first
+    set-point."""
+    span = plan.tests['response']['segment_cycles'] * info.cycle_s
+    start = walk_start(base)
+    events = []
+    for k, axis in enumerate(ROBOT_KEYS):
+        setpoint = [0.0, 0.0, 0.0]
+        setpoint[k] = float(plan.robots[info.name][axis])
+        events.append({'t': round(start + k * span, 4), 'cmd_vel': setpoint})
+    doc = variant(base, world=plan.profile, seed=plan.seed,
+                  duration=round(start + len(ROBOT_KEYS) * span, 4))
+    doc['events'] = events
+    return _robot_doc(doc, info, 'response')
 
 
 def push_times(base: dict, info: RobotInfo, plan: RobotsPlan) -> list[float]:

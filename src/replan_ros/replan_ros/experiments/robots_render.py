@@ -56,13 +56,35 @@ def stand_cell(row: dict | None) -> str:
         return 'run failed'
     if row.get('fell'):
         return _fall(row)
-    if row.get('drift_m') is None:
+    if row.get('travel_m') is None:
         return 'no truth in the bag'
     start, end = row['drift_window_s']
     last = row.get('last_touchdown_s')
-    return (f'{100.0 * row["drift_m"]:.2f} cm ({start:g}-{end:g} s); '
-            f'{row["touchdowns_after"]} touchdowns after {row["touchdowns_after_s"]:.2f} s'
-            + (f' (last at {last:.2f} s)' if last is not None else ''))
+    return (f'{100.0 * row["travel_m"]:.2f} cm ({start:g}-{end:g} s); '
+            f'{row["touchdowns"]} touchdowns' + (f' (last at {last:.2f} s)' if last is not None
+                                                else ''))
+
+
+def response_cell(row: dict | None, axis: str) -> str:
+    """Each whole crawl cycle after the change to ``axis``'s set-point, in per cent of it;
+    the first within 10 % and every later one within 5 % are met, else the cell says which
+    is not."""
+    if row is None:
+        return '-'
+    if not row.get('ok'):
+        return 'run failed'
+    if row.get('fell'):
+        return _fall(row)
+    cell = row['axes'].get(axis)
+    if not cell or not cell['shares']:
+        return 'no whole cycle'
+    shares = ' '.join(f'{100.0 * x:.0f}' for x in cell['shares'])
+    misses = []
+    if cell['first_error'] > 0.10:
+        misses.append('first')
+    if cell['later_error'] is not None and cell['later_error'] > 0.05:
+        misses.append('later')
+    return f'{shares} %' + (f' (**{" and ".join(misses)} off**)' if misses else '')
 
 
 def push_cell(push: dict | None, skipped: str | None) -> str:
@@ -147,7 +169,10 @@ def results_table(robots: dict) -> list[str]:
     for axis, (label, unit) in _AXES.items():
         rows.append([f'{label}: achieved of commanded',
                      *[walk_cell(robots[n]['walks'].get(axis), unit) for n in names]])
-    rows.append(['standing: drift, touchdowns after one cycle',
+    for axis, (label, _unit) in _AXES.items():
+        rows.append([f'response, {label}: each whole cycle after the change, % of set-point',
+                     *[response_cell(robots[n].get('response'), axis) for n in names]])
+    rows.append(['standing from launch: trunk travel, touchdowns',
                  *[stand_cell(robots[n]['stand']) for n in names]])
     rows.append(['largest lateral push survived at every phase (dv = impulse / mass)',
                  *[push_cell(robots[n]['push'], robots[n]['skipped']) for n in names]])
@@ -162,6 +187,7 @@ def results_table(robots: dict) -> list[str]:
 def how_section(meta: dict) -> list[str]:
     tests = meta['tests']
     stand, push, step = tests['stand'], tests['push'], tests['step_down']
+    response = tests['response']
     return [
         '## How each figure is made', '',
         f'- **Set-points**: per robot in the plan. Each walk is its own run from standing '
@@ -171,10 +197,17 @@ def how_section(meta: dict) -> list[str]:
         'average out; the trunk takes a few cycles from standing to get to the speed, which '
         'the steady state leaves out; the run\'s `velocity_tracking`, `achieved_steady`, '
         '`cycle_velocities`; yaw: the turn rate).',
-        f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s; '
-        f'drift = the trunk\'s horizontal displacement on the truth from {stand["drift_from"]:g} '
-        's to the end; touchdowns = true contact flags that rise more than one crawl cycle (the '
-        'robot\'s own, from its derived gait timing) after the first lift-off.',
+        f'- **Response**: one run of `{response["scenario"]}` from standing: the robot\'s '
+        f'forward set-point, then its lateral one, then its yaw one, each for '
+        f'{response["segment_cycles"]} of its crawl cycles; each cell gives the commanded '
+        'component\'s mean over each whole crawl cycle after the change (a true touchdown of a '
+        'leg to its next, the first starting at the first touchdown after the change), in per '
+        'cent of the set-point. Met: the first cycle within 10 % and every later one within '
+        '5 %; a cell says which is not.',
+        f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s '
+        f'from launch; travel = the largest horizontal distance of the trunk on the truth from '
+        f'its place at {stand["drift_from"]:g} s; touchdowns = true contact flags that rise '
+        'after it.',
         f'- **Pushes**: walking forward at the set-point, one push of {push["push_duration"]:g} s '
         f'to {push["direction"]} (world frame, the robot heading along x) of force = mass x dv / '
         f'{push["push_duration"]:g} s, mass the model\'s (the table above; the realistic '

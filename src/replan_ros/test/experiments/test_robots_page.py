@@ -16,6 +16,7 @@ from replan_ros.experiments.robots_page import (
     measure_robot,
     planned_runs,
     push_ladder,
+    response_row,
     timing,
     walk_row,
 )
@@ -87,9 +88,10 @@ def test_a_robot_that_falls_walking_is_reported_and_not_pushed(tmp_path):
     assert row['walks']['forward']['fell'] and row['walks']['forward']['fall_time_s'] == 2.9
     assert row['push'] is None and row['step_down'] == []
     assert row['skipped'] == 'falls walking forward on flat ground'
-    assert len(runner.docs) == 4                                   # three walks and the stand
+    assert len(runner.docs) == 5             # three walks, the stand and the response
     assert not row['stand']['fell'] and 'drift_m' not in row['stand']     # no bag here
-    assert row['timing']['runs'] == 4
+    assert row['response']['fell']
+    assert row['timing']['runs'] == 5
 
 
 def test_a_robot_that_walks_is_measured_on_every_test(tmp_path):
@@ -100,23 +102,48 @@ def test_a_robot_that_walks_is_measured_on_every_test(tmp_path):
     assert row['walks']['lateral']['achieved'] == pytest.approx(0.95 * 0.033)
     assert row['push']['survived_dv'] == 0.3 and row['push']['fell_dv'] is None
     assert [s['crossed'] for s in row['step_down']] == [True]
-    assert len(runner.docs) == planned_runs(plan)        # 4 + 1 share + 1 level x 1 phase
-    assert row['timing'] == {'runs': 6, 'rtf_median': 1.2, 'rtf_min': 1.2,
+    assert len(runner.docs) == planned_runs(plan)        # 5 + 1 share + 1 level x 1 phase
+    assert row['response']['axes']['forward']['shares'] == []     # no cycles here
+    assert row['timing'] == {'runs': 7, 'rtf_median': 1.2, 'rtf_min': 1.2,
                              'mpc_median_ms': 1.5, 'mpc_p99_max_ms': 4.0}
 
 
-def test_drift_is_the_trunks_displacement_and_touchdowns_count_after_the_cycle():
-    positions = [(0.004 * k, (0.001 * k if k >= 1250 else 0.0, 0.0, 0.3)) for k in range(3001)]
+def test_standing_travel_is_the_trunks_largest_distance_and_every_touchdown_counts():
+    # The trunk goes 2 cm away and comes back to 0.5 cm; one foot lifts and lands at 8 s.
+    positions = [(0.004 * k, (0.02 * min(k, 1000) / 1000 - 0.015 * max(k - 1000, 0) / 2000,
+                              0.0, 0.3)) for k in range(3001)]
     contacts = [(0.004 * k, [True] * 4) for k in range(3001)]
-    contacts[250] = (contacts[250][0], [False, True, True, True])     # first step at 1 s
-    contacts[800] = (contacts[800][0], [True, True, False, True])     # 3.2 s: in its cycle
-    contacts[2000] = (contacts[2000][0], [True, False, True, True])   # one at 8 s
-    measures = drift_and_touchdowns(positions, contacts, drift_from=5.0, cycle=2.35)
-    assert measures['drift_m'] == pytest.approx(0.001 * 3000 - 0.001 * 1250, abs=1e-9)
-    assert measures['drift_window_s'] == [5.0, 12.0]
-    assert measures['touchdowns_after_s'] == pytest.approx(1.0 + 2.35)
-    assert measures['touchdowns_after'] == 1 and measures['last_touchdown_s'] == 8.004
-    assert drift_and_touchdowns(positions[:10], contacts, 5.0, 2.35) is None
+    contacts[2000] = (contacts[2000][0], [True, False, True, True])
+    measures = drift_and_touchdowns(positions, contacts, drift_from=0.0)
+    assert measures['travel_m'] == pytest.approx(0.02, abs=1e-9)
+    assert measures['drift_m'] == pytest.approx(0.005, abs=1e-9)
+    assert measures['drift_window_s'] == [0.0, 12.0]
+    assert measures['touchdowns'] == 1 and measures['last_touchdown_s'] == 8.004
+    # From 9 s on: no touchdown, and the travel from where the trunk was then.
+    later = drift_and_touchdowns(positions, contacts, drift_from=9.0)
+    assert later['touchdowns'] == 0 and later['last_touchdown_s'] is None
+    assert later['travel_m'] == pytest.approx(0.015 * 750 / 2000, abs=1e-5)   # rounded
+    assert drift_and_touchdowns(positions[:1], contacts, 0.0) is None
+
+
+def test_a_response_gives_each_whole_cycle_as_a_share_of_its_set_point():
+    def segment(start, commanded, per_cycle):
+        return {'start_s': start, 'commanded': commanded,
+                'cycle_velocities': [{'start_s': 0.0, 'end_s': 1.0, 'velocity': v}
+                                     for v in per_cycle]}
+    metrics = {'fell': False, 'completed': True, 'sim_time_s': 30.0, 'velocity_tracking': [
+        segment(0.0, [0.0, 0.0, 0.0], []),
+        segment(0.5, [0.1, 0.0, 0.0], [[0.092, 0.0, 0.0], [0.1, 0.0, 0.0], [0.104, 0, 0]]),
+        segment(10.5, [0.0, 0.05, 0.0], [[0.0, 0.04, 0.0], [0.0, 0.0475, 0.0]]),
+        segment(20.5, [0.0, 0.0, 0.2], [[0.0, 0.0, 0.2]])]}
+    row = response_row(RunResult('r', {}, metrics, Path('r')))
+    forward, lateral, yaw = (row['axes'][a] for a in ('forward', 'lateral', 'yaw'))
+    assert forward['shares'] == [0.92, 1.0, 1.04]
+    assert forward['first_error'] == pytest.approx(0.08)
+    assert forward['later_error'] == pytest.approx(0.04)
+    assert forward['overshoot'] == pytest.approx(0.04)
+    assert lateral['first_error'] == pytest.approx(0.2) and lateral['later_error'] == 0.05
+    assert yaw['later_error'] is None and yaw['overshoot'] == 0.0
 
 
 def test_timing_leaves_out_runs_that_failed():

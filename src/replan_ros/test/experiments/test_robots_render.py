@@ -36,9 +36,14 @@ def _phases(fell_at: list[int], n: int = 4) -> list[dict]:
 GO1 = {'robot': 'go1', 'skipped': None, 'cycle_s': 2.347,
        'walks': {'forward': _walk(0.05, 0.0505), 'lateral': _walk(0.033, 0.030),
                  'yaw': _walk(0.067, None, ok=False)},
-       'stand': {'run': 'r', 'ok': True, 'fell': False, 'drift_m': 0.0195,
-                 'drift_window_s': [5.0, 12.0], 'touchdowns_after': 0,
-                 'touchdowns_after_s': 3.347, 'last_touchdown_s': 2.64},
+       'stand': {'run': 'r', 'ok': True, 'fell': False, 'drift_m': 0.0035,
+                 'travel_m': 0.0061, 'drift_window_s': [0.0, 12.0], 'touchdowns': 0,
+                 'last_touchdown_s': None},
+       'response': {'run': 'r', 'ok': True, 'fell': False, 'axes': {
+           'forward': {'shares': [0.93, 0.98, 1.01], 'first_error': 0.07, 'later_error': 0.02,
+                       'overshoot': 0.01},
+           'lateral': {'shares': [0.85, 0.93, 0.99], 'first_error': 0.15, 'later_error': 0.07,
+                       'overshoot': -0.01}}},
        'push': {'levels': [{'dv_mps': 0.2, 'force_n': 10.48, 'impulse_ns': 2.62,
                             'phases': _phases([])},
                            {'dv_mps': 0.3, 'force_n': 15.72, 'impulse_ns': 3.93,
@@ -75,7 +80,10 @@ def test_the_page_names_its_revision_code_and_command_and_reports_falls():
     assert '| `wbc.swing_kp` N/m | [370, 370, 370] |' in text
     assert '0.0505 of 0.05 m/s (+1.0 %)' in text
     assert '| yaw: achieved of commanded | run failed | **fell** at 2.9 s |' in text
-    assert '1.95 cm (5-12 s); 0 touchdowns after 3.35 s (last at 2.64 s)' in text
+    assert '0.61 cm (0-12 s); 0 touchdowns |' in text
+    assert '| 93 98 101 % |' in text and '85 93 99 % (**first and later off**)' in text
+    assert '| response, yaw: each whole cycle after the change, % of set-point | no whole cycle' \
+        in text
     assert '**0.3 m/s** (3.9 N s) at all 4 phases; 0.4 m/s fell at phase 1, 3 of 4' in text
     assert '**0.1** of the leg (4.3 cm); 0.15: **fell** at 11.2 s' in text
     assert text.count('not run: falls walking forward on flat ground') == 2
