@@ -59,7 +59,7 @@ def test_names_and_mass(robot):
     assert 70.0 < robot.total_mass < 110.0
     # The mapping must pick each named joint's own index in pinocchio's vectors.
     for i, name in enumerate(JOINT_NAMES):
-        joint = robot.model.joints[robot.model.getJointId(name)]
+        joint = robot.model.joints[joint_id(robot.model, name)]
         assert robot.q_index[i] == joint.idx_q
         assert robot.v_index[i] == joint.idx_v
     assert np.all(robot.effort_limit > 0)
