@@ -22,6 +22,7 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
+from test_launch import LaunchProcess
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from replan_ros.recording.bag_io import BagWriter, iter_decoded, qos_profiles_yaml, recover
@@ -353,3 +354,43 @@ def test_rerun_of_a_recorded_walk_is_bit_identical(ros_domain, tmp_path):
     assert rerun.returncode == 0, rerun.stdout + rerun.stderr
     assert '[rerun] messages: bit-identical' in rerun.stdout, rerun.stdout
     assert 'both end at t = 10.000 s' in rerun.stdout, rerun.stdout
+
+
+# HyQ with an unactuated revolute joint: a model whose /tf the recorder cannot derive.
+HEAD = """  <link name="head"/>
+  <joint name="head_pan" type="revolute">
+    <parent link="base_link"/><child link="head"/>
+    <origin xyz="0.5 0 0.1"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="10" velocity="1"/>
+  </joint>
+</robot>"""
+
+
+def test_a_robot_the_bag_cannot_show_stops_the_run_before_the_robot_moves(ros_domain, tmp_path):
+    """The recorder stops the start with one line (exit code 2) and leaves no bag; the launcher
+    stops the graph without respawning it and without starting the controller, so the sim
+    never steps (every ANYmal C bag once lacked /robot_description and /tf, and the runs
+    passed)."""
+    urdf = tmp_path / 'hyq_head.urdf'
+    urdf.write_text((REPO_ROOT / 'urdf' / 'hyq.urdf').read_text().replace('</robot>', HEAD))
+    robot = tmp_path / 'hyq_head.yaml'
+    robot.write_text((CONFIG_DIR / 'robots' / 'hyq.yaml').read_text()
+                     .replace('name: hyq', 'name: hyq_head')
+                     .replace('urdf: urdf/hyq.urdf', f'urdf: {urdf}'))
+    launch = LaunchProcess(['--robot', str(robot), '--profile', 'ideal', '--record',
+                            str(tmp_path / 'bag'), '--run-dir', str(tmp_path / 'run'),
+                            '--duration', '5', '--quiet'], ros_domain)
+    try:
+        assert launch.process.wait(120) == 2, launch.output
+    finally:
+        launch.stop()
+    output = launch.output
+    reason = (f'config error: cannot derive /robot_description and /tf of hyq_head: {urdf}: '
+              'joint head_pan is not actuated; a bag without them cannot show the robot')
+    assert f'recorder refused its configuration, stopping the graph: {reason}' in output, output
+    assert output.count('died') == 1 and 'respawn' not in output, output
+    assert 'started wbc' not in output and 'all nodes stopped' in output, output
+    log = (tmp_path / 'run' / 'logs' / 'recorder.log').read_text()
+    errors = [line for line in log.splitlines() if 'error' in line.lower()]
+    assert len(errors) == 1 and errors[0].startswith('[FATAL]') and reason in errors[0], log
+    assert not list(tmp_path.glob('bag/*.mcap'))

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from replan_core.robot_model import joint_id
 from replan_core.types import BASE_FRAME, JOINT_NAMES, WORLD_FRAME
 
 
@@ -46,11 +47,12 @@ class LinkFrames:
         if missing:
             raise ValueError(f'{urdf_path}: missing joints {missing}')
         pin.framesForwardKinematics(model, data, pin.neutral(model))
-        q_of_joint = {model.getJointId(n): i for i, n in enumerate(joint_names)}
+        q_of_joint = {joint_id(model, n): i for i, n in enumerate(joint_names)}
         names, translations, rotations, movable, index, axes = [], [], [], [], [], []
         # (parent link, child link) of each URDF joint: a link's BODY frame has the joint's
-        # frame as parent, whose parent is the parent link's BODY frame.
-        for frame in model.frames:
+        # frame as parent, whose parent is the parent link's BODY frame. Frames are taken by
+        # index, never by name: a URDF may name a joint like a link (ANYmal C's LF_HAA).
+        for frame_index, frame in enumerate(model.frames):
             if frame.type != pin.FrameType.BODY:
                 continue
             joint = model.frames[frame.parentFrame]
@@ -59,7 +61,7 @@ class LinkFrames:
             parent = model.frames[joint.parentFrame]
             if parent.type != pin.FrameType.BODY:
                 continue
-            origin = data.oMf[joint.parentFrame].actInv(data.oMf[model.getFrameId(frame.name)])
+            origin = data.oMf[joint.parentFrame].actInv(data.oMf[frame_index])
             names.append((parent.name, frame.name))
             translations.append(np.array(origin.translation))
             rotations.append(pin.Quaternion(origin.rotation).coeffs().copy())

@@ -232,31 +232,33 @@ def robot_facts(spec: RobotSpec) -> RobotFacts:
     """Measured on the model (pinocchio, free-flyer root) in the standing pose."""
     import pinocchio as pin
 
+    from replan_core.robot_model import joint_id, link_frame_id
+
     model = pin.buildModelFromUrdf(str(spec.urdf), pin.JointModelFreeFlyer())
     data = model.createData()
     q = pin.neutral(model)
     for name, value in zip(spec.joints, spec.standing_pose, strict=True):
-        q[model.joints[model.getJointId(name)].idx_q] = value
+        q[model.joints[joint_id(model, name)].idx_q] = value
     pin.forwardKinematics(model, data, q)
     pin.updateFramePlacements(model, data)
-    frames = [data.oMf[model.getFrameId(f)] for f in spec.feet]
+    frames = [data.oMf[link_frame_id(model, f)] for f in spec.feet]
     feet = np.array([f.translation for f in frames])
     # The contact sphere's lowest point: its centre (offset in the foot frame) less the radius.
     soles = np.array([f.translation + f.rotation @ spec.foot_offset for f in frames])
     soles[:, 2] -= spec.foot_radius
-    hips = np.array([data.oMi[model.getJointId(spec.joints[3 * k + 1])].translation
+    hips = np.array([data.oMi[joint_id(model, spec.joints[3 * k + 1])].translation
                      for k in range(4)])
-    abductions = np.array([data.oMi[model.getJointId(spec.joints[3 * k])].translation
+    abductions = np.array([data.oMi[joint_id(model, spec.joints[3 * k])].translation
                            for k in range(4)])
-    knees = np.array([data.oMi[model.getJointId(spec.joints[3 * k + 2])].translation
+    knees = np.array([data.oMi[joint_id(model, spec.joints[3 * k + 2])].translation
                       for k in range(4)])
     leg = np.linalg.norm(knees - hips, axis=1) + np.linalg.norm(feet - knees, axis=1)
     ground = float(soles[:, 2].mean())
     com = pin.centerOfMass(model, data, q)
     pin.computeSubtreeMasses(model, data)
-    legs = [data.mass[model.getJointId(spec.joints[3 * k])] for k in range(4)]
+    legs = [data.mass[joint_id(model, spec.joints[3 * k])] for k in range(4)]
     inertia = pin.crba(model, data, q)
-    joint_rows = [model.joints[model.getJointId(n)].idx_v for n in spec.joints]
+    joint_rows = [model.joints[joint_id(model, n)].idx_v for n in spec.joints]
     return RobotFacts(mass=float(sum(i.mass for i in model.inertias)),
                       leg_mass=float(np.mean(legs)),
                       leg_length=float(leg.mean()),

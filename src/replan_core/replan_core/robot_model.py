@@ -22,6 +22,28 @@ from replan_core.types import FOOT_FRAMES, JOINT_NAMES, LEGS, BaseState, JointSt
 GRAVITY = 9.81  # m/s^2, magnitude; pinocchio's model.gravity is (0, 0, -9.81)
 
 
+def link_frame_id(model: pin.Model, name: str) -> int:
+    """Index of the frame of the URDF link ``name`` (a BODY frame); ValueError if none.
+
+    By name and type: a URDF may give a joint the name of a link (ANYmal C's joint and link
+    ``LF_HAA``), and pinocchio's look-up by name alone then refuses ("Several frames match").
+    """
+    if not model.existFrame(name, pin.FrameType.BODY):
+        raise ValueError(f'no link {name!r} in the model')
+    return model.getFrameId(name, pin.FrameType.BODY)
+
+
+def joint_id(model: pin.Model, name: str) -> int:
+    """Index of the joint ``name`` (``model.joints``); ValueError if none.
+
+    The joints have their own name table (``model.names``, joints only), so a link or frame
+    of the same name is never taken.
+    """
+    if not model.existJointName(name):
+        raise ValueError(f'no joint {name!r} in the model')
+    return model.getJointId(name)
+
+
 def unit_quaternion_matrix(x: float, y: float, z: float, w: float) -> np.ndarray:
     """Rotation matrix (3, 3) of a unit quaternion given as floats (x, y, z, w).
 
@@ -57,16 +79,16 @@ class RobotModel:
         model = self.model
         self._joint_names = tuple(joint_names)
         missing = [n for n in joint_names if not model.existJointName(n)]
-        missing += [f for f in foot_frames if not model.existFrame(f)]
+        missing += [f for f in foot_frames if not model.existFrame(f, pin.FrameType.BODY)]
         if missing:
             raise ValueError(f'{self.urdf_path}: missing joints/frames {missing}')
-        joint_ids = [model.getJointId(n) for n in joint_names]
+        joint_ids = [joint_id(model, n) for n in joint_names]
         # Index of each joint in pinocchio's q and v vectors (all revolute: nq=nv=1).
         self.q_index = np.array([model.joints[j].idx_q for j in joint_ids], dtype=int)
         self.v_index = np.array([model.joints[j].idx_v for j in joint_ids], dtype=int)
         # v indices of each leg's three joints, (4, 3), leg-major as LEGS.
         self.leg_v_index = self.v_index.reshape(len(LEGS), 3)
-        self.foot_frame_ids = tuple(model.getFrameId(f) for f in foot_frames)
+        self.foot_frame_ids = tuple(link_frame_id(model, f) for f in foot_frames)
         self._haa_joint_ids = tuple(joint_ids[3 * i] for i in range(len(LEGS)))
         self._total_mass = float(pin.computeTotalMass(model))
         self.effort_limit = np.asarray(model.effortLimit, dtype=float)[self.v_index].copy()

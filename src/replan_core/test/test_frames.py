@@ -6,6 +6,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from replan_core.frames import LinkFrames, base_transform, compose
@@ -104,3 +105,64 @@ def test_another_robots_tree_hangs_below_the_project_base_frame():
             translation = translation + rotation @ np.asarray(step.translation)
             rotation = rotation @ quaternion_to_matrix(np.asarray(step.rotation))
         np.testing.assert_allclose(translation, feet[k], atol=1e-9, err_msg=foot)
+
+
+def _robot_specs():
+    from replan_core.robot_file import load_robot_file, robot_names
+
+    configs = ROOT / 'config'
+    return [pytest.param(load_robot_file(configs / 'robots' / f'{name}.yaml', ROOT), id=name)
+            for name in robot_names(configs)]
+
+
+@pytest.mark.parametrize('spec', _robot_specs())
+def test_every_robot_file_gives_its_urdf_tree_and_pinocchios_placements(spec):
+    """Each robot of config/robots/ (a new file gets this test): one transform per URDF joint,
+    every URDF link (and the project's base frame above another root), and every link placed
+    where pinocchio's free-flyer model places it, feet included. ANYmal C's URDF names joints
+    like links (LF_HAA): the frames are told apart by type."""
+    from replan_core.robot_model import link_frame_id
+
+    urdf = ET.parse(spec.urdf).getroot()
+    links = {link.get('name') for link in urdf.findall('link')}
+    pairs = {(j.find('parent').get('link'), j.find('child').get('link'))
+             for j in urdf.findall('joint')}
+    frames = LinkFrames(str(spec.urdf), spec.joints)
+    extra = set() if spec.root_link == 'base_link' else {('base_link', spec.root_link)}
+    rng = np.random.default_rng(5)
+    q = spec.standing_pose + rng.uniform(-0.3, 0.3, 12)
+    got = frames.link_transforms(q)
+    assert {(t.parent, t.child) for t in got} == pairs | extra
+    assert len(got) == len(pairs | extra)
+    assert set(frames.links) == links | {'base_link'}
+    assert len(frames.links) == len(links) + len(extra)          # each link once
+
+    quat = rng.normal(size=4)
+    quat /= np.linalg.norm(quat)
+    position = rng.normal(size=3)
+    model = pin.buildModelFromUrdf(str(spec.urdf), pin.JointModelFreeFlyer())
+    data = model.createData()
+    config = pin.neutral(model)
+    config[:3], config[3:7] = position, quat
+    robot = RobotModel(str(spec.urdf), spec.joints, spec.feet)
+    config[robot.q_index] = q
+    pin.framesForwardKinematics(model, data, config)
+    placed = {'base_link': (position, quaternion_to_matrix(quat))}
+    pending = list(got)
+    while pending:                                   # parents before children
+        t = pending.pop(0)
+        if t.parent not in placed:
+            pending.append(t)
+            continue
+        translation, rotation = placed[t.parent]
+        placed[t.child] = (translation + rotation @ np.asarray(t.translation),
+                           rotation @ quaternion_to_matrix(np.asarray(t.rotation)))
+    for link in links:
+        expected = data.oMf[link_frame_id(model, link)]
+        np.testing.assert_allclose(placed[link][0], expected.translation, atol=1e-9,
+                                   err_msg=link)
+        np.testing.assert_allclose(placed[link][1], expected.rotation, atol=1e-9, err_msg=link)
+    feet = robot.foot_positions(BaseState(0.0, position, quat, np.zeros(3), np.zeros(3)),
+                                JointState(0.0, q, np.zeros(12), np.zeros(12)))
+    for k, foot in enumerate(spec.feet):
+        np.testing.assert_allclose(placed[foot][0], feet[k], atol=1e-9, err_msg=foot)

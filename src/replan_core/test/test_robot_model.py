@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 from replan_core.robot_file import load_robot_file
-from replan_core.robot_model import RobotModel
+from replan_core.robot_model import RobotModel, joint_id, link_frame_id
 from replan_core.rotations import quaternion_to_matrix
 from replan_core.types import JOINT_NAMES, LEGS, BaseState, JointState
 
@@ -59,7 +59,7 @@ def test_names_and_mass(robot):
     assert 70.0 < robot.total_mass < 110.0
     # The mapping must pick each named joint's own index in pinocchio's vectors.
     for i, name in enumerate(JOINT_NAMES):
-        joint = robot.model.joints[robot.model.getJointId(name)]
+        joint = robot.model.joints[joint_id(robot.model, name)]
         assert robot.q_index[i] == joint.idx_q
         assert robot.v_index[i] == joint.idx_v
     assert np.all(robot.effort_limit > 0)
@@ -165,3 +165,20 @@ def test_any_robot_file_gives_a_model_in_the_project_order(name):
     if name != 'hyq':
         with pytest.raises(ValueError, match='missing joints/frames'):
             RobotModel(str(spec.urdf))       # the project's HyQ names: only HyQ has them
+
+
+def test_a_link_and_a_joint_of_one_name_are_told_apart_by_type():
+    """ANYmal C's URDF has a joint and a link named LF_HAA: the link's frame and the joint are
+    found by name and type, a name of neither kind is refused."""
+    spec = load_robot_file(ROOT / 'config' / 'robots' / 'anymal_c.yaml', ROOT)
+    model = pin.buildModelFromUrdf(str(spec.urdf))
+    with pytest.raises(ValueError, match='Several frames match'):
+        model.getFrameId('LF_HAA')
+    link = model.frames[link_frame_id(model, 'LF_HAA')]
+    assert link.name == 'LF_HAA' and link.type == pin.FrameType.BODY
+    assert model.names[joint_id(model, 'LF_HAA')] == 'LF_HAA'
+    assert model.getFrameId('LF_HAA', pin.FrameType.JOINT) != link_frame_id(model, 'LF_HAA')
+    with pytest.raises(ValueError, match="no link 'LF_HAA_joint'"):
+        link_frame_id(model, 'LF_HAA_joint')
+    with pytest.raises(ValueError, match="no joint 'LF_FOOT'"):
+        joint_id(model, 'LF_FOOT')

@@ -7,6 +7,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from replan_core.robot_model import joint_id, link_frame_id
 from replan_core.sim_world import STANDING_POSE, ActuatorParams, SimWorld
 from replan_core.types import FOOT_FRAMES, JOINT_NAMES
 
@@ -21,7 +22,7 @@ STAND_HEIGHT = 0.5775 + FOOT_RADIUS   # m, base_link above flat ground in the st
 def model():
     m = pin.buildModelFromUrdf(URDF, pin.JointModelFreeFlyer())
     # pinocchio orders joints by name (lf lh rf rh): index of each JOINT_NAMES joint in q[7:].
-    idx = np.array([m.joints[m.getJointId(n)].idx_q - 7 for n in JOINT_NAMES])
+    idx = np.array([m.joints[joint_id(m, n)].idx_q - 7 for n in JOINT_NAMES])
     return m, m.createData(), idx
 
 
@@ -65,7 +66,7 @@ def standing_torques(world, model) -> np.ndarray:
     weight = pin.computeTotalMass(m) * G
     tau = np.zeros(12)
     for foot in FOOT_FRAMES:
-        J = pin.getFrameJacobian(m, d, m.getFrameId(foot), pin.LOCAL_WORLD_ALIGNED)[:3, 6:]
+        J = pin.getFrameJacobian(m, d, link_frame_id(m, foot), pin.LOCAL_WORLD_ALIGNED)[:3, 6:]
         tau += (-J.T @ np.array([0.0, 0.0, weight / 4]))[idx]
     j = world.joint_state()
     return tau + 300.0 * (STANDING_POSE - j.position) - 10.0 * j.velocity
@@ -124,7 +125,7 @@ def test_sim_mass_and_inertia_equal_the_model(name):
     data = model.createData()
     q = pin.neutral(model)
     for joint, angle in zip(spec.joints, spec.standing_pose, strict=True):
-        q[model.joints[model.getJointId(joint)].idx_q] = angle
+        q[model.joints[joint_id(model, joint)].idx_q] = angle
     mass_matrix = pin.crba(model, data, q)
     pin.centerOfMass(model, data, q)
     w = SimWorld(str(spec.urdf), joint_names=spec.joints, foot_frames=spec.feet,
@@ -229,7 +230,7 @@ def test_state_matches_pinocchio(world_factory, model):
     for _ in range(40):
         w.step(rng.uniform(-60.0, 60.0, 12))
         pin.framesForwardKinematics(m, d, pin_q(w, idx))
-        feet = np.array([d.oMf[m.getFrameId(f)].translation for f in FOOT_FRAMES])
+        feet = np.array([d.oMf[link_frame_id(m, f)].translation for f in FOOT_FRAMES])
         np.testing.assert_allclose(w.contact_state().foot_position, feet, atol=1e-9)
     # Base twist convention: velocity of the base_link origin, world axes. Semi-implicit Euler
     # over 4 physics steps: the finite difference differs from the mean by ~g dt / 2.

@@ -9,6 +9,7 @@ import pybullet
 import pytest
 from pybullet_utils import bullet_client
 
+from replan_core.robot_model import joint_id, link_frame_id
 from replan_core.types import BASE_FRAME, FOOT_FRAMES, JOINT_NAMES
 
 URDF = os.environ.get(
@@ -62,10 +63,10 @@ def test_pinocchio_model(pin_model):
     assert pin.computeTotalMass(model) == pytest.approx(TOTAL_MASS, abs=1e-9)
     assert pin.computeTotalMass(model) == pytest.approx(86.756, abs=1e-6)
     for frame in (*FOOT_FRAMES, BASE_FRAME):
-        assert model.existFrame(frame), frame
+        assert model.existFrame(frame, pin.FrameType.BODY), frame
     for name in JOINT_NAMES:
         assert model.existJointName(name), name
-        jid = model.getJointId(name)
+        jid = joint_id(model, name)
         iq, iv = model.joints[jid].idx_q, model.joints[jid].idx_v
         lower, upper = expected_limits(name)
         assert model.lowerPositionLimit[iq] == pytest.approx(lower)
@@ -103,9 +104,9 @@ def test_standing_pose_height(pin_model):
     standing = dict(haa=-0.2, hfe=0.75, kfe=-1.5)
     for name in JOINT_NAMES:
         sign = 1.0 if name[1] == 'f' or name.endswith('haa_joint') else -1.0
-        q[model.joints[model.getJointId(name)].idx_q] = sign * standing[name[3:6]]
+        q[model.joints[joint_id(model, name)].idx_q] = sign * standing[name[3:6]]
     pin.framesForwardKinematics(model, data, q)
-    z = [data.oMf[model.getFrameId(f)].translation[2] for f in FOOT_FRAMES]
+    z = [data.oMf[link_frame_id(model, f)].translation[2] for f in FOOT_FRAMES]
     np.testing.assert_allclose(z, -0.5775, atol=1e-3)
     assert 0.55 < -z[0] + 0.02175 < 0.61
 
@@ -131,10 +132,10 @@ def test_foot_positions_agree(pin_model, bullet):
         q = pin.neutral(model)
         q[:3], q[3:7] = pos, quat
         for n, v in qj.items():
-            q[model.joints[model.getJointId(n)].idx_q] = v
+            q[model.joints[joint_id(model, n)].idx_q] = v
         pin.framesForwardKinematics(model, data, q)
         for foot in FOOT_FRAMES:
             p_bullet = np.array(client.getLinkState(
                 body, links[foot], computeForwardKinematics=True)[4])
             np.testing.assert_allclose(
-                p_bullet, data.oMf[model.getFrameId(foot)].translation, atol=1e-6)
+                p_bullet, data.oMf[link_frame_id(model, foot)].translation, atol=1e-6)

@@ -11,6 +11,7 @@ import pinocchio as pin
 import pytest
 
 from replan_core.robot_file import load_robot_file
+from replan_core.robot_model import joint_id, link_frame_id
 from replan_core.urdf_merge import _matrix_rpy, _rpy_matrix, simulator_model
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -94,9 +95,9 @@ def test_merged_model_keeps_joints_and_feet_and_moves_as_the_original(name, tmp_
         q = pin.neutral(model)
         q[:7] = pin.SE3ToXYZQUAT(base)
         for joint, angle in zip(spec.joints, q_joints, strict=True):
-            q[model.joints[model.getJointId(joint)].idx_q] = angle
+            q[model.joints[joint_id(model, joint)].idx_q] = angle
         pin.framesForwardKinematics(model, data, q)
-        feet.append(np.array([data.oMf[model.getFrameId(f)].translation for f in spec.feet]))
+        feet.append(np.array([data.oMf[link_frame_id(model, f)].translation for f in spec.feet]))
     np.testing.assert_allclose(feet[1], feet[0], atol=1e-12)
     # The same file for the same input: the name holds a hash of the content.
     assert simulator_model(str(spec.urdf), keep=spec.feet, out_dir=str(tmp_path)) == path

@@ -391,6 +391,12 @@ def compare_repeats(name: str, outs: list[Path], log=print) -> bool:
 
 
 def summary(metrics: dict, out: Path) -> str:
+    if metrics.get('fell') is None and metrics.get('error'):
+        # Nothing ran to measure (a node refused its configuration, ...): say so, not "no fall".
+        dead = metrics.get('dead_nodes')
+        return (f'[scenario] {metrics.get("scenario")}: FAILED: {metrics["error"]} (launcher '
+                f'exit code {metrics.get("launch_exit_code")}'
+                + (f'; nodes that died: {dead}' if dead else '') + f'); logs: {out / "logs"}')
     fall = f'FELL ({metrics.get("fall_reason", "")})' if metrics.get('fell') else 'no fall'
     lines = [f'[scenario] {metrics.get("scenario")}: {fall}'
              f', {metrics.get("sim_time_s", 0):.1f} s sim in {metrics.get("wall_time_s", 0):.1f} s '

@@ -105,6 +105,18 @@ class ManagedNode:
         except OSError:
             return []
 
+    @property
+    def refused(self) -> bool:
+        """It exited refusing its configuration (``EXIT_CONFIG``, nodes.node_main)."""
+        return self.process is not None and self.process.poll() == EXIT_CONFIG
+
+    def reason(self) -> str:
+        """Its last ``config error:`` line (the one a node that refuses logs), else its
+        last line."""
+        tail = self.log_tail()
+        line = next((t for t in reversed(tail) if 'config error:' in t), tail[-1] if tail else '')
+        return line[line.find('config error:'):] if 'config error:' in line else line
+
     def close(self) -> None:
         if self.log_file is not None:
             self.log_file.close()
@@ -207,6 +219,8 @@ class Graph:
             if node.name == 'wbc' and watch is not None:
                 if recording:
                     self._wait_for_recorder(watch)
+                if any(n.refused for n in self.nodes):
+                    return          # the sim never moves; poll() stops the graph
                 for publisher, topic, consumer in deliveries:
                     self._wait_for_delivery(watch, publisher, topic, consumer)
             node.start(self.env)
@@ -230,20 +244,24 @@ class Graph:
     def _wait_for_recorder(self, watch: ClockWatch) -> None:
         deadline = time.monotonic() + RECORDER_WAIT
         missing = list(RECORDED_BEFORE_START)
-        while time.monotonic() < deadline:
+        recorder = next(n for n in self.nodes if n.name == 'recorder')
+        while time.monotonic() < deadline and recorder.alive:
             missing = [t for t in RECORDED_BEFORE_START
                        if not any(info.node_name == helper_name('recorder') for info in
                                   watch.node.get_subscriptions_info_by_topic(t))]
             if not missing:
                 return
             watch.spin(0.1)
+        if not recorder.alive:
+            return          # poll() reports it (a refusal stops the graph, else a respawn)
         self.log(f'[launch {_stamp()}] recorder not subscribed to {missing} after '
                  f'{RECORDER_WAIT} s; starting anyway (the bag may miss the first messages)')
 
     def poll(self) -> int | None:
         """Check the nodes once; respawn the dead ones after their back-off. None while the
         graph runs on, else the exit code it must stop with (EXIT_DIED without respawn,
-        EXIT_RESPAWN_LIMIT when a node died RESPAWN_LIMIT times within RESPAWN_WINDOW)."""
+        EXIT_RESPAWN_LIMIT when a node died RESPAWN_LIMIT times within RESPAWN_WINDOW,
+        EXIT_CONFIG when a node refused its configuration: it would refuse it again)."""
         now = time.monotonic()
         for node in self.nodes:
             if node.respawn_at is not None:
@@ -259,6 +277,12 @@ class Graph:
             self.log(f'[launch {_stamp()}] node {node.name} died (exit code {code}) '
                      f'after start #{node.starts}; log {node.log_path}')
             self.failed.append(node.name)
+            if code == EXIT_CONFIG:
+                # A bad parameter, a robot it cannot load, a bag that could not show the
+                # robot: the same again at every start, so no respawn.
+                self.log(f'[launch {_stamp()}] {node.name} refused its configuration, '
+                         f'stopping the graph: {node.reason()}')
+                return EXIT_CONFIG
             if not node.respawn:
                 return EXIT_DIED
             node.deaths = [t for t in node.deaths if now - t <= RESPAWN_WINDOW] + [now]
@@ -339,7 +363,8 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
     must be delivered before the sim may advance. ``on_tick(sim_time)`` is called about every
     0.1 s. With ``progress``, a progress line (``RunProgress``) is printed on it; the sim times
     of the timed inputs (``event_times``) count as events there. Returns an
-    exit code: 0 done, 1 a node died without respawn, 3 wall-time limit."""
+    exit code: 0 done, 1 a node died without respawn, 2 a node refused its configuration,
+    3 wall-time limit, 4 respawn limit."""
     stop_requested = []
 
     def request_stop(signum, _frame):

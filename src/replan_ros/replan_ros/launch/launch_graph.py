@@ -11,7 +11,10 @@ start with one line, e.g. ``config error: /tmp/x.yaml: gait.replan_window = 0 is
 Each node is its own process (own process group) with its log in the run folder. A node that
 dies is reported (which, when, exit code) and started again after a back-off of 1 s,
 2 s, 4 s ...; a node that dies 3 times within 30 s stops the graph and its last 20 log lines
-are printed. With ``--no-respawn`` the first death stops the rest. Ctrl-C, SIGTERM or the
+are printed. With ``--no-respawn`` the first death stops the rest. A node that exits with
+code 2 refused its configuration (a bad parameter, a robot it cannot load, a recorder whose bag
+could not show the robot): it is not respawned, the graph stops with its ``config error:``
+line. Ctrl-C, SIGTERM or the
 sim-time ``--duration`` stop everything cleanly (SIGINT, then SIGKILL after a timeout).
 
 While the graph runs, a progress line shows the sim time, the real-time factor (last 5 wall
@@ -21,7 +24,8 @@ recorder reads the truth) and the re-plans: refreshed in place on a terminal, on
 every 5 s otherwise; ``--quiet`` turns it off.
 
 Exit codes: 0 done; 1 a node died (``--no-respawn``); 2 bad command line or configuration
-(nothing was started); 3 wall-time limit (scenarios); 4 a node kept dying (respawn limit).
+(nothing was started, or a node refused its configuration); 3 wall-time limit (scenarios); 4 a
+node kept dying (respawn limit).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ import signal
 import sys
 import time
 from collections.abc import Callable
+from typing import NoReturn
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -35,6 +36,17 @@ def log_at(logger, level: str, text: str) -> None:
         raise ValueError(f'unknown log level {level!r}')
 
 
+# The exit code of a node that refuses its configuration (as params.declare's): the launcher
+# stops the graph instead of respawning a node that would refuse again.
+EXIT_CONFIG = 2
+
+
+def refuse_configuration(node: Node, reason: object) -> NoReturn:
+    """One ``config error:`` line and exit code ``EXIT_CONFIG``."""
+    node.get_logger().fatal(f'config error: {reason}')
+    raise SystemExit(EXIT_CONFIG)
+
+
 def load_node_robot(node: Node, p: dict, default_urdf: str = '') -> NodeRobot:
     """The model and names of the node's ``robot_file`` / ``urdf_path`` parameters
     (params.robot.node_robot); a robot file that cannot be used is one ``config error:`` line
@@ -42,8 +54,7 @@ def load_node_robot(node: Node, p: dict, default_urdf: str = '') -> NodeRobot:
     try:
         return node_robot(str(p['robot_file']), str(p['urdf_path']), default_urdf)
     except ConfigError as err:
-        node.get_logger().fatal(f'config error: {err}')
-        raise SystemExit(2) from None
+        refuse_configuration(node, err)
 
 
 # The exit code of a node that found another graph on its ROS domain.

@@ -24,7 +24,9 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
 - What a viewer needs to draw the robot (``state_view``, docs/usage.md, "Watch the robot"):
   ``/robot_description`` at the start, then ``/tf`` (``tf2_msgs``, written from its schema),
   contact force markers and plottable figures, derived from the recorded topics as they are
-  taken; written, never subscribed over DDS.
+  taken; written, never subscribed over DDS. A robot whose model gives no
+  ``/robot_description`` and ``/tf`` stops the start: one ``config error:`` line, exit code 2,
+  no bag (the launcher then stops the graph, no respawn).
 - The run's configuration goes in mcap metadata records: ``replan_run`` (git revision, recorder
   parameters, command line, ...), ``replan_config`` (path -> content of each ``config_files``
   entry), ``replan_scenario`` (``scenario_file``), ``replan_user`` (``metadata_json``).
@@ -46,8 +48,8 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 
 from replan_ros.messages.introspection import message_class
 from replan_ros.messages.stamps import ns_to_stamp
-from replan_ros.nodes.node_main import run_node
-from replan_ros.params import declare_node_parameters
+from replan_ros.nodes.node_main import refuse_configuration, run_node
+from replan_ros.params import ConfigError, declare_node_parameters
 from replan_ros.params.robot import node_robot
 from replan_ros.recording.bag_io import (
     BagWriter,
@@ -68,6 +70,7 @@ from replan_ros.view.state_view import (
     Derived,
     StateView,
     definition,
+    robot_state_view,
 )
 
 CLOCK_TOPIC = '/clock'
@@ -109,6 +112,15 @@ class RecorderNode(Node):
         self._log_time_clock = p['log_time_clock']
         self._robot_file = str(p['robot_file'])
         self._sim_ns = 0                # the newest /clock taken (ns of sim time), 0 before it
+        self._recorded: dict[str, _Topic] = {}
+        self._skipped: set[str] = set()
+        self._warned: set[str] = set()
+        self._write_errors = 0
+        self._closed = False
+        self._view_channels: dict[str, int] = {}
+        # Before the bag is opened: a robot the bag cannot show stops the start (exit code 2)
+        # and leaves no bag behind.
+        self._view = self._make_view()
 
         self.path = bag_path(p['output'] or p['output_dir'])
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -122,14 +134,8 @@ class RecorderNode(Node):
             self._writer.add_metadata(name, record)
         for error in errors:
             self.get_logger().error(error)
-
-        self._recorded: dict[str, _Topic] = {}
-        self._skipped: set[str] = set()
-        self._warned: set[str] = set()
-        self._write_errors = 0
-        self._closed = False
-        self._view_channels: dict[str, int] = {}
-        self._view = self._make_view()
+        if self._view is not None:
+            self._write_derived([self._view.description()], 0)
 
         self._input = OnDemandSubscriptions(self)
         self._batch: list[tuple[int, int, _Topic, bytes, int]] = []
@@ -289,18 +295,19 @@ class RecorderNode(Node):
     def _make_view(self) -> StateView | None:
         """What a viewer needs to draw the robot (state_view.py): the URDF at once, then the
         transforms, forces and figures derived from the recorded topics. Written, never
-        subscribed: a DDS publisher of the same names (the live view's) is not recorded."""
+        subscribed: a DDS publisher of the same names (the live view's) is not recorded.
+
+        A robot whose model gives no ``/robot_description`` and ``/tf`` is one ``config
+        error:`` line and exit code 2, so the launcher stops the run: a bag recorded on
+        without them (every ANYmal C bag once) cannot show the robot, and nothing said so."""
         self._skipped.update(DERIVED_TOPICS)
         if not any(self._selected(t) for t in DERIVED_TOPICS):
             return None
         try:
-            robot = node_robot(self._robot_file, '', '')     # the robot file's model, names
-            view = StateView(robot.urdf or None, joint_names=robot.joints)
-        except (OSError, ValueError, RuntimeError) as err:   # ConfigError is a ValueError
-            self.get_logger().error(f'no /tf nor /robot_description in the bag: {err}')
-            return None
-        self._write_derived([view.description()], 0)
-        return view
+            # The robot file's model and names (none: the project's HyQ).
+            return robot_state_view(node_robot(self._robot_file, '', ''))
+        except ConfigError as err:
+            refuse_configuration(self, f'{err}; a bag without them cannot show the robot')
 
     def _write_derived(self, items: list[Derived], log_time: int) -> None:
         for item in items:

@@ -42,8 +42,8 @@ from std_msgs.msg import String
 
 from replan_core.model_assets import served_model_assets
 from replan_ros.messages.introspection import message_class
-from replan_ros.nodes.node_main import load_node_robot, run_node
-from replan_ros.params import declare_node_parameters
+from replan_ros.nodes.node_main import load_node_robot, refuse_configuration, run_node
+from replan_ros.params import ConfigError, declare_node_parameters
 from replan_ros.params.robot import project_root
 from replan_ros.recording.bag_io import has_header, message_definition, normalize_type_name
 from replan_ros.transport import qos
@@ -56,8 +56,8 @@ from replan_ros.view.state_view import (
     INPUT_TOPICS,
     TYPES,
     Derived,
-    StateView,
     definition,
+    robot_state_view,
 )
 
 # Topics whose every message matters to a viewer (events, logs): all are sent, not only the
@@ -119,8 +119,11 @@ class LiveViewNode(Node):
         self._derived_wanted = False
         self._now_ns = 0                 # newest sim time seen (stamps, /clock)
         robot = load_node_robot(self, p, '')       # the robot file's model and names
-        self.view = StateView(robot.urdf or None, period=p['view_period'],
-                              force_scale=p['force_scale'], joint_names=robot.joints)
+        try:
+            self.view = robot_state_view(robot, period=p['view_period'],
+                                         force_scale=p['force_scale'])
+        except ConfigError as err:      # a live view that cannot draw the robot: exit code 2
+            refuse_configuration(self, f'{err}; the live view cannot draw the robot')
         self._description_pub = self.create_publisher(String, 'robot_description', qos.LATCHED)
         self._description_pub.publish(String(data=self.view.urdf))
         # Created here, not when a viewer advertises: the server thread never creates entities.

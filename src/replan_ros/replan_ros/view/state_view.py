@@ -28,6 +28,7 @@ import struct
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -45,8 +46,12 @@ from replan_ros.messages.contacts import contacts_from_cdr
 from replan_ros.messages.joint_state import joint_state_from_cdr
 from replan_ros.messages.odom import odom_fields_from_cdr
 from replan_ros.messages.path import POSE
+from replan_ros.params.spec import ConfigError
 from replan_ros.recording.bag_io import message_definition, normalize_type_name
 from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
+
+if TYPE_CHECKING:
+    from replan_ros.params.robot import NodeRobot
 
 DESCRIPTION_TOPIC = '/robot_description'
 TF_TOPIC = '/tf'
@@ -180,6 +185,22 @@ def encode_vector3_stamped(stamp_ns: int, frame_id: str, x: float, y: float,
     w.header(stamp_ns, frame_id)
     w.packed(_D3, 8, x, y, z)
     return w.bytes()
+
+
+def robot_state_view(robot: NodeRobot, **options) -> StateView:
+    """The ``StateView`` of a node's robot (``options``: StateView's); ConfigError with one
+    line when its model gives no ``/robot_description`` and ``/tf`` (a URDF that cannot be
+    read, a link that cannot be placed): a viewer or a bag without them cannot show it."""
+    name = robot.spec.name if robot.spec is not None else 'the robot'
+    try:
+        return StateView(robot.urdf or None, joint_names=robot.joints, **options)
+    except (OSError, ValueError, RuntimeError) as err:
+        detail = str(err).splitlines()[0] if str(err) else type(err).__name__
+        urdf = robot.urdf or default_urdf_path()
+        if urdf not in detail:
+            detail = f'{urdf}: {detail}'
+        raise ConfigError(f'cannot derive /robot_description and /tf of {name}: '
+                          f'{detail}') from None
 
 
 class StateView:

@@ -4,7 +4,12 @@ from pathlib import Path
 
 import pytest
 
-from replan_ros.experiments.scenario import ScenarioError, params_document, parse_scenario
+from replan_ros.experiments.scenario import (
+    ScenarioError,
+    params_document,
+    parse_scenario,
+    summary,
+)
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[4] / 'config' / 'scenarios').glob('*.yaml'))
 
@@ -52,3 +57,15 @@ def test_a_scenario_names_its_robot_default_hyq():
 def test_broken_scenarios_are_rejected_with_a_reason(text, message):
     with pytest.raises(ScenarioError, match=message.replace('[', r'\[')):
         parse_scenario(text, 'broken.yaml')
+
+
+def test_the_summary_of_a_run_that_did_not_run_says_it_failed():
+    """A recorder that refused its robot stops the graph before the sim moves: the summary
+    says the run failed and why, not "no fall"."""
+    metrics = {'scenario': 'forward', 'launch_exit_code': 2, 'dead_nodes': ['recorder'],
+               'completed': False, 'fell': None,
+               'error': 'the bag holds no odometry or clock: the graph did not run'}
+    text = summary(metrics, Path('runs/x'))
+    assert text == ('[scenario] forward: FAILED: the bag holds no odometry or clock: the graph '
+                    "did not run (launcher exit code 2; nodes that died: ['recorder']); logs: "
+                    'runs/x/logs')
