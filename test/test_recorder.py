@@ -20,6 +20,7 @@ from harness import CONFIG_DIR, REPO_ROOT, graph_env
 from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
+from rosbags.highlevel import AnyReader
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from test_launch import LaunchProcess
@@ -282,6 +283,10 @@ def test_sigterm_finishes_the_bag_with_its_summary(launcher, probe, tmp_path):
     counts = {summary.channels[c].topic: n
               for c, n in summary.statistics.channel_message_counts.items()}
     assert counts == {'/rec/odom': 100, '/clock': 100}
+    # The bag's directory opens as a rosbag2 bag (its metadata.yaml).
+    with AnyReader([tmp_path]) as reader:
+        assert {c.topic: c.msgcount for c in reader.connections} == counts
+        assert reader.message_count == sum(1 for _ in reader.messages()) == 200
 
 
 def test_replay_publishes_the_bag_with_its_timing_and_clock(launcher, probe, tmp_path):

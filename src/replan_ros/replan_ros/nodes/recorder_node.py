@@ -363,6 +363,8 @@ class RecorderNode(Node):
         received, written = self._counts()
         text = (f'closed {self.path}: {written} of {received} received messages written, '
                 f'{len(self._recorded)} topics, {self._writer.chunk_count} chunks')
+        if self._writer.directory_metadata_error:
+            text += f'; no metadata.yaml: {self._writer.directory_metadata_error}'
         if self.context.ok():
             self.get_logger().info(text)
         else:   # after SIGINT/SIGTERM the context is shut down: /rosout is gone

@@ -313,12 +313,14 @@ class BagWriter:
 
     Not thread safe: one thread writes. ``chunk_size`` (bytes of uncompressed records) and
     ``chunk_interval`` (s, wall clock, checked on each write and by ``poll``) bound what a
-    SIGKILL can lose.
+    SIGKILL can lose. On ``close`` the directory's ``metadata.yaml`` is (re)written
+    (``bag_dir``) unless ``directory_metadata`` is false; a failure there leaves the bag
+    intact and is kept in ``directory_metadata_error``.
     """
 
     def __init__(self, path: str | Path, *, chunk_size: int = 1 << 20,
                  chunk_interval: float = 1.0, compression: str = 'zstd',
-                 library: str = 'replan_ros bag_io') -> None:
+                 library: str = 'replan_ros bag_io', directory_metadata: bool = True) -> None:
         if compression not in _COMPRESSION:
             raise ValueError(f'compression must be one of zstd, lz4, none: {compression!r}')
         self.path = Path(path)
@@ -337,6 +339,8 @@ class BagWriter:
         self.message_count = 0
         self.chunk_count = 0
         self.closed = False
+        self._directory_metadata = directory_metadata
+        self.directory_metadata_error = ''
         self._writer.add_metadata('rosbag2', rosbag2_metadata(self.path.name))
 
     @property
@@ -407,6 +411,12 @@ class BagWriter:
         self.closed = True
         self._writer.finish()
         self._file.close()
+        if self._directory_metadata:
+            from replan_ros.recording.bag_dir import write_directory_metadata  # imports us
+            try:
+                write_directory_metadata(self.path.parent)
+            except (OSError, yaml.YAMLError) as err:  # the bag itself is complete
+                self.directory_metadata_error = str(err)
 
 
 # ----------------------------------------------------------------------------- reading

@@ -6,6 +6,7 @@ Writes OUT (default: BAG with ``.recovered.mcap``) holding every intact record o
 channels, metadata, and the messages of each finished chunk, with their original times. What
 was still in the recorder's open chunk (at most ``chunk_size`` bytes or ``chunk_interval``
 seconds of data) is lost. A complete bag is copied whole, so recovering is always safe.
+OUT's directory gets a fresh ``metadata.yaml`` (``bag_dir``) listing OUT in place of BAG.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from replan_ros.recording.bag_dir import METADATA_FILE, write_directory_metadata
 from replan_ros.recording.bag_io import recover
 
 
@@ -34,6 +36,12 @@ def main(args=None) -> int:
     print(f'{opts.bag}: {report.reason}; recovered {report.messages} messages on '
           f'{report.channels} channels from {report.chunks} chunks, {report.metadata} metadata '
           f'records; {report.truncated_bytes} bytes at the end dropped -> {out}')
+    # The writer wrote it on close already; again here to say what it lists.
+    listed = write_directory_metadata(out.parent)
+    if listed.path is not None:
+        print(f'{listed.path}: {", ".join(listed.files)}')
+    else:
+        print(f'{out.parent / METADATA_FILE} not written')
     return 0
 
 
