@@ -1,6 +1,6 @@
-"""The results page's "What holds, what does not, and why": one bullet per experiment,
-every number and verdict computed from the runs; a cause the runs do not isolate is
-labelled a hypothesis."""
+"""The results page's exploratory findings, one bullet per experiment, and its tables of the
+pre-registered verdicts (``preregistration_section``, ``readme_table``): every number computed
+from the runs; a cause the runs do not isolate is labelled a hypothesis."""
 
 from __future__ import annotations
 

@@ -223,7 +223,8 @@ def sign_test(diff, resolution: float | None, unit: str = 'phases') -> str:
         step = (f'; a difference is one bisection step, {resolution:.0f} N s, or more'
                 if resolution is not None else '')
         return f'not resolved ({counts}{step}, p = {p:.2g})'
-    return ('holds' if better > worse else 'does not hold') + f' ({counts}, p = {p:.2g})'
+    verdict = 'holds' if better > worse else 'does not hold (the opposite)'
+    return verdict + f' ({counts}, p = {p:.2g})'
 
 
 def push_resolution(cfg: dict) -> float:

@@ -24,6 +24,7 @@ from replan_ros.experiments.runs import run_key
 from replan_ros.experiments.stats import (
     _signed_rank_cdf,
     binomial_two_sided,
+    exploratory,
     fisher,
     hodges_lehmann,
     holm,
@@ -44,8 +45,7 @@ def test_holm_step_down_on_a_textbook_example():
     adjusted, rejected = holm([0.01, 0.04, 0.03, 0.005])
     assert adjusted == pytest.approx([0.03, 0.06, 0.06, 0.02])
     assert rejected == [True, False, False, True]
-    # Bonferroni would keep 0.01 (0.04 x ... no: 0.01 x 4 = 0.04 rejects too); Holm never
-    # rejects fewer. A single test is its own family.
+    # A single test is its own family.
     assert holm([0.049]) == ([0.049], [True])
 
 
@@ -281,3 +281,18 @@ def test_readme_block_is_filled_between_its_markers(tmp_path):
     readme.write_text('no markers\n')
     assert not fill_readme(readme, results, _meta(prereg))
     assert readme.read_text() == 'no markers\n'
+
+
+def test_exploratory_comparisons_carry_no_verdict_words():
+    assert exploratory('holds (20 pairs), p = 0.001') == (
+        'the claimed direction (20 pairs), p = 0.001')
+    assert exploratory('does not hold (the opposite) (5 pairs)') == (
+        'the other direction (5 pairs)')
+    assert exploratory('not resolved (within the spread)') == 'undecided (within the spread)'
+
+
+def test_a_pilot_call_is_not_a_quick_one():
+    from replan_ros.experiments.runner import main
+    with pytest.raises(SystemExit) as stop:
+        main(['--quick', '--pilot'])
+    assert stop.value.code == 2
