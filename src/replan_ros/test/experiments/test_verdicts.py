@@ -4,6 +4,7 @@ worked out by hand."""
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -296,3 +297,46 @@ def test_a_pilot_call_is_not_a_quick_one():
     with pytest.raises(SystemExit) as stop:
         main(['--quick', '--pilot'])
     assert stop.value.code == 2
+
+
+def test_a_confirmatory_call_keys_its_runs_by_the_plan_and_judges_them(tmp_path, monkeypatch):
+    """experiments.sh on the full plan's haptic claim with a stand-in for the graph (each run
+    writes its metrics at once: without haptic the largest pitch peak is 0.5 deg higher): the
+    runs' keys hold the plan hash, the page judges them; --pilot makes the pilot seeds' runs,
+    without a hash, and judges nothing."""
+    from replan_ros.experiments import runner as runner_module
+    from replan_ros.experiments.runs import Runner
+
+    def execute(self, folder: Path, bag: bool) -> int:
+        doc = yaml.safe_load((folder / 'input.yaml').read_text())
+        off = (doc.get('params') or {}).get('gait', {}).get('haptic') is False
+        seed = doc['params']['sim']['noise_seed']
+        (folder / 'metrics.json').write_text(json.dumps({
+            'sim_time_s': doc['duration'], 'fell': False, 'completed': True,
+            'final_position_m': [3.0, 0.0, 0.5],
+            'touchdown_pitch_peak_deg': {'mean': 0.4, 'max': 1.0 + 0.01 * seed
+                                         + (0.5 + 0.01 * (seed % 3) if off else 0.0)}}))
+        return 0
+
+    monkeypatch.setattr(Runner, '_execute', execute)
+    monkeypatch.setenv('REPLAN_ROOT', str(CONFIG.parent))
+    monkeypatch.setenv('REPLAN_CONFIG', str(CONFIG))
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    hashed = plan_hash(plan)
+    page = tmp_path / 'results.md'
+    assert runner_module.main(['--only', 'haptic', '--out', str(tmp_path / 'out'), '--page',
+                               str(page), '--quiet']) == 0
+    keys = [p.name for p in (tmp_path / 'out' / 'runs').iterdir()]
+    assert len(keys) == 80 and all(f'-plan{hashed}-' in k for k in keys)
+    text = page.read_text()
+    assert ('| without haptic touchdown the pitch is disturbed (V.A, VI) | '
+            '`pitch_peak_max_deg` | 0.51 [0.505, 0.515] deg | 10 |') in text
+    assert 'no verdict: not run in this call' in text      # the six other claims
+    data = json.loads((tmp_path / 'out' / 'results.json').read_text())
+    assert data['meta']['preregistration']['hash'] == hashed
+    assert runner_module.main(['--pilot', '--only', 'haptic', '--out', str(tmp_path / 'out'),
+                               '--quiet']) == 0
+    pilot = (tmp_path / 'out' / 'results-pilot.md').read_text()
+    assert '**Pilot run**' in pilot and 'no verdict: pilot runs (seeds [10,' in pilot
+    keys = [p.name for p in (tmp_path / 'out' / 'runs').iterdir()]
+    assert len(keys) == 160 and sum('-plan' in k for k in keys) == 80
