@@ -4,6 +4,7 @@ of scripts/experiments.sh is a node-graph test in test/test_experiments.py)."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -378,6 +379,10 @@ def test_page_from_results(tmp_path):
     assert ('the trunk makes 61 % of its travel then with the term and 51 % without, and moves '
             'back 2.0 mm against 4.0 mm over a run; the strides are 0.450 and 0.450 m') in text
     assert '`x: exit 1`' in text
+    # Only the pre-registered tests have verdicts: no verdict words in the exploratory rest.
+    exploratory = text.split('## Every measure (exploratory)')[1]
+    for words in (r'\bholds \(', 'not resolved', 'does not hold'):
+        assert not re.search(words, exploratory), words
     assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
     assert (tmp_path / 'results_plots' / 'haptic_pitch.png').is_file()
 
