@@ -303,12 +303,14 @@ def holm(p_values: list[float], alpha: float = ALPHA) -> tuple[list[float], list
 def paired_t(diff) -> tuple[float, tuple[float, float], float]:
     """Mean of the paired differences, its t interval (``CONFIDENCE``) and the two-sided
     paired t-test's p-value. Differences without spread: the interval is the point and p is
-    0 (or 1 when all are zero)."""
+    0 (or 1 when all are zero); one difference: no interval, (-inf, inf), and p = 1."""
     from scipy.stats import t, ttest_1samp
     d = np.asarray(diff, dtype=float)
     mean = float(d.mean())
-    if len(d) < 2 or not d.std(ddof=1) > 0.0:
-        return mean, (mean, mean), (1.0 if mean == 0.0 or len(d) < 2 else 0.0)
+    if len(d) < 2:
+        return mean, (-math.inf, math.inf), 1.0
+    if not d.std(ddof=1) > 0.0:
+        return mean, (mean, mean), (1.0 if mean == 0.0 else 0.0)
     half = float(t.ppf(0.5 + CONFIDENCE / 2.0, len(d) - 1) * d.std(ddof=1) / math.sqrt(len(d)))
     return mean, (mean - half, mean + half), float(ttest_1samp(d, 0.0).pvalue)
 

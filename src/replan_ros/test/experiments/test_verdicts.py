@@ -58,6 +58,7 @@ def test_paired_t_mean_interval_and_p():
     assert (low, high) == pytest.approx((0.4457, 4.5543), abs=1e-4)
     assert p == pytest.approx(0.0305, abs=1e-4)
     assert paired_t([0.5, 0.5, 0.5]) == (0.5, (0.5, 0.5), 0.0)      # no spread
+    assert paired_t([0.5]) == (0.5, (-math.inf, math.inf), 1.0)      # no interval at all
 
 
 def test_hodges_lehmann_estimate_and_interval():
