@@ -145,7 +145,7 @@ def test_the_plan_hash_follows_the_primary_blocks_only(tmp_path):
     path.write_text(yaml.safe_dump(doc))
     assert plan_hash(load_plan(path, False, [])[0]) == first
     # The smallest effect, the test or the confirmatory seeds: another plan.
-    for change in ({'smallest_effect': 0.4}, {'test': 'paired_t'}):
+    for change in ({'smallest_effect': 0.4}, {'test': 'fisher'}):
         doc = yaml.safe_load(_plan_text())
         doc['full']['haptic']['primary'].update(change)
         path.write_text(yaml.safe_dump(doc))
@@ -167,7 +167,7 @@ def test_the_plan_hash_follows_the_primary_blocks_only(tmp_path):
     ({'add': {'n': 9}}, r'full.haptic.primary: n: 9, but the confirmatory seeds are 10'),
     ({'add': {'pilot_seeds': [0, 10]}}, r'full.haptic.primary: pilot_seeds: \[10\] are '
                                         r'confirmatory seeds too'),
-    ({'add': {'test': 'mcnemar'}}, r'full.haptic.primary: test: mcnemar does not fit'),
+    ({'add': {'test': 'paired_t'}}, r'full.haptic.primary: test: paired_t does not fit'),
     ({'add': {'measure': 'pitch'}}, r"full.haptic.primary: measure: 'pitch' is not one"),
     ({'add': {'direction': 'up'}}, r'full.haptic.primary: direction: higher or lower'),
     ({'add': {'against': 1.0}}, r'full.haptic.primary: needs one of compare'),
@@ -194,11 +194,15 @@ def test_a_confirmatory_runs_key_holds_the_plan_hash():
 # -- the page --------------------------------------------------------------------------------
 
 def _haptic_rows(plan: str | None, seeds, off_more: float = 0.5) -> list[dict]:
-    """Haptic rows on the 10 cm step: off peaks ``off_more`` deg above on in every pair."""
-    return [{'ok': True, 'fell': False, 'world': 'realistic', 'terrain': 'step_down_10cm',
+    """Haptic rows on the 10 cm step: off peaks ``off_more`` deg above on in every pair, and
+    the setting that peaks higher falls (off with ``off_more`` > 0), except at every fifth
+    seed."""
+    def fell(on: bool, s: int) -> bool:
+        return s % 5 != 0 and (on if off_more < 0 else not on)
+    return [{'ok': True, 'fell': fell(on, s), 'world': 'realistic', 'terrain': 'step_down_10cm',
              'haptic': on, 'seed': s, 'plan': plan, 'pitch_peak_mean_deg': 0.4,
              'pitch_peak_max_deg': 1.0 + 0.01 * s + (0.0 if on else off_more + 0.01 * (s % 3)),
-             'touchdown_timing_median_abs_s': 0.02, 'crossed': True}
+             'touchdown_timing_median_abs_s': 0.02, 'crossed': not fell(on, s)}
             for on in (True, False) for s in seeds]
 
 
@@ -223,19 +227,20 @@ def test_the_page_judges_the_runs_of_this_plan(tmp_path):
     text = page.read_text()
     assert f'Plan hash **{prereg["hash"]}**' in text
     assert ('| without haptic touchdown the pitch is disturbed (V.A, VI) | '
-            '`pitch_peak_max_deg` (haptic off minus haptic on, terrain step_down_10cm, paired '
-            'by seed) | higher | 0.3 deg (about half the largest touchdown pitch peak') in text
+            '`fell` (haptic off minus haptic on, terrain step_down_10cm, paired by seed) | '
+            'higher | 0.3 share of runs (three falls in ten walks') in text
     assert '| 10 (10, 11, 12, 13, 14, 15, 16, 17, 18, 19) | 0, 1, 2, 3, 4, 5, 6, 7, 8, 9 |' in text
-    # The pilot rows (the other sign) never enter: 10 pairs of 0.50, 0.51, 0.52 deg.
+    # The pilot rows (the other sign) never enter: off fell at 8 of 10 seeds, on at none
+    # (McNemar exact: 2 / 2^8).
     row = next(line for line in text.splitlines()
                if line.startswith('| without haptic') and '| 10 |' in line)
-    assert row.endswith('| holds |') and '`pitch_peak_max_deg` | 0.51 [0.505, 0.515] deg' in row
+    assert row.endswith('| 0.0078 | holds |') and '`fell` | 0.8 [0.384, 0.943] share' in row
     assert 'One family: the 1 claims\' primary tests, Holm\'s step-down' in text
     assert '## Every measure (exploratory)' in text
     assert readme_table(page_verdicts(results, _meta(prereg))) == (
         '| Claim | Verdict | Effect (95 % CI) |\n|---|---|---|\n'
         '| without haptic touchdown the pitch is disturbed (V.A, VI) | holds | '
-        '0.51 [0.505, 0.515] deg |\n')
+        '0.8 [0.384, 0.943] share |\n')
 
 
 def test_the_page_refuses_verdicts_on_runs_of_another_plan(tmp_path):
@@ -302,7 +307,7 @@ def test_a_pilot_call_is_not_a_quick_one():
 
 def test_a_confirmatory_call_keys_its_runs_by_the_plan_and_judges_them(tmp_path, monkeypatch):
     """experiments.sh on the full plan's haptic claim with a stand-in for the graph (each run
-    writes its metrics at once: without haptic the largest pitch peak is 0.5 deg higher): the
+    writes its metrics at once: without haptic it falls at 8 seeds of 10): the
     runs' keys hold the plan hash, the page judges them; --pilot makes the pilot seeds' runs,
     without a hash, and judges nothing."""
     from replan_ros.experiments import runner as runner_module
@@ -313,7 +318,7 @@ def test_a_confirmatory_call_keys_its_runs_by_the_plan_and_judges_them(tmp_path,
         off = (doc.get('params') or {}).get('gait', {}).get('haptic') is False
         seed = doc['params']['sim']['noise_seed']
         (folder / 'metrics.json').write_text(json.dumps({
-            'sim_time_s': doc['duration'], 'fell': False, 'completed': True,
+            'sim_time_s': doc['duration'], 'fell': off and seed % 5 != 0, 'completed': True,
             'final_position_m': [3.0, 0.0, 0.5],
             'touchdown_pitch_peak_deg': {'mean': 0.4, 'max': 1.0 + 0.01 * seed
                                          + (0.5 + 0.01 * (seed % 3) if off else 0.0)}}))
@@ -331,7 +336,7 @@ def test_a_confirmatory_call_keys_its_runs_by_the_plan_and_judges_them(tmp_path,
     assert len(keys) == 80 and all(f'-plan{hashed}-' in k for k in keys)
     text = page.read_text()
     assert ('| without haptic touchdown the pitch is disturbed (V.A, VI) | '
-            '`pitch_peak_max_deg` | 0.51 [0.505, 0.515] deg | 10 |') in text
+            '`fell` | 0.8 [0.384, 0.943] share | 10 |') in text
     assert 'no verdict: not run in this call' in text      # the six other claims
     data = json.loads((tmp_path / 'out' / 'results.json').read_text())
     assert data['meta']['preregistration']['hash'] == hashed
