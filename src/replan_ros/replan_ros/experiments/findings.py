@@ -1,6 +1,6 @@
-"""The results page's "What holds, what does not, and why": one bullet per experiment,
-every number and verdict computed from the runs; a cause the runs do not isolate is
-labelled a hypothesis."""
+"""The results page's exploratory findings, one bullet per experiment, and its tables of the
+pre-registered verdicts (``preregistration_section``, ``readme_table``): every number computed
+from the runs; a cause the runs do not isolate is labelled a hypothesis."""
 
 from __future__ import annotations
 
@@ -277,3 +277,104 @@ def _trunk_travel_finding(page, steady: list[dict]) -> None:
         + (f'; the strides are {stride_on:.3f} and {stride_off:.3f} m'
            if stride_on is not None and stride_off is not None else '')
         + '. The table\'s paired test says whether the share differs beyond the runs\' spread.')
+
+
+# -- the pre-registered verdicts -------------------------------------------------------------
+
+# The paper's claim each pre-registered experiment tests, as the verdict tables name it.
+CLAIMS = {
+    'velocity_changes': 'a velocity change is followed promptly (VI-1)',
+    'lateral_push': 'foothold correction helps against pushes (V.B, VI-2)',
+    'replan_window': 'replan window 2 tracks worse than 1 (VI)',
+    'haptic': 'without haptic touchdown the pitch is disturbed (V.A, VI)',
+    'velocity_term': 'the velocity term gives faster motion (eq. 6)',
+    'sustained_push': 'foothold correction keeps the support, sustained push (V.B)',
+    'large_push': 'foothold correction keeps the support, large push (V.B)',
+}
+_TEST_NAMES = {'paired_t': 'paired t (mean difference, t interval)',
+               'wilcoxon': 'Wilcoxon signed-rank (Hodges-Lehmann estimate and interval)',
+               'mcnemar': 'McNemar exact (difference in proportions, Newcombe interval)',
+               'fisher': 'Fisher exact (difference in proportions, Newcombe interval)'}
+
+
+def _num(x: float) -> str:
+    return f'{x:.3g}'
+
+
+def _setting(by: str, value) -> str:
+    if isinstance(value, bool):
+        return f'{by.replace("_", " ")} {"on" if value else "off"}'
+    return (f'{by} {value}' if by == 'window' else str(value)).replace('_', ' ')
+
+
+def comparison(block: dict) -> str:
+    """'window 2 minus window 1, where ...': what a primary block's effect is the sign of."""
+    if 'against' in block:
+        text = f'runs minus {_num(float(block["against"]))} {block["unit"]}'
+    else:
+        c = block['compare']
+        text = f'{_setting(c["by"], c["treatment"])} minus {_setting(c["by"], c["control"])}'
+    where = block.get('where') or {}
+    if where:
+        text += ', ' + ', '.join(f'{k} {v}' for k, v in where.items())
+    return text + (f', paired by {", ".join(block["pair_by"])}' if block.get('pair_by') else '')
+
+
+def effect_text(verdict: dict) -> str:
+    """'0.8 mm/s [0.4, 1.2]': the estimate and its 95 % interval, or '-'."""
+    if verdict.get('estimate') is None:
+        return '-'
+    low, high = verdict['interval']
+    return (f'{_num(verdict["estimate"])} [{_num(low)}, {_num(high)}] '
+            f'{"share" if verdict["test"] in ("mcnemar", "fisher") else verdict["unit"]}')
+
+
+def preregistration_section(prereg: dict | None, verdicts: list[dict]) -> list[str]:
+    """The page's pre-registration (hash, per claim the primary test and where its n comes
+    from) and its verdict table; the quick plan's page says it has none."""
+    if not prereg or not prereg.get('claims'):
+        return ['## Pre-registered verdicts', '',
+                'This plan pre-registers no primary tests (only the full plan does): no '
+                'verdicts; every comparison below is exploratory.', '']
+    lines = ['## Pre-registration', '',
+             f'Plan hash **{prereg["hash"]}** (`{prereg["file"]}`, the `primary` blocks: '
+             'measure, selection, direction, smallest effect, test, n and seeds; each '
+             'confirmatory run\'s key holds it). One primary test per claim, fixed before its '
+             'confirmatory runs; n is the number of confirmatory seeds, set from the pilot '
+             'runs of the pilot seeds, which never enter a verdict.', '',
+             '| Claim | Primary measure (effect: the sign of) | Direction | Smallest effect '
+             '(reason) | Test | n (seeds) | Pilot seeds |', '|---|---|---|---|---|---|---|']
+    for name, block in prereg['claims'].items():
+        lines.append(
+            f'| {CLAIMS.get(name, name)} | `{block["measure"]}` ({comparison(block)}) | '
+            f'{block["direction"]} | {_num(float(block["smallest_effect"]))} {block["unit"]} '
+            f'({" ".join(str(block["reason"]).split())}) | {_TEST_NAMES[block["test"]]} | '
+            f'{block["n"]} ({", ".join(str(s) for s in block["seeds"])}) | '
+            f'{", ".join(str(s) for s in block["pilot_seeds"])} |')
+    lines += ['', '## Verdicts', '',
+              f'One family: the {len(verdicts)} claims\' primary tests, Holm\'s step-down '
+              'correction over all of them at α = 0.05 (a claim that cannot be judged counts '
+              'with p = 1). **holds**: Holm-significant with the claim\'s sign and the point '
+              'estimate at least the smallest effect (the rule for "beyond the smallest '
+              'effect": the estimate, not the whole interval); **opposite**: Holm-significant '
+              'with the other sign; **negligible**: the 95 % interval inside ± the smallest '
+              'effect (an equivalence test: both one-sided tests of TOST at 0.025, so TOST at '
+              '0.05); **not resolved**: otherwise. Every other comparison on this page is '
+              'exploratory: unadjusted p, no verdict.', '',
+              '| Claim | Measure | Effect (95 % CI) | Units | Holm-adjusted p | Outcome |',
+              '|---|---|---|---|---|---|']
+    for v in verdicts:
+        lines.append(f'| {CLAIMS.get(v["claim"], v["claim"])} | `{v["measure"]}` | '
+                     f'{effect_text(v)} | {v.get("units", "-")} | '
+                     + (f'{v["p_holm"]:.2g}' if v.get('p_holm') is not None else '-')
+                     + f' | {v["outcome"]} |')
+    return [*lines, '']
+
+
+def readme_table(verdicts: list[dict]) -> str:
+    """The short table of the pre-registered verdicts (claim, verdict, effect with its 95 %
+    interval) for README.md's results block."""
+    lines = ['| Claim | Verdict | Effect (95 % CI) |', '|---|---|---|']
+    lines += [f'| {CLAIMS.get(v["claim"], v["claim"])} | {v["outcome"]} | {effect_text(v)} |'
+              for v in verdicts]
+    return '\n'.join(lines) + '\n'

@@ -1,11 +1,12 @@
 """The results page of ``scripts/experiments.sh``: statistics, verdicts and plots from the runs.
 
-Every figure on the page comes from the runs' metrics (``experiments.py`` collects them); the
-verdicts are computed, never typed: a comparison "holds" when the difference has the paper's
-sign and a t-test puts it beyond the spread of the runs (p < 0.05), "does not hold" when it
-is beyond the spread with the other sign, and "not resolved" otherwise. Where the runs pair
-(the same seed and set-point in both settings) the test is the paired one over the
-differences (``compare_paired``, "n pairs" on the page); otherwise Welch's.
+Every figure on the page comes from the runs' metrics (``claims.py`` collects them). Verdicts
+are given only to the pre-registered primary tests (``config/experiments.yaml``, ``primary``;
+``stats.primary_verdicts``: Holm's correction over all of them, effects with 95 % intervals,
+holds / opposite / negligible / not resolved), and only on runs of the plan with today's hash.
+Every other comparison is exploratory: its test (paired t over the pairs where the runs pair,
+``compare_paired``, else Welch's; a sign test for the impulse pushes) with an unadjusted p,
+described by its direction (``stats.exploratory``), no verdict.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_ros.experiments.findings import findings
+from replan_ros.experiments.findings import findings, preregistration_section, readme_table
 from replan_ros.experiments.page_plots import plot_haptic, plot_push, plot_windows
 from replan_ros.experiments.page_push import large_push_section, sustained_push_section
 from replan_ros.experiments.stats import (
@@ -27,8 +28,10 @@ from replan_ros.experiments.stats import (
     against_paper,
     compare_paired,
     cycles_to_within,
+    exploratory,
     forward_speed_rows,
     p_text,
+    primary_verdicts,
     prompt_by_cycles,
     push_resolution,
     push_sign_test,
@@ -71,11 +74,12 @@ class Page:
 
     def row(self, experiment: str, setting: str, metric: str, value: str, runs: int,
             claim: str, verdict: str) -> None:
-        self.rows.append((experiment, setting, metric, value, str(runs), claim, verdict))
+        self.rows.append((experiment, setting, metric, value, str(runs), claim,
+                          exploratory(verdict)))
 
     def finding(self, text: str) -> None:
-        """One bullet of 'What holds, what does not, and why' (numbers from the runs)."""
-        self.findings.append('- ' + ' '.join(text.split()))
+        """One bullet of the exploratory findings (numbers from the runs)."""
+        self.findings.append('- ' + exploratory(' '.join(text.split())))
 
     def section(self, text: str) -> None:
         self.sections.append(text.strip() + '\n')
@@ -93,9 +97,36 @@ class Page:
         return f'{self.plot_dir.name}/{name}'
 
 
+def page_verdicts(results: dict, meta: dict) -> list[dict]:
+    """The pre-registered claims' verdicts of a call (``meta['preregistration']``, from
+    plan.preregistration): none without one."""
+    prereg = meta.get('preregistration')
+    return primary_verdicts(prereg, results) if prereg and prereg.get('claims') else []
+
+
+README_BEGIN, README_END = '<!-- results:begin -->', '<!-- results:end -->'
+
+
+def fill_readme(readme: Path, results: dict, meta: dict) -> bool:
+    """Write the verdict table (``findings.readme_table``) between the results markers of
+    ``readme``, with the page's date and plan hash; False (nothing written) without the
+    markers or without verdicts."""
+    verdicts = page_verdicts(results, meta)
+    text = readme.read_text() if readme.is_file() else ''
+    if not verdicts or README_BEGIN not in text or README_END not in text:
+        return False
+    head, rest = text.split(README_BEGIN, 1)
+    tail = rest.split(README_END, 1)[1]
+    block = (f'\nThe pre-registered verdicts of docs/results.md ({meta["date"]}, plan hash '
+             f'{meta["preregistration"]["hash"]}; generated):\n\n' + readme_table(verdicts))
+    readme.write_text(head + README_BEGIN + block + README_END + tail)
+    return True
+
+
 def write_page(path: Path, results: dict, meta: dict) -> None:
     """Write the results page ``path`` (and its plots) from ``results`` (experiments.run_all)
-    and ``meta`` (command, machine, revision, date, wall time, runs, failures)."""
+    and ``meta`` (command, machine, revision, date, wall time, runs, failures, the plan's
+    ``preregistration``)."""
     page = Page(path)
     for name, writer in (('velocity_changes', _velocity_changes),
                          ('lateral_push', _lateral_push), ('replan_window', _replan_window),
@@ -128,6 +159,9 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
                  'phases follow its crawl cycle and the impulses are read against its mass; '
                  'the plan\'s set-points, impulses and terrains are the plan file\'s (HyQ\'s in '
                  '`config/experiments.yaml`), not scaled to it.', '']
+    if meta.get('pilot'):
+        head += ['**Pilot run** (`--pilot`): each pre-registered claim on its pilot seeds, the '
+                 'runs that set its n. Pilot runs never enter a verdict.', '']
     if meta.get('quick'):
         head += ['**Quick run** (`--quick`): one short run per kind, to check that the page is '
                  'produced. Its verdicts rest on too few runs to mean anything.', '']
@@ -136,24 +170,32 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         'dynamics, 58 ms planning latency, a model that differs from the robot; '
         '`docs/realism.md`) unless the setting says *ideal*. Metrics come from the simulator\'s '
         'truth (`/ground_truth/*`), not from what the robot estimated. "Spread" is the standard '
-        'deviation over the runs, with the smallest and largest value. A comparison **holds** '
-        'when the difference has the paper\'s sign and a t-test puts it beyond the spread of '
-        'the runs: the paired one where the runs pair (the same seed and set-point in both '
-        f'settings, "n pairs"), else Welch\'s (p < {P_VALUE}); **not resolved** when the runs '
-        'cannot tell the settings apart, and then, for paired runs, how many pairs would resolve '
-        f'a difference as large as the runs\' mean one at their spread ({POWER:.0%} power of the '
-        'paired t-test; an estimate: if the true difference is smaller, more).',
+        'deviation over the runs, with the smallest and largest value.',
         '',
         *_bag_gaps(meta.get('bag_gaps')),
+        *preregistration_section(meta.get('preregistration'), page_verdicts(results, meta)),
+        '## Every measure (exploratory)',
+        '',
+        'The comparisons of this table and of the findings are exploratory: no verdict, an '
+        'unadjusted p. "The claimed direction" when the difference has the paper\'s sign and '
+        'a t-test puts it beyond the spread of the runs: the paired one where the runs pair '
+        '(the same seed and set-point in both settings, "n pairs"), else Welch\'s '
+        f'(p < {P_VALUE}); "the other direction" the same with the other sign; "undecided" '
+        'when the runs cannot tell the settings apart, and then, for paired runs, how many '
+        'pairs would resolve a difference as large as the runs\' mean one at their spread '
+        f'({POWER:.0%} power of the paired t-test; an estimate: if the true difference is '
+        'smaller, more); "met" and "not met" for a target every run must reach.',
+        '',
         '| Experiment | Setting | Metric | Mean ± spread (min to max) | Runs | Paper\'s claim '
-        '| Holds? |',
+        '| Exploratory comparison |',
         '|---|---|---|---|---|---|---|',
     ]
     head += ['| ' + ' | '.join(r) + ' |' for r in page.rows]
     if page.findings:
-        head += ['', '## What holds, what does not, and why', '',
-                 'Generated from the same runs; where a cause is a hypothesis the runs do not '
-                 'isolate, it says so.', '', *page.findings]
+        head += ['', '## What the runs show, and why (exploratory)', '',
+                 'Generated from the same runs, without verdicts (those are the pre-registered '
+                 'table\'s); where a cause is a hypothesis the runs do not isolate, it says so.',
+                 '', *page.findings]
     if meta.get('failures'):
         head += ['', f'{len(meta["failures"])} runs failed to produce metrics (left out above):']
         head += [f'- `{f}`' for f in meta['failures']]
@@ -197,8 +239,8 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
             settled = len(steps)
             falls = sum(r['fell'] for r in sel)
             prompt_runs = sum(1 for s in steps if s <= prompt)
-            verdict = ('holds' if prompt_runs == len(sel) and not falls else
-                       f'does not hold ({len(sel) - prompt_runs} of {len(sel)} runs slower or '
+            verdict = ('met' if prompt_runs == len(sel) and not falls else
+                       f'not met ({len(sel) - prompt_runs} of {len(sel)} runs slower or '
                        'never within 10 %)')
             setting = scenario.removeprefix('exp_').replace('_', ' ') + (
                 ' (ideal)' if world == 'ideal' else '')
@@ -212,8 +254,8 @@ def _velocity_changes(page: Page, rows: list[dict], _all) -> None:
             page.row('velocity change', setting,
                      'touchdowns until 90 % of the achieved change',
                      spread(rise, 1), len(sel), claim + ' (apart from the steady offset)',
-                     'holds' if prompt_rise == len(sel) and not falls else
-                     f'does not hold ({len(sel) - prompt_rise} of {len(sel)} runs slower)')
+                     'met' if prompt_rise == len(sel) and not falls else
+                     f'not met ({len(sel) - prompt_rise} of {len(sel)} runs slower)')
             page.row('velocity change', setting, 'seconds until 90 % of the achieved change',
                      spread(values(sel, 'rise_time_s'), 2), len(sel), '', '')
             _steady_rows(page, setting, sel)
@@ -245,8 +287,8 @@ def _whole_cycle_row(page: Page, setting: str, sel: list[dict], claim: str,
              spread(known, 1) + (f'; {len(sel) - len(known)} of {len(sel)} runs never'
                                  if len(known) < len(sel) else ''), len(sel),
              claim + ' (whole-cycle means)',
-             'holds' if prompt == len(sel) and not falls else
-             f'does not hold ({len(sel) - prompt} of {len(sel)} runs later or never)')
+             'met' if prompt == len(sel) and not falls else
+             f'not met ({len(sel) - prompt} of {len(sel)} runs later or never)')
 
 
 def _steady_rows(page: Page, setting: str, sel: list[dict]) -> None:
@@ -264,8 +306,8 @@ def _steady_rows(page: Page, setting: str, sel: list[dict]) -> None:
              f'steady velocity error / set-point speed (last {last} cycles), %',
              spread(error, 1, scale=100.0), len(steady),
              f'walks at the set-point, within {tolerance * 100:.0f} % (beyond the paper)',
-             'holds' if within == len(steady) else
-             f'does not hold ({len(steady) - within} of {len(steady)} runs off by more)')
+             'met' if within == len(steady) else
+             f'not met ({len(steady) - within} of {len(steady)} runs off by more)')
     counts = [cycles_to_within(r, tolerance) for r in steady]
     known = [c for c in counts if c is not None]
     page.row('velocity change', setting,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from replan_ros.experiments.stats import compare_paired, p_text, spread, values
+from replan_ros.experiments.stats import compare_paired, exploratory, p_text, spread, values
 
 # (row key, metric on the page, scale to its unit, which side is better in a comparison with
 # correction off: None = not compared)
@@ -41,7 +41,7 @@ def _setting_rows(page, experiment: str, label: str, runs: list[dict]) -> None:
 def _compare_rows(page, experiment: str, label: str, on: list[dict], off: list[dict],
                   by: tuple[str, ...], metrics: tuple[tuple[str, str, str], ...]) -> list[str]:
     """Rows of ``on`` against ``off`` (paired ``by``) on each (key, metric, better side);
-    the verdicts, for the prose."""
+    the exploratory comparisons, for the prose."""
     verdicts = []
     for key, metric, better in metrics:
         verdict, p = compare_paired(on, off, key, by, better)
@@ -49,7 +49,7 @@ def _compare_rows(page, experiment: str, label: str, on: list[dict], off: list[d
         page.row(experiment, label, metric,
                  f'{np.mean(a) * 100:.1f} vs {np.mean(b) * 100:.1f}' if a and b else '-',
                  len(on) + len(off), _CLAIM, verdict + p_text(p))
-        verdicts.append(f'{metric}: {verdict}{p_text(p)}')
+        verdicts.append(f'{metric}: {exploratory(verdict)}{p_text(p)}')
     return verdicts
 
 

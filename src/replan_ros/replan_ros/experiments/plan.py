@@ -4,10 +4,14 @@ the scenario document of one run."""
 
 from __future__ import annotations
 
+import copy
+import hashlib
 import json
 from pathlib import Path
 
 import yaml
+
+from replan_ros.experiments.stats import TESTS
 
 # The keys each experiment reads: a misspelt one in the plan file is an error, not a default.
 PLAN_KEYS = {
@@ -28,6 +32,33 @@ PLAN_KEYS = {
     'ideal_world': {'replan_window', 'haptic', 'velocity_changes', 'lateral_push'},
 }
 EXPERIMENTS = tuple(PLAN_KEYS)
+
+# The claims that pre-register one primary test (``primary`` in their section) and the measures
+# each one's code computes (its rows' keys), of which the primary measure is one.
+PRIMARY_MEASURES = {
+    'velocity_changes': {'rise_time_s', 'rise_steps', 'settle_time_s', 'settle_steps',
+                         'steady_error_mps', 'fell'},
+    'lateral_push': {'survived_ns'},
+    'replan_window': {'steady_error_mps', 'linear_error_mps', 'cop_margin_p5_m',
+                      'cop_zmp_deviation_rms_m', 'fell'},
+    'haptic': {'pitch_peak_max_deg', 'pitch_peak_mean_deg', 'touchdown_timing_median_abs_s',
+               'fell', 'crossed'},
+    'velocity_term': {'rise_time_s', 'swing_travel_share', 'backward_travel_m',
+                      'stride_length_m', 'fell'},
+    'sustained_push': {'capture_margin_p5_m', 'capture_margin_min_m', 'trunk_shift_max_m',
+                       'foot_offset_change_m', 'fell'},
+    'large_push': {'capture_margin_p5_m', 'capture_margin_min_m', 'trunk_shift_max_m',
+                   'foot_offset_change_m', 'fell'},
+}
+for _name in PRIMARY_MEASURES:
+    PLAN_KEYS[_name] = PLAN_KEYS[_name] | {'primary'}
+# A primary block: every key below is required, one of ``compare`` (two settings, treatment
+# minus control) or ``against`` (one setting against a fixed bound) too; ``where`` and
+# ``pair_by`` select and pair the runs.
+PRIMARY_REQUIRED = {'measure', 'unit', 'direction', 'smallest_effect', 'reason', 'test', 'n',
+                    'pilot_seeds'}
+PRIMARY_KEYS = PRIMARY_REQUIRED | {'compare', 'against', 'where', 'pair_by'}
+BINARY_TESTS = ('mcnemar', 'fisher')
 # Keys without a default, and what each says: a plan without one is refused.
 REQUIRED_KEYS = {
     'velocity_changes': {'steady_tolerance': 'the share of the set-point speed the steady '
@@ -148,6 +179,11 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
         for key, meaning in required.items():
             if name in plan and key not in (plan[name] or {}):
                 raise ExperimentError(f'{path}: {section}.{name}: {key} missing ({meaning})')
+    for name in PRIMARY_MEASURES:
+        if isinstance(plan.get(name), dict) and 'primary' in plan[name]:
+            error = primary_error(name, plan[name])
+            if error:
+                raise ExperimentError(f'{path}: {section}.{name}.primary: {error}')
     large = plan.get('large_push')
     if isinstance(large, dict):
         try:
@@ -162,6 +198,84 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
         raise ExperimentError(f'--only: {sorted(bad)} not in the {section} plan '
                               f'(there: {", ".join(plan)})')
     return plan, [name for name in plan if not only or name in only]
+
+
+def primary_error(name: str, cfg: dict) -> str | None:
+    """What is wrong with experiment ``name``'s primary block (``cfg['primary']``), in one
+    line, or None."""
+    block = cfg['primary']
+    if not isinstance(block, dict):
+        return 'must be a mapping'
+    missing, unknown = PRIMARY_REQUIRED - set(block), set(block) - PRIMARY_KEYS
+    if missing:
+        return f'missing keys {sorted(missing)}'
+    if unknown:
+        return f'unknown keys {sorted(unknown)} (known: {", ".join(sorted(PRIMARY_KEYS))})'
+    if ('compare' in block) == ('against' in block):
+        return 'needs one of compare (two settings) or against (a fixed bound)'
+    compare = block.get('compare')
+    if compare is not None and (not isinstance(compare, dict)
+                                or set(compare) != {'by', 'treatment', 'control'}):
+        return 'compare: a mapping of by, treatment and control'
+    if block['measure'] not in PRIMARY_MEASURES[name]:
+        return (f'measure: {block["measure"]!r} is not one the claim computes (known: '
+                f'{", ".join(sorted(PRIMARY_MEASURES[name]))})')
+    if block['direction'] not in ('higher', 'lower'):
+        return f'direction: higher or lower, got {block["direction"]!r}'
+    if block['test'] not in TESTS:
+        return f'test: one of {", ".join(TESTS)}, got {block["test"]!r}'
+    if (block['test'] in BINARY_TESTS) != (block['measure'] in ('fell', 'crossed')):
+        return f'test: {block["test"]} does not fit measure {block["measure"]}'
+    try:
+        smallest = float(block['smallest_effect'])
+    except (TypeError, ValueError):
+        smallest = 0.0
+    if not smallest > 0.0:
+        return f'smallest_effect: a positive figure, got {block["smallest_effect"]!r}'
+    seeds, pilot = list(cfg.get('seeds') or []), list(block['pilot_seeds'] or [])
+    if block['n'] != len(seeds):
+        return f'n: {block["n"]!r}, but the confirmatory seeds are {len(seeds)}'
+    if set(seeds) & set(pilot):
+        return f'pilot_seeds: {sorted(set(seeds) & set(pilot))} are confirmatory seeds too'
+    return None
+
+
+def primary_blocks(plan: dict) -> dict:
+    """Per pre-registered claim of ``plan``, its primary block with its confirmatory
+    ``seeds``."""
+    return {name: {**plan[name]['primary'], 'seeds': list(plan[name].get('seeds') or [])}
+            for name in PRIMARY_MEASURES
+            if isinstance(plan.get(name), dict) and 'primary' in plan[name]}
+
+
+def plan_hash(plan: dict) -> str | None:
+    """The hash of ``plan``'s pre-registration: every primary block (measure, selection,
+    direction, smallest effect, test, n, pilot seeds) with its confirmatory seeds, the
+    ``reason`` text left out; None without primary blocks. The one place it is computed: the
+    confirmatory runs' keys and the page both take it from here."""
+    blocks = {name: {k: v for k, v in block.items() if k != 'reason'}
+              for name, block in primary_blocks(plan).items()}
+    if not blocks:
+        return None
+    text = json.dumps(blocks, sort_keys=True, default=str)
+    return hashlib.sha1(text.encode()).hexdigest()[:12]
+
+
+def pilot_plan(plan: dict) -> dict:
+    """``plan`` with each pre-registered claim on its pilot seeds and without its primary
+    block: the pilot runs, which carry no plan hash and never enter a verdict."""
+    out = copy.deepcopy(plan)
+    for name in primary_blocks(plan):
+        out[name]['seeds'] = list(out[name]['primary']['pilot_seeds'])
+        del out[name]['primary']
+    return out
+
+
+def preregistration(plan: dict, plan_file: Path | str, role: str) -> dict:
+    """What the page needs of the plan's pre-registration: its hash, the file, the call's
+    ``role`` ('confirmatory', 'pilot' or 'quick') and the primary blocks."""
+    return {'hash': plan_hash(plan), 'file': str(plan_file), 'role': role,
+            'claims': primary_blocks(plan)}
 
 
 def node_settings(config_dir: Path, robot: str | None = None) -> dict:

@@ -1,13 +1,20 @@
 """The paper's experiments on the realistic robot, many runs per claim, and the results page.
 
-    scripts/experiments.sh [--quick] [--jobs N | --ray ADDRESS] [--only NAME ...] [--out DIR]
-                           [--page FILE] [--robot NAME|FILE]
+    scripts/experiments.sh [--quick | --pilot] [--jobs N | --ray ADDRESS] [--only NAME ...]
+                           [--out DIR] [--page FILE] [--robot NAME|FILE]
 
 Runs the experiments of ``config/experiments.yaml`` (``full``, or ``quick`` with --quick) as
 scenario runs (``replan_ros.experiments.scenario``, one process graph each, on its own
 ROS_DOMAIN_ID), then writes the results page (``docs/results.md`` for a full run, DIR/results.md
 for a quick one, plots beside it) from the runs' ``metrics.json``: per claim the metric's mean,
 spread and number of runs, the paper's claim and whether the runs support it.
+
+Each claim pre-registers one primary test (the plan file's ``primary`` blocks); the page gives
+verdicts to those alone, on the confirmatory runs, whose keys hold the plan's hash. ``--pilot``
+makes the pilot runs instead (each pre-registered claim on its ``pilot_seeds``; page
+DIR/results-pilot.md, no verdicts). A full call that writes docs/results.md also fills the
+verdict table between the ``<!-- results:begin -->`` and ``<!-- results:end -->`` markers of
+README.md.
 
 A run's folder is named after a hash of its scenario document, so a run already made with the
 same document (an interrupted call, or two experiments sharing a run) is read, not made again
@@ -39,8 +46,15 @@ import time
 from pathlib import Path
 
 from replan_ros.experiments.claims import run_all
-from replan_ros.experiments.page import write_page
-from replan_ros.experiments.plan import EXPERIMENTS, ExperimentError, load_plan, planned_runs
+from replan_ros.experiments.page import fill_readme, write_page
+from replan_ros.experiments.plan import (
+    EXPERIMENTS,
+    ExperimentError,
+    load_plan,
+    pilot_plan,
+    planned_runs,
+    preregistration,
+)
 from replan_ros.experiments.runs import (
     DEFAULT_DOMAIN_BASE,
     Progress,
@@ -84,6 +98,9 @@ def main(argv=None) -> int:
     parser.add_argument('--quick', action='store_true',
                         help='one short run of each kind (a few minutes): checks the page is '
                              'produced; the page goes to DIR/results.md')
+    parser.add_argument('--pilot', action='store_true',
+                        help='the pilot runs: each pre-registered claim on its pilot_seeds; '
+                             'the page (DIR/results-pilot.md) gives no verdicts')
     parser.add_argument('--jobs', type=int,
                         help='runs at once, each on its own ROS_DOMAIN_ID (default 1; with '
                              '--ray local: the private cluster\'s graph slots, default one '
@@ -114,6 +131,8 @@ def main(argv=None) -> int:
     parser.add_argument('--quiet', action='store_true', help='no progress line')
     add_robot_option(parser, default=None)
     args = parser.parse_args(argv)
+    if args.quick and args.pilot:
+        parser.error('--pilot goes with the full plan, not with --quick')
     if args.ray and args.ray != 'local' and args.jobs is not None:
         parser.error('--jobs goes with --ray local only: a cluster\'s nodes say their '
                      'graph slots (ray start --resources)')
@@ -127,13 +146,19 @@ def main(argv=None) -> int:
     plan_file = args.plan or config_dir / 'experiments.yaml'
     try:
         plan, selected = load_plan(plan_file, args.quick, args.only)
+        prereg = preregistration(plan, plan_file, 'quick' if args.quick else
+                                 'pilot' if args.pilot else 'confirmatory')
+        if args.pilot:
+            plan = pilot_plan(plan)
         if args.robot:       # a wrong robot stops here, in one line, before any run
             robot_parameters(config_dir, args.robot, profile_file(config_dir, 'realistic'))
     except (ExperimentError, ConfigError) as err:
         print(f'experiments: {err}', file=sys.stderr)
         return 2
     out = args.out or root / 'runs' / ('experiments-quick' if args.quick else 'experiments')
-    page = args.page or (out / 'results.md' if args.quick else root / 'docs' / 'results.md')
+    default_page = root / 'docs' / 'results.md'
+    page = args.page or (out / 'results.md' if args.quick else
+                         out / 'results-pilot.md' if args.pilot else default_page)
     out.mkdir(parents=True, exist_ok=True)
     total = planned_runs(plan, selected)
     progress = Progress(total, quiet=args.quiet)
@@ -173,13 +198,17 @@ def main(argv=None) -> int:
             'run_time_min': round(sum(
                 r.metrics.get('wall_time_total_s') or 0.0 for r in runner.results.values()
                 if isinstance(r, RunResult)) / 60.0, 1),
-            'quick': args.quick, 'failures': runner.failures, 'plan_file': str(plan_file),
+            'quick': args.quick, 'pilot': args.pilot, 'preregistration': prereg,
+            'failures': runner.failures, 'plan_file': str(plan_file),
             'robot': args.robot,
             'bag_gaps': bag_gaps(runner.results.values(),
                                  results['settings']['control_period_s'])}
     (out / 'results.json').write_text(json.dumps({'meta': meta, 'results': results},
                                                  indent=1, default=str))
     write_page(page, results, meta)
+    if page.resolve() == default_page.resolve() and fill_readme(root / 'README.md', results,
+                                                                 meta):
+        print('[experiments] README.md: the verdict table between its results markers')
     print(f'[experiments] {made} runs in {wall / 60:.1f} min; page {page}, data '
           f'{out / "results.json"}')
     for failure in runner.failures:

@@ -96,11 +96,15 @@ def git_revision(root: Path) -> str:
         return 'unknown'
 
 
-def run_key(doc: dict, code: str = '') -> str:
+def run_key(doc: dict, code: str = '', plan: str | None = None) -> str:
     """Folder name of the run of scenario document ``doc`` made by code ``code``
-    (``code_fingerprint``): its name and a hash of both."""
-    text = yaml.safe_dump({'scenario': doc, 'code': code}, sort_keys=True)
-    return f'{doc.get("name", "run")}-{hashlib.sha1(text.encode()).hexdigest()[:10]}'
+    (``code_fingerprint``): its name and a hash of both. A confirmatory run's key also holds
+    the hash of the plan it was made for (``plan.plan_hash``), in the hash and readable in the
+    name: a run made for another plan (or before any) is never served as one of this plan's.
+    Without ``plan`` the key is the same as before plans had hashes."""
+    content = {'scenario': doc, 'code': code} | ({'plan': plan} if plan else {})
+    digest = hashlib.sha1(yaml.safe_dump(content, sort_keys=True).encode()).hexdigest()[:10]
+    return f'{doc.get("name", "run")}-' + (f'plan{plan}-' if plan else '') + digest
 
 
 @dataclass
@@ -109,6 +113,7 @@ class RunResult:
     doc: dict
     metrics: dict
     folder: Path
+    plan: str | None = None     # the plan hash of a confirmatory run (its key holds it)
 
     @property
     def ok(self) -> bool:
@@ -221,11 +226,13 @@ class Runner:
             doc['robot'] = self.robot
         return doc
 
-    def run(self, doc: dict, bag: bool = False) -> RunResult:
+    def run(self, doc: dict, bag: bool = False, plan: str | None = None) -> RunResult:
         """The run of scenario ``doc``: made now, or read if made before or under way.
         ``bag``: keep its bag (in its folder's ``bag/``); a run made before without one, in an
-        earlier call or in this one (two experiments can share a run), is made again."""
-        key = run_key(doc, self.code_for(doc))
+        earlier call or in this one (two experiments can share a run), is made again.
+        ``plan``: the plan hash of a confirmatory run (``run_key``); it does not change the
+        run."""
+        key = run_key(doc, self.code_for(doc), plan)
         while True:
             with self.lock:
                 entry = self.results.get(key)
@@ -240,10 +247,10 @@ class Runner:
                 return entry
             entry.wait()            # under way: look again when it is done
         try:
-            result = self._make(key, doc, bag)
+            result = self._make(key, doc, bag, plan)
         except (OSError, subprocess.SubprocessError, ValueError) as err:
             self.failures.append(f'{key}: {err}')
-            result = RunResult(key, doc, {}, self.out_dir / 'runs' / key)
+            result = RunResult(key, doc, {}, self.out_dir / 'runs' / key, plan)
         with self.lock:
             self.results[key] = result
         event.set()
@@ -263,7 +270,8 @@ class Runner:
             finally:
                 fcntl.flock(handle, fcntl.LOCK_UN)
 
-    def _make(self, key: str, doc: dict, bag: bool = False) -> RunResult:
+    def _make(self, key: str, doc: dict, bag: bool = False,
+              plan: str | None = None) -> RunResult:
         folder = self.out_dir / 'runs' / key
         text = yaml.safe_dump(doc, sort_keys=False)
         metrics_file = folder / 'metrics.json'
@@ -271,7 +279,7 @@ class Runner:
                 and (folder / 'input.yaml').exists()
                 and (folder / 'input.yaml').read_text() == text
                 and (not bag or (folder / 'bag').is_dir())):
-            result = RunResult(key, doc, json.loads(metrics_file.read_text()), folder)
+            result = RunResult(key, doc, json.loads(metrics_file.read_text()), folder, plan)
             if result.ok:
                 if self.progress:
                     self.progress.update(reused=1)
@@ -282,7 +290,7 @@ class Runner:
         (folder / 'input.yaml').write_text(text)
         code = self._execute(folder, bag)
         metrics = json.loads(metrics_file.read_text()) if metrics_file.exists() else {}
-        result = RunResult(key, doc, metrics, folder)
+        result = RunResult(key, doc, metrics, folder, plan)
         if not result.ok:
             log = folder / 'output.log'
             tail = (log.read_text()[-400:].strip().splitlines() if log.exists() else [])

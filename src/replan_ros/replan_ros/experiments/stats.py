@@ -4,6 +4,7 @@ the runs, never typed (docs: ``page.py``)."""
 from __future__ import annotations
 
 import math
+import re
 import warnings
 
 import numpy as np
@@ -222,7 +223,8 @@ def sign_test(diff, resolution: float | None, unit: str = 'phases') -> str:
         step = (f'; a difference is one bisection step, {resolution:.0f} N s, or more'
                 if resolution is not None else '')
         return f'not resolved ({counts}{step}, p = {p:.2g})'
-    return ('holds' if better > worse else 'does not hold') + f' ({counts}, p = {p:.2g})'
+    verdict = 'holds' if better > worse else 'does not hold (the opposite)'
+    return verdict + f' ({counts}, p = {p:.2g})'
 
 
 def push_resolution(cfg: dict) -> float:
@@ -264,3 +266,302 @@ def against_paper(mean_ms: float, paper_ms: float = PAPER_QP_MS,
     if mean_ms > paper_ms + paper_std_ms:
         return f'slower than the paper ({times(mean_ms / paper_ms)})'
     return f'as fast as the paper (within its ± {paper_std_ms:.0f} ms)'
+
+
+# -- pre-registered verdicts -----------------------------------------------------------------
+#
+# One family: every claim's primary test (config/experiments.yaml, ``primary``), Holm's
+# step-down correction over them. Outcomes, in this order of precedence:
+#   opposite     Holm-significant with the other sign than the claim's
+#   holds        Holm-significant with the claim's sign and the point estimate at least the
+#                smallest effect that matters (the rule: significance plus a point estimate
+#                beyond the smallest effect, not the whole interval beyond it)
+#   negligible   the 95 % interval inside +- the smallest effect (this implies the two one-sided
+#                tests of TOST, each at 0.025, so TOST at 0.05)
+#   not resolved otherwise
+
+ALPHA = 0.05
+CONFIDENCE = 0.95
+TESTS = ('paired_t', 'wilcoxon', 'mcnemar', 'fisher')
+OUTCOMES = ('holds', 'opposite', 'negligible', 'not resolved')
+
+
+def holm(p_values: list[float], alpha: float = ALPHA) -> tuple[list[float], list[bool]]:
+    """Holm's step-down correction: the adjusted p-values (in the given order) and which
+    hypotheses are rejected at ``alpha`` (family-wise error at most ``alpha``)."""
+    m = len(p_values)
+    order = sorted(range(m), key=lambda i: p_values[i])
+    adjusted = [0.0] * m
+    running = 0.0
+    for rank, i in enumerate(order):
+        # Monotone: an adjusted p is never below the one of a smaller raw p.
+        running = max(running, min(1.0, (m - rank) * p_values[i]))
+        adjusted[i] = running
+    return adjusted, [a < alpha for a in adjusted]
+
+
+def paired_t(diff) -> tuple[float, tuple[float, float], float]:
+    """Mean of the paired differences, its t interval (``CONFIDENCE``) and the two-sided
+    paired t-test's p-value. Differences without spread: the interval is the point and p is
+    0 (or 1 when all are zero); one difference: no interval, (-inf, inf), and p = 1."""
+    from scipy.stats import t, ttest_1samp
+    d = np.asarray(diff, dtype=float)
+    mean = float(d.mean())
+    if len(d) < 2:
+        return mean, (-math.inf, math.inf), 1.0
+    if not d.std(ddof=1) > 0.0:
+        return mean, (mean, mean), (1.0 if mean == 0.0 else 0.0)
+    half = float(t.ppf(0.5 + CONFIDENCE / 2.0, len(d) - 1) * d.std(ddof=1) / math.sqrt(len(d)))
+    return mean, (mean - half, mean + half), float(ttest_1samp(d, 0.0).pvalue)
+
+
+def _signed_rank_cdf(n: int) -> np.ndarray:
+    """P(T+ <= t) for t = 0..n(n+1)/2 of the Wilcoxon signed-rank statistic of ``n``
+    differences without ties (the exact null distribution, by counting subsets of ranks)."""
+    counts = np.zeros(n * (n + 1) // 2 + 1)
+    counts[0] = 1.0
+    for rank in range(1, n + 1):
+        counts[rank:] = counts[rank:] + counts[:-rank].copy()
+    return np.cumsum(counts) / 2.0 ** n
+
+
+def hodges_lehmann(diff) -> tuple[float, tuple[float, float]]:
+    """The Hodges-Lehmann estimate of the paired differences (the median of the Walsh
+    averages) and its distribution-free interval (``CONFIDENCE``): the Walsh averages of rank
+    c+1 and M-c (of M), c the largest count with P(T+ <= c) <= (1 - CONFIDENCE) / 2; below 6
+    differences no interval reaches that confidence: (-inf, inf)."""
+    d = np.sort(np.asarray(diff, dtype=float))
+    n = len(d)
+    walsh = np.sort([(d[i] + d[j]) / 2.0 for i in range(n) for j in range(i, n)])
+    estimate = float(np.median(walsh))
+    cdf = _signed_rank_cdf(n)
+    below = np.nonzero(cdf <= (1.0 - CONFIDENCE) / 2.0)[0]
+    if not len(below):
+        return estimate, (-math.inf, math.inf)
+    c = int(below[-1]) + 1              # Walsh averages left out on each side
+    return estimate, (float(walsh[c - 1]), float(walsh[len(walsh) - c]))
+
+
+def wilcoxon_p(diff) -> float:
+    """Two-sided p-value of the Wilcoxon signed-rank test of the differences (zeros dropped,
+    scipy's default; 1 when every difference is zero)."""
+    from scipy.stats import wilcoxon
+    d = np.asarray(diff, dtype=float)
+    if not np.any(d != 0.0):
+        return 1.0
+    with warnings.catch_warnings():       # few non-zero differences: the p-value says so
+        warnings.simplefilter('ignore')
+        return float(wilcoxon(d).pvalue)
+
+
+def binomial_two_sided(k: int, n: int) -> float:
+    """Exact two-sided p-value of ``k`` successes in ``n`` trials at probability 1/2 (twice
+    the smaller tail, at most 1): McNemar's exact test on ``k`` of ``n`` discordant pairs."""
+    if n == 0:
+        return 1.0
+    tail = sum(math.comb(n, i) for i in range(min(k, n - k) + 1)) / 2.0 ** n
+    return min(1.0, 2.0 * tail)
+
+
+def wilson(successes: int, n: int) -> tuple[float, float]:
+    """Wilson's score interval (``CONFIDENCE``) of a proportion."""
+    from scipy.stats import norm
+    if n == 0:
+        return 0.0, 1.0
+    z = float(norm.ppf(0.5 + CONFIDENCE / 2.0))
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def mcnemar(pairs: list[tuple[bool, bool]]) -> tuple[float, tuple[float, float], float]:
+    """Paired binary outcomes (treatment, control) per pair: the difference in proportions
+    (treatment minus control), Newcombe's interval for paired proportions (his method 10,
+    Wilson intervals with the pairs' correlation) and McNemar's exact p-value (the binomial
+    test on the discordant pairs)."""
+    n = len(pairs)
+    a = sum(1 for t, c in pairs if t and c)
+    b = sum(1 for t, c in pairs if t and not c)
+    c_ = sum(1 for t, c in pairs if c and not t)
+    d = n - a - b - c_
+    p1, p2 = (a + b) / n, (a + c_) / n
+    (l1, u1), (l2, u2) = wilson(a + b, n), wilson(a + c_, n)
+    denominator = (a + b) * (c_ + d) * (a + c_) * (b + d)
+    phi = (a * d - b * c_) / math.sqrt(denominator) if denominator else 0.0
+    diff = p1 - p2
+    low = diff - math.sqrt(max(0.0, (p1 - l1) ** 2 - 2 * phi * (p1 - l1) * (u2 - p2)
+                               + (u2 - p2) ** 2))
+    high = diff + math.sqrt(max(0.0, (u1 - p1) ** 2 - 2 * phi * (u1 - p1) * (p2 - l2)
+                                + (p2 - l2) ** 2))
+    return diff, (max(-1.0, low), min(1.0, high)), binomial_two_sided(b, b + c_)
+
+
+def fisher(treatment: list[bool], control: list[bool]) -> tuple[float, tuple[float, float],
+                                                                 float]:
+    """Unpaired binary outcomes: the difference in proportions (treatment minus control),
+    Newcombe's hybrid score interval (Wilson intervals of each) and Fisher's exact p-value."""
+    from scipy.stats import fisher_exact
+    n1, n2 = len(treatment), len(control)
+    k1, k2 = sum(map(bool, treatment)), sum(map(bool, control))
+    p1, p2 = k1 / n1, k2 / n2
+    (l1, u1), (l2, u2) = wilson(k1, n1), wilson(k2, n2)
+    diff = p1 - p2
+    low = diff - math.sqrt((p1 - l1) ** 2 + (u2 - p2) ** 2)
+    high = diff + math.sqrt((u1 - p1) ** 2 + (p2 - l2) ** 2)
+    p = float(fisher_exact([[k1, n1 - k1], [k2, n2 - k2]]).pvalue)
+    return diff, (low, high), p
+
+
+def effect(test: str, sample) -> tuple[float, tuple[float, float], float]:
+    """Estimate, 95 % interval and raw two-sided p of one primary test on its ``sample``:
+    the paired differences (``paired_t``: mean and t interval; ``wilcoxon``: Hodges-Lehmann
+    and its interval), the (treatment, control) outcome pairs (``mcnemar``) or the two
+    groups' outcomes (``fisher``)."""
+    if test == 'paired_t':
+        return paired_t(sample)
+    if test == 'wilcoxon':
+        estimate, interval = hodges_lehmann(sample)
+        return estimate, interval, wilcoxon_p(sample)
+    if test == 'mcnemar':
+        return mcnemar(sample)
+    if test == 'fisher':
+        return fisher(*sample)
+    raise ValueError(f'unknown test {test!r} (known: {", ".join(TESTS)})')
+
+
+def outcome(estimate: float, interval: tuple[float, float], significant: bool,
+            direction: str, smallest: float) -> str:
+    """The outcome of one primary test (the rules at the top of this section). ``direction``:
+    'higher' or 'lower', the sign of the effect that supports the claim; ``smallest``: the
+    smallest effect that matters (positive, in the measure's unit)."""
+    sign = 1.0 if direction == 'higher' else -1.0
+    if significant and sign * estimate < 0:
+        return 'opposite'
+    if significant and sign * estimate >= smallest:
+        return 'holds'
+    if -smallest < interval[0] and interval[1] < smallest:
+        return 'negligible'
+    return 'not resolved'
+
+
+def verdicts(tests: list[dict]) -> list[dict]:
+    """Each primary test (``test``, ``sample``, ``direction``, ``smallest_effect``; ``sample``
+    None when it cannot be judged, and ``reason`` then says why) with its ``estimate``,
+    ``interval``, raw ``p``, Holm-adjusted ``p_holm`` and ``outcome``. The family is every
+    test given, judged or not: one that cannot be judged counts with p = 1, so a claim left
+    out never makes the correction of the others milder."""
+    judged = [i for i, t in enumerate(tests) if t.get('sample') is not None]
+    computed = [effect(tests[i]['test'], tests[i]['sample']) for i in judged]
+    adjusted, rejected = holm([c[2] for c in computed] + [1.0] * (len(tests) - len(judged)))
+    out = []
+    for i, test in enumerate(tests):
+        if i not in judged:
+            out.append({**test, 'estimate': None, 'interval': None, 'p': None,
+                        'p_holm': None, 'outcome': f'no verdict: {test.get("reason", "")}'})
+            continue
+        k = judged.index(i)
+        estimate, interval, p = computed[k]
+        out.append({**test, 'estimate': estimate, 'interval': interval, 'p': p,
+                    'p_holm': adjusted[k], 'outcome': outcome(
+                        estimate, interval, rejected[k], test['direction'],
+                        float(test['smallest_effect']))})
+    return out
+
+
+def claim_rows(name: str, data) -> list[dict]:
+    """The rows of claim ``name``'s results a primary test reads: the realistic runs' rows;
+    the impulse push's table as rows (setting, phase, seed, ``survived_ns``, ``censored``: no
+    probe fell, ``plan``)."""
+    if name == 'lateral_push':
+        if not isinstance(data, dict) or data.get('world', 'realistic') != 'realistic':
+            return []
+        return [{'setting': setting, 'phase': e['phase'], 'seed': e['seed'], 'ok': True,
+                 'survived_ns': e['survived_ns'], 'censored': e['fallen_ns'] is None,
+                 'plan': e.get('plan')}
+                for setting, entries in data['settings'].items() for e in entries]
+    return [r for r in data or [] if isinstance(r, dict)
+            and r.get('world', 'realistic') == 'realistic']
+
+
+def _matches(row: dict, where: dict | None) -> bool:
+    return all(row.get(key) in (want if isinstance(want, list) else [want])
+               for key, want in (where or {}).items())
+
+
+def primary_sample(rows: list[dict], block: dict) -> tuple[object, list[dict]]:
+    """The sample of primary ``block``'s test from a claim's ``rows`` (completed runs of the
+    block's confirmatory ``seeds`` that match its ``where``) and the rows it uses: the
+    differences of the pairs (``pair_by``) treatment minus control, or of each run minus
+    ``against``; (treatment, control) outcome pairs for ``mcnemar``; the two groups'
+    outcomes for ``fisher``. A pair censored in both settings is left out (two lower bounds);
+    so is a run without the measure."""
+    measure, test = block['measure'], block['test']
+    binary = test in ('mcnemar', 'fisher')
+    sel = [r for r in rows if r.get('ok', True) and r.get('seed') in set(block['seeds'])
+           and _matches(r, block.get('where')) and r.get(measure) is not None]
+
+    def value(row: dict):
+        return bool(row[measure]) if binary else float(row[measure])
+
+    if 'against' in block:
+        return [value(r) - float(block['against']) for r in sel], sel
+    by, treatment, control = (block['compare'][k] for k in ('by', 'treatment', 'control'))
+    a = [r for r in sel if r.get(by) == treatment]
+    b = [r for r in sel if r.get(by) == control]
+    if test == 'fisher':
+        return ([value(r) for r in a], [value(r) for r in b]), a + b
+
+    def key(row: dict) -> tuple:
+        return tuple(row.get(k) for k in block.get('pair_by') or ['seed'])
+
+    ia, ib = {key(r): r for r in a}, {key(r): r for r in b}
+    pairs = [k for k in sorted(set(ia) & set(ib), key=str)
+             if not (ia[k].get('censored') and ib[k].get('censored'))]
+    used = [ia[k] for k in pairs] + [ib[k] for k in pairs]
+    if test == 'mcnemar':
+        return [(value(ia[k]), value(ib[k])) for k in pairs], used
+    return [value(ia[k]) - value(ib[k]) for k in pairs], used
+
+
+def primary_verdicts(prereg: dict, results: dict) -> list[dict]:
+    """The verdict of every pre-registered claim (``prereg``: plan.preregistration) from the
+    call's ``results``: none for a pilot call, for a claim not run, or for runs of another
+    plan (their hash is not ``prereg['hash']``), which still count in Holm's family."""
+    current = prereg.get('hash')
+    tests = []
+    for name, block in (prereg.get('claims') or {}).items():
+        test = {'claim': name, **block, 'sample': None}
+        if prereg.get('role') != 'confirmatory':
+            test['reason'] = (f'{prereg.get("role")} runs (seeds {block["seeds"]}) never enter '
+                              'a verdict')
+        elif name not in results:
+            test['reason'] = 'not run in this call'
+        else:
+            sample, used = primary_sample(claim_rows(name, results[name]), block)
+            plans = {r.get('plan') for r in used}
+            units = len(sample[0]) + len(sample[1]) if block['test'] == 'fisher' else len(sample)
+            if plans - {current}:
+                other = ', '.join(sorted(str(p or 'none') for p in plans - {current}))
+                test['reason'] = f'runs of another plan (hash {other}, this plan {current})'
+            elif units < 2:
+                test['reason'] = f'{units} usable runs or pairs of the plan\'s seeds'
+            else:
+                test['sample'], test['units'] = sample, units
+        tests.append(test)
+    return verdicts(tests)
+
+
+_EXPLORATORY = ((re.compile(r'\bdoes not hold \(the opposite\)'), 'the other direction'),
+                (re.compile(r'\bdoes not hold\b'), 'not met'),
+                (re.compile(r'\bholds\b'), 'the claimed direction'),
+                (re.compile(r'\bnot resolved\b'), 'undecided'))
+
+
+def exploratory(text: str) -> str:
+    """A comparison's text as an exploratory one: the words of a verdict ('holds', 'does not
+    hold', 'not resolved') replaced by what they describe; only the pre-registered primary
+    tests have verdicts."""
+    for pattern, words in _EXPLORATORY:
+        text = pattern.sub(words, text)
+    return text

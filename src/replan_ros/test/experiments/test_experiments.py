@@ -4,6 +4,7 @@ of scripts/experiments.sh is a node-graph test in test/test_experiments.py)."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from replan_ros.experiments.plan import (
     load_plan,
     node_settings,
     phase_impulses,
+    plan_hash,
     planned_runs,
     variant,
 )
@@ -309,19 +311,20 @@ def test_page_from_results(tmp_path):
     assert ('the bags of 2 of 40 completed runs that did not fall miss some ticks of the '
             'estimate (`/odom`) or the truth, at most 77 of a run\'s 3501;') in text
     assert ('| replan window | 1 vs 2 | steady velocity error (m/s) | 0.0012 vs 0.0022 | 10 | '
-            'window 2 worse than 1 (model errors grow) | holds (5 pairs), p = ') in text
+            'window 2 worse than 1 (model errors grow) | the claimed direction (5 pairs), '
+            'p = ') in text
     assert ('| replan window | 1 vs 2 | velocity error from 2 s (m/s) | 0.0220 vs 0.0120 | 10 | '
-            'window 2 worse than 1 (model errors grow) | does not hold (the opposite) (5 pairs)'
+            'window 2 worse than 1 (model errors grow) | the other direction (5 pairs)'
             ) in text
     assert ('steady velocity error (last 2 whole cycles) 1.2 mm/s at window 1, 2.2 mm/s at '
-            'window 2; 1 vs 2: holds (5 pairs)') in text
+            'window 2; 1 vs 2: the claimed direction (5 pairs)') in text
     assert 'the first whole cycle walked 95 %, 80 % of the set-point at windows 1, 2' in text
     assert '. Velocity error from 2 s to the end 22.0 mm/s at window 1' in text
     # The same speeds with and without the term: no effect claimed in prose.
-    assert ('(the steady state): no difference beyond the spread of the runs (not resolved '
+    assert ('(the steady state): no difference beyond the spread of the runs (undecided '
             '(equal in every pair, 3 pairs), p = 1)') in text
     assert '| haptic | flat: off vs on | touchdown pitch peak (deg) | 3.10 vs 1.10 | 6 |' in text
-    assert 'haptic off disturbs the pitch | holds (3 pairs), p = ' in text
+    assert 'haptic off disturbs the pitch | the claimed direction (3 pairs), p = ' in text
     assert 'faster than the paper (28x)' in text
     # The paper's dense QP posed here: slower than 58 +- 6 ms is said so (it read "faster, 1x").
     assert '| dense (bench) | solve time (ms) | 79.60 ± 25.70; median 72.90, p99 166.30 | 200 ' \
@@ -331,11 +334,11 @@ def test_page_from_results(tmp_path):
     assert ('Haptic on: the swing aims 1.5 cm below the foothold and, past the planned '
             'touchdown, searches down to 6 cm below it') in text
     assert 'Haptic off: the swing aims at the foothold itself' in text
-    assert '"off disturbs the pitch": holds (3 pairs), p = ' in text
+    assert '"off disturbs the pitch": the claimed direction (3 pairs), p = ' in text
     assert 'hypothesis here' in text
     assert ('| sustained push | correction sway free vs off, 60 N | capture point in the '
             'support, 5th percentile (cm) | 3.2 vs 2.2 | 10 | foothold correction keeps the '
-            'support from degenerating | holds (5 pairs)') in text
+            'support from degenerating | the claimed direction (5 pairs)') in text
     # The large push (an impulse per phase): paired by phase and seed; a fallen run leaves its
     # pair out.
     assert ('of 60, 75 N s at phases 0, 1 (the plan file gives how each was chosen)') in text
@@ -343,37 +346,43 @@ def test_page_from_results(tmp_path):
             '12.5 ± 0.5 (12.0 to 13.0) | 6 | no fall | 0 falls |') in text
     assert ('| large push | correction literal vs off, 60-75 N s | feet off their places about '
             'the hips, mean (cm) | 2.3 vs 5.2 | 12 | foothold correction keeps the support '
-            'from degenerating | holds (6 pairs), p = ') in text
+            'from degenerating | the claimed direction (6 pairs), p = ') in text
     assert ('| large push | correction sway free vs off, 60-75 N s | feet off their places about '
             'the hips, mean (cm) | 2.3 vs 5.2 | 12 | foothold correction keeps the support '
-            'from degenerating | holds (5 pairs; 2 runs without the measure left out)') in text
+            'from degenerating | the claimed direction (5 pairs; 2 runs without the measure '
+            'left out)') in text
     assert ('| large push | correction literal vs off, 60-75 N s | capture point in the support, '
             '5th percentile (cm) | 3.0 vs 3.0 | 12 | foothold correction keeps the support '
-            'from degenerating | not resolved (equal in every pair, 6 pairs)') in text
+            'from degenerating | undecided (equal in every pair, 6 pairs)') in text
     assert '- 60-75 N s: falls 1 of 6 with correction sway free, 0 of 6 with correction off' in text
     assert ('without correction the largest shift was 12.0 to 13.0 cm (mean by phase: 0: '
             '12.0 cm, 1: 13.0 cm)') in text
     assert ('- Large push (60-75 N s, 6 runs per setting): correction off moved the trunk '
             '12.0-13.0 cm over its feet (0 falls);') in text
-    assert ('correction literal vs off: the capture point\'s margin not resolved (equal in '
-            'every pair, 6 pairs), p = 1, the feet kept about the hips holds (6 pairs)') in text
+    assert ('correction literal vs off: the capture point\'s margin undecided (equal in '
+            'every pair, 6 pairs), p = 1, the feet kept about the hips the claimed direction '
+            '(6 pairs)') in text
     # The velocity term: the steady speed from the straight walks alone, "faster motion" from
     # the rise time after the set-point step, paired by seed.
     assert '| velocity term | on vs off | |1 - achieved / commanded| | 0.007 vs 0.007 | 6 |' \
         in text
     assert ('| velocity term | set-point step: on vs off | seconds until 90 % of the achieved '
-            'change | 1.30 vs 1.80 | 6 | the velocity term gives faster motion | holds (3 pairs)'
-            ) in text
+            'change | 1.30 vs 1.80 | 6 | the velocity term gives faster motion | the claimed '
+            'direction (3 pairs)') in text
     # How the trunk travels (motion_effects), per setting and paired; the finding computed.
     assert ('| velocity term | straight walks, on | share of the travel made while a foot '
             'swings | 0.610 ± 0.010 (0.600 to 0.620) | 3 |') in text
     assert '| velocity term | straight walks, off | travel backwards (mm) | 4.0 ± 0.0' in text
     assert ('| velocity term | straight walks: on vs off | share of the travel made while a '
             'foot swings | 0.610 vs 0.510 | 6 | the velocity term gives faster motion (the '
-            'trunk moves through the swings) | holds (3 pairs)') in text
+            'trunk moves through the swings) | the claimed direction (3 pairs)') in text
     assert ('the trunk makes 61 % of its travel then with the term and 51 % without, and moves '
             'back 2.0 mm against 4.0 mm over a run; the strides are 0.450 and 0.450 m') in text
     assert '`x: exit 1`' in text
+    # Only the pre-registered tests have verdicts: no verdict words in the exploratory rest.
+    exploratory = text.split('## Every measure (exploratory)')[1]
+    for words in (r'\bholds \(', 'not resolved', 'does not hold'):
+        assert not re.search(words, exploratory), words
     assert (tmp_path / 'results_plots' / 'replan_window.png').stat().st_size > 1000
     assert (tmp_path / 'results_plots' / 'haptic_pitch.png').is_file()
 
@@ -414,18 +423,18 @@ def test_velocity_change_page_gives_the_steady_state_and_the_cycles_to_get_there
     text = page.read_text()
     assert ('| velocity change | straight to sideways | steady velocity error / set-point speed '
             '(last 2 cycles), % | 2.3 ± 2.5 (0.0 to 5.0) | 3 | walks at the set-point, within '
-            '3 % (beyond the paper) | does not hold (1 of 3 runs off by more) |') in text
+            '3 % (beyond the paper) | not met (1 of 3 runs off by more) |') in text
     assert ('| velocity change | straight to sideways | whole cycles until every later one is '
             'within 3 % | 2.0 ± 0.0 (2.0 to 2.0); 1 of 3 runs never | 3 |') in text
     # Within 10 % from the second whole cycle on (0.095 is 5 % off): prompt in every run.
     assert ('| velocity change | straight to sideways | whole cycles until every later one is '
             'within 10 % | 1.0 ± 0.0 (1.0 to 1.0) | 3 | a velocity change is followed promptly '
-            '(whole-cycle means) | holds |') in text
+            '(whole-cycle means) | met |') in text
     rows[1]['cycle_velocities'] = _cycles(0.07, 0.085, 0.1, 0.1)
     write_page(page, {'velocity_changes': rows}, meta)
     later = page.read_text()
     assert ('within 10 % | 1.3 ± 0.6 (1.0 to 2.0) | 3 | a velocity change is followed promptly '
-            '(whole-cycle means) | does not hold (1 of 3 runs later or never) |') in later
+            '(whole-cycle means) | not met (1 of 3 runs later or never) |') in later
     assert 'walks at 97.7 % of its set-point speed after the change' in text
     assert 'from whole cycle 3.0 after the change on (mean, 2 of 3 runs)' in text
 
@@ -436,12 +445,14 @@ class RecordingRunner:
     def __init__(self) -> None:
         self.config_dir = CONFIG
         self.docs: list[dict] = []
+        self.plans: set = set()
 
     def scenario(self, name: str) -> dict:
         return yaml.safe_load((CONFIG / 'scenarios' / f'{name}.yaml').read_text())
 
-    def run(self, doc: dict, bag: bool = False) -> RunResult:
+    def run(self, doc: dict, bag: bool = False, plan: str | None = None) -> RunResult:
         self.docs.append(doc)
+        self.plans.add(plan)
         return RunResult('k', doc, {'sim_time_s': doc['duration'], 'fell': False,
                                     'completed': True, 'pushes': [{}]}, Path('/nonexistent'))
 
@@ -456,6 +467,8 @@ def test_every_run_of_the_plan_passes_the_scenario_checks(quick):
     runner = RecordingRunner()
     run_all(plan, [n for n in selected if n != 'qp_timing'], runner)
     assert len(runner.docs) >= (3 if quick else 100)
+    # The pre-registered claims' runs carry the plan's hash, the others (and quick's) none.
+    assert runner.plans == ({None} if quick else {None, plan_hash(plan)})
     for doc in {run_key(d): d for d in runner.docs}.values():
         check_scenario(parse_scenario(yaml.safe_dump(doc), doc['name']), CONFIG)
 
@@ -486,7 +499,7 @@ def test_censored_push_phases_are_left_out_of_the_sign_test(tmp_path):
     write_page(page, results, {'command': 'x', 'machine': 't', 'revision': 'r', 'date': 'd',
                                'wall_time_min': 1.0, 'runs': 8, 'failures': []})
     text = page.read_text()
-    assert ('not resolved (better at 2, worse at 0, equal at 0 pairs (phase, seed); a '
+    assert ('undecided (better at 2, worse at 0, equal at 0 pairs (phase, seed); a '
             'difference is one bisection step, 15 N s, or more, p = 0.5); 2 pairs censored (no '
             'probe fell in either setting: left out)') in text
     assert ('| lateral push | correction off | impulse survived, over phases and seeds (N s) | '
@@ -495,7 +508,7 @@ def test_censored_push_phases_are_left_out_of_the_sign_test(tmp_path):
             '4 | the support after a push still holds a second one |') in text
     assert ('| lateral push | correction sway free vs off | two pushes: survived with on, not '
             'with off (+1) or the reverse (-1), per phase and seed | 0.75 ± 0.50 (0.00 to 1.00) '
-            '| 4 | foothold correction helps against a second push | not resolved (better at 3, '
+            '| 4 | foothold correction helps against a second push | undecided (better at 3, '
             'worse at 0, equal at 1 pairs, p = 0.25) |') in text
     assert '- correction off, phase 1: 45.0, 30.0 N s over the seeds (+: censored).' in text
     assert '## Lateral pushes and foothold correction (ideal)' in text
