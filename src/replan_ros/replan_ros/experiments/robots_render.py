@@ -33,14 +33,21 @@ def _fall(row: dict) -> str:
     return '**fell**' + (f' at {at:.1f} s' if at is not None else '')
 
 
-def walk_cell(row: dict | None, unit: str) -> str:
-    """Achieved of commanded (and the difference), or the fall, or the failure."""
-    if row is None:
+def _not_measured(row: dict | None) -> str | None:
+    """What a cell says of a run that measured nothing: none, failed, or fell; else None."""
+    if not row:
         return '-'
     if not row.get('ok'):
         return 'run failed'
     if row.get('fell'):
         return _fall(row)
+    return None
+
+
+def walk_cell(row: dict | None, unit: str) -> str:
+    """Achieved of commanded (and the difference), or the fall, or the failure."""
+    if (said := _not_measured(row)) is not None:
+        return said
     if row.get('achieved') is None:
         return 'no figure'
     achieved, commanded = row['achieved'], row['commanded']
@@ -50,12 +57,8 @@ def walk_cell(row: dict | None, unit: str) -> str:
 
 
 def stand_cell(row: dict | None) -> str:
-    if not row:
-        return '-'
-    if not row.get('ok'):
-        return 'run failed'
-    if row.get('fell'):
-        return _fall(row)
+    if (said := _not_measured(row)) is not None:
+        return said
     if row.get('travel_m') is None:
         return 'no truth in the bag'
     start, end = row['drift_window_s']
@@ -69,12 +72,8 @@ def response_cell(row: dict | None, axis: str) -> str:
     """Each whole crawl cycle after the change to ``axis``'s set-point, in per cent of it;
     the first within 10 % and every later one within 5 % are met, else the cell says which
     is not."""
-    if row is None:
-        return '-'
-    if not row.get('ok'):
-        return 'run failed'
-    if row.get('fell'):
-        return _fall(row)
+    if (said := _not_measured(row)) is not None:
+        return said
     cell = row['axes'].get(axis)
     if not cell or not cell['shares']:
         return 'no whole cycle'
