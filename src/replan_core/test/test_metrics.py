@@ -84,7 +84,7 @@ def test_whole_cycles_take_out_the_sway():
 
 
 def test_achieved_velocity_on_a_known_arc():
-    """0.05 m/s forward and 0.2 rad/s, 18 s (issue 31: the chord read 0.026-0.028 m/s),
+    """0.05 m/s forward and 0.2 rad/s, 18 s (the chord read 0.026-0.028 m/s),
     sampled exactly on the circle at 250 Hz; and sideways on a circle."""
     t = np.arange(0.0, 18.0 + 1e-9, 0.004)
     v, w = 0.05, 0.2

@@ -1,4 +1,4 @@
-"""Bit-exact solves (issue 28): proxsuite's baseline build, inputs at a fixed alignment, and
+"""Bit-exact solves: proxsuite's baseline build, inputs at a fixed alignment, and
 the controller and planner giving the same bits whatever the heap looks like."""
 
 import subprocess

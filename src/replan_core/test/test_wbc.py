@@ -340,7 +340,7 @@ def test_a_plan_adopted_from_a_stand_after_its_first_liftoff_tips_the_robot(worl
     """Why plan_ends_stand asks for a lead: the crawl plan's CoM shifts over 0.8 s to the
     three stance feet before the first lift-off. Adopted 0.1 s before that lift-off, the CoM
     reference jumps the last part and the robot crawls on level; adopted 6 ms after it (a
-    restarted MPC's first plan in CI, stop 26), the foot lifts with the CoM between the four
+    restarted MPC's first plan in CI), the foot lifts with the CoM between the four
     and the trunk tips over the swing leg (48 deg)."""
     tilt, ok = _tilt_after_adopting_late(world, robot, late)
     assert ok is allowed

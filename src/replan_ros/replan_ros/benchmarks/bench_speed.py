@@ -98,7 +98,7 @@ SETUPS = {
     'realistic+recorder': ('realistic', True, False),
     'realistic+recorder+live': ('realistic', True, True),
 }
-# The targets (issue 17): real-time factor, its share of physics alone, the recorder's cost,
+# The targets: real-time factor, its share of physics alone, the recorder's cost,
 # the MPC alone and inside the graph.
 RTF_TARGET = 1.5
 PHYSICS_SHARE_TARGET = 0.2
@@ -351,7 +351,7 @@ def render_page(rows, summary: dict, rounds: list[dict], mpc_bench: dict,
         f'of sim time in {len(setups)} set-ups, interleaved so that every ratio is measured '
         f'under one load; then the MPC benchmark on {meta["robot"]}\'s crawl. Do not edit by '
         'hand: every figure below comes from that run (`replan_ros/benchmarks/bench_speed.py`). '
-        'The targets are issue 17\'s; why the unmet ones are not met, and what was tried: '
+        'Why the unmet targets are not met, and what was tried: '
         '[ARCHITECTURE.md, "Speed targets"](ARCHITECTURE.md#speed-targets).',
         '',
         'Speed differs between machines and, on a shared virtual machine, between minutes: '

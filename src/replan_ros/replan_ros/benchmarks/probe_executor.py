@@ -1,7 +1,7 @@
 """What an rclpy executor does with what our nodes need, each case in its own process.
 
-Issue 17 asked why rclpy's ``EventsExecutor`` (``rclpy.experimental``) stalled the lock-step
-graph instead of running it slower. This probe answers it for the installed rclpy by running,
+Whether rclpy's ``EventsExecutor`` (``rclpy.experimental``) stalls the lock-step graph
+instead of running it slower. This probe answers it for the installed rclpy by running,
 for each executor and each way of spinning it, one small node in a child process:
 
 - ``timer``: a 20 ms timer (the sim's republish, the gait's contact poll);

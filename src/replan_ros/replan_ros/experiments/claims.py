@@ -161,7 +161,7 @@ def bisect_impulse(runner: Runner, base: dict, cfg: dict, setting: dict, push_ti
 def second_push(runner: Runner, base: dict, cfg: dict, setting: dict, push_time: float,
                 seed: int, step_period: float, world: str = 'realistic') -> dict | None:
     """Two pushes of ``second_push.impulse`` N s each, the second ``second_push.after_steps``
-    steps (of ``step_period`` s) after the first: whether the robot falls (issue 31: the
+    steps (of ``step_period`` s) after the first: whether the robot falls (the
     support the first push left must still hold the second). None if the run failed."""
     direction = np.asarray(cfg['direction'], dtype=float)
     direction /= np.linalg.norm(direction)
@@ -246,7 +246,7 @@ def sustained_push(ctx: Context, cfg: dict) -> list[dict]:
 def large_push(ctx: Context, cfg: dict) -> list[dict]:
     """One short lateral push of ``impulse`` N s (one figure, or one per phase: the crawl
     resists a push less at some phases than at others), chosen to move the trunk 10-20 cm
-    over its feet (issue 31), per setting, phase of the crawl cycle and seed: whether the
+    over its feet, per setting, phase of the crawl cycle and seed: whether the
     robot falls, and what the push does to its support over the ``horizon`` s after it
     (``push_effects``). Paired by phase and seed across the settings. Each run ends
     ``horizon`` s after its push."""

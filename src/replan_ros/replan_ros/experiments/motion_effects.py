@@ -1,4 +1,4 @@
-"""How the trunk travels between its footholds (issue 31: the velocity term's "faster motion"),
+"""How the trunk travels between its footholds (the velocity term's "faster motion"),
 read from a run's bag after the run; the run's own metrics give the speed and the rise time,
 not how the trunk gets there.
 

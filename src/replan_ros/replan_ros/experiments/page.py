@@ -293,7 +293,7 @@ def _whole_cycle_row(page: Page, setting: str, sel: list[dict], claim: str,
 
 def _steady_rows(page: Page, setting: str, sel: list[dict]) -> None:
     """The steady speed over the last whole cycles as a share of the set-point, and the whole
-    cycles after the change until every later one is within the tolerance (issue 31: 3 %)."""
+    cycles after the change until every later one is within the tolerance (3 %)."""
     steady = [r for r in sel if r.get('achieved_steady') and any(r['commanded'][:2])]
     if not steady:
         return

@@ -1,5 +1,5 @@
 """The results page's sections on what a push does to the support over the steps that follow
-(paper V.B, foothold correction; issue 31): the sustained push (a force held over several
+(paper V.B, foothold correction): the sustained push (a force held over several
 steps) and the large push (one short push that moves the trunk 10-20 cm over its feet). The
 measures are ``push_effects``'s, from the truth; a setting is compared with correction off in
 paired runs."""
@@ -111,7 +111,7 @@ def large_push_section(page, rows: list[dict], results) -> None:
              f'{seeds} (the same in every setting: the runs pair by phase and seed), of '
              + ', '.join(f'{by_phase_impulse[k]:.0f}' for k in phases) + ' N s at phases '
              + ', '.join(str(k) for k in phases) + ' (the plan file gives how each was chosen), to '
-             'move the trunk 10-20 cm over its feet (issue 31) without a fall'
+             'move the trunk 10-20 cm over its feet without a fall'
              + (f'; without correction the largest shift was {np.min(shifts) * 100:.1f} to '
                 f'{np.max(shifts) * 100:.1f} cm (mean by phase: '
                 + ', '.join(f'{k}: {np.mean(v) * 100:.1f} cm' for k, v in by_phase if v) + ')'

@@ -1,5 +1,5 @@
 """What a push (held for seconds, or one short one) does to the support over the steps that
-follow it (issue 31), read from a run's bag after the run: the degeneration the paper's
+follow it, read from a run's bag after the run: the degeneration the paper's
 foothold correction (V.B) is about, which the run's own metrics do not hold.
 
 From the truth (``/ground_truth/odom``, ``/ground_truth/contacts``), over the window from the

@@ -87,7 +87,7 @@ def test_wbc_declares_every_estimator_field():
 @pytest.mark.parametrize('node', ('sim', 'gait', 'mpc', 'wbc', 'recorder', 'live_view'))
 def test_every_node_declares_its_parameters_from_its_table_only(node):
     """One source of truth: each node declares through declare_node_parameters and nowhere
-    else (the recorder had its own defaults beside its table until stop 25)."""
+    else (the recorder had its own defaults beside its table)."""
     path = 'view/live_view' if node == 'live_view' else f'nodes/{node}_node'
     source = (REPO / f'src/replan_ros/replan_ros/{path}.py').read_text()
     assert 'declare_node_parameters(self' in source

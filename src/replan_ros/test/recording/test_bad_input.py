@@ -1,4 +1,4 @@
-"""Bad input without DDS (issue 15): malformed tables, damaged bags, the soak's scenario and the
+"""Bad input without DDS: malformed tables, damaged bags, the soak's scenario and the
 robustness page. The same faults in a walking graph: test/test_faults.py."""
 
 import json
