@@ -32,7 +32,7 @@ mkdir -p "$out"
 # The robot's walk; a robot that cannot be used stops here in one line, before any run.
 walk=$(python -c 'import sys
 from replan_core.robot_file import RobotFileError
-from replan_ros.benchmarks.bench_speed import walk_scenario
+from replan_experiments.benchmarks.bench_speed import walk_scenario
 try:
     print(walk_scenario(sys.argv[1]))
 except RobotFileError as err:

@@ -15,4 +15,4 @@ source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
 cd "$ROOT"
-exec python -m replan_ros.experiments.runner "$@"
+exec python -m replan_experiments.runner "$@"

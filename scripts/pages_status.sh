@@ -7,4 +7,4 @@ source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
 cd "$ROOT"
-exec python -m replan_ros.experiments.page_status "$@"
+exec python -m replan_experiments.page_status "$@"

@@ -19,4 +19,4 @@ for name in forward paper_replan_window_2 paper_haptic_off push paper_push_no_co
         | grep -E '^\[scenario\] [a-z_0-9]+: ' || true
     runs+=("$out/$name")
 done
-python -m replan_ros.experiments.compare_runs "${runs[@]}" | tee "$out/table.md"
+python -m replan_experiments.compare_runs "${runs[@]}" | tee "$out/table.md"

@@ -7,4 +7,4 @@
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
-exec python -m replan_ros.tools.planner_loop "$@"
+exec python -m replan_experiments.planner_loop "$@"

@@ -5,4 +5,4 @@
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
-exec python -m replan_ros.experiments.realism_table "$@"
+exec python -m replan_experiments.realism_table "$@"

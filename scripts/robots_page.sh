@@ -10,4 +10,4 @@ source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
 cd "$ROOT"
-exec python -m replan_ros.experiments.robots_page "$@"
+exec python -m replan_experiments.robots_page "$@"

@@ -6,4 +6,4 @@
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
-exec python -m replan_ros.experiments.soak "$@"
+exec python -m replan_experiments.soak "$@"

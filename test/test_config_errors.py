@@ -77,7 +77,7 @@ def test_a_wrong_robot_is_refused_in_one_line(tool, case, ros_domain, tmp_path):
     else:
         scenario = tmp_path / 'walk.yaml'
         scenario.write_text(f'duration: 2\nrobot: {robot}\n')
-        module, args = 'replan_ros.experiments.scenario', [str(scenario), '--out', str(out)]
+        module, args = 'replan_experiments.scenario', [str(scenario), '--out', str(out)]
     result, wall = _run_tool(module, args, ros_domain, timeout=60)
     assert result.returncode == 2, result.stdout + result.stderr
     lines = (result.stdout + result.stderr).strip().splitlines()
@@ -91,7 +91,7 @@ def test_scenario_refuses_terrain_set_in_two_places(ros_domain, tmp_path):
     scenario.write_text('duration: 2\nparams:\n  sim: {terrain: step_down}\n'
                         'events:\n  - {t: 0.5, cmd_vel: [0.1, 0.0, 0.0]}\n')
     out = tmp_path / 'out'
-    result, wall = _run_tool('replan_ros.experiments.scenario', [str(scenario), '--out', str(out)],
+    result, wall = _run_tool('replan_experiments.scenario', [str(scenario), '--out', str(out)],
                              ros_domain, timeout=60)
     assert result.returncode == 2, result.stdout + result.stderr
     lines = (result.stdout + result.stderr).strip().splitlines()

@@ -12,8 +12,8 @@ import subprocess
 import numpy as np
 from harness import REPO_ROOT, graph_env
 
-from replan_ros.experiments.analysis import read_messages
 from replan_ros.messages.stamps import stamp_to_sec
+from replan_ros.recording.bag_read import read_messages
 from replan_ros.telemetry import diagnostics
 
 SCENARIO = REPO_ROOT / 'config' / 'scenarios' / 'knock_over.yaml'

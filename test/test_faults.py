@@ -17,7 +17,7 @@ run in file order on that graph, each leaving it walking:
   replay and rerun refuse the killed bag (and a corrupt one) with one line.
 
 Each test writes what happened to ``runs/robustness/<test>.json`` ($REPLAN_ROBUSTNESS_DIR), from
-which ``replan_ros.experiments.robustness_page`` writes docs/robustness.md. Bounds are in sim time
+which ``replan_experiments.robustness_page`` writes docs/robustness.md. Bounds are in sim time
 (generous) or wall-clock timeouts on waiting; nothing asserts how fast anything ran.
 """
 
@@ -41,7 +41,8 @@ from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from replan_ros.messages.stamps import ns_to_stamp, stamp_to_sec
-from replan_ros.recording.bag_io import check_bag, iter_decoded, recover
+from replan_ros.recording.bag_io import check_bag, iter_decoded
+from replan_ros.recording.bag_writer import recover
 from replan_ros.telemetry.diagnostics import values_of
 from replan_ros.transport.qos import COMMAND, CONTACTS, LATCHED, SCHEDULE, SENSOR
 
@@ -59,7 +60,7 @@ def results_dir() -> Path:
 
 
 def record(test: str, **fields) -> None:
-    """What happened, for docs/robustness.md (replan_ros/experiments/robustness_page.py)."""
+    """What happened, for docs/robustness.md (replan_experiments/robustness_page.py)."""
     folder = results_dir()
     folder.mkdir(parents=True, exist_ok=True)
     (folder / f'{test}.json').write_text(json.dumps(fields, indent=1, sort_keys=True) + '\n')

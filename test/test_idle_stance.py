@@ -16,9 +16,9 @@ import pytest
 from test_walk import run_scenario, segment, trajectory
 
 from replan_core.gait import GaitParams, is_idle_trigger, is_stand_plan
-from replan_ros.experiments.analysis import read_messages
 from replan_ros.messages.contacts import contacts_from_msg
 from replan_ros.messages.footholds import footholds_from_msg
+from replan_ros.recording.bag_read import read_messages
 
 ZERO_AT, WALK_AGAIN, END = 6.0, 12.0, 17.0     # s, config/scenarios/idle_stance.yaml
 SPEED = 0.1                                    # m/s, before and after

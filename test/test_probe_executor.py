@@ -1,6 +1,6 @@
-"""The executor probe (replan_ros/benchmarks/probe_executor.py) in real child processes over DDS:
-rclpy's SingleThreadedExecutor runs every case under both spin modes and stops on SIGINT, and
-the probe reports the EventsExecutor's stall (issue 17) instead of hanging. The last test pins
+"""The executor probe (replan_experiments/benchmarks/probe_executor.py) in real child processes
+over DDS: rclpy's SingleThreadedExecutor runs every case under both spin modes and stops on
+SIGINT, and the probe reports the EventsExecutor's stall instead of hanging. The last test pins
 that finding to the rclpy of requirements.txt: when it fails after an upgrade, the
 EventsExecutor is worth another trial (docs/ARCHITECTURE.md, "Per-tick budget")."""
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-from replan_ros.benchmarks import probe_executor
+from replan_experiments.benchmarks import probe_executor
 
 
 def test_single_threaded_executor_runs_every_case(ros_domain):

@@ -1,7 +1,7 @@
-"""scripts/experiments.sh --ray (issue 32): the runs of a plan as tasks on a real Ray cluster,
-started by the test in network and process namespaces of its own with only the loopback up
-(``replan_ros.benchmarks.loopback``), so that no cluster traffic leaves the machine and nothing
-of the cluster outlives the call. The graphs run in that namespace, on domains from the
+"""scripts/experiments.sh --ray: the runs of a plan as tasks on a real Ray cluster, started by
+the test in network and process namespaces of its own with only the loopback up
+(``replan_experiments.benchmarks.loopback``), so that no cluster traffic leaves the machine and
+nothing of the cluster outlives the call. The graphs run in that namespace, on domains from the
 session's reserved one up (the Ray runner's per-node pool)."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from harness import REPO_ROOT, descends_from, experiments, graph_env
 
 pytest.importorskip('ray', reason='Ray is optional: scripts/setup.sh --with-ray')
 
-from replan_ros.benchmarks.loopback import command as loopback
+from replan_experiments.benchmarks.loopback import command as loopback
 
 # Fields of metrics.json measured on the wall clock (times, real-time factors, solve times,
 # the re-plan path's latency) or on the processes (peak memory): they differ between any two
@@ -133,7 +133,7 @@ def scenario_processes(ancestor: int) -> dict[int, int]:
             status = (entry / 'status').read_text()
         except OSError:
             continue
-        if b'replan_ros.experiments.scenario' in cmdline and b'-m' in cmdline:
+        if b'replan_experiments.scenario' in cmdline and b'-m' in cmdline:
             pid = int(entry.name)
             if descends_from(pid, ancestor):
                 found[pid] = next(int(line.split()[1]) for line in status.splitlines()

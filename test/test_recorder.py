@@ -26,7 +26,8 @@ from sensor_msgs.msg import JointState, PointCloud2, PointField
 from test_launch import LaunchProcess
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
-from replan_ros.recording.bag_io import BagWriter, iter_decoded, qos_profiles_yaml, recover
+from replan_ros.recording.bag_io import iter_decoded, qos_profiles_yaml
+from replan_ros.recording.bag_writer import BagWriter, recover
 from replan_ros.transport.on_demand import helper_name
 from replan_ros.transport.qos import CONTACTS, LATCHED, SENSOR
 

@@ -10,7 +10,7 @@ from conftest import CONFIG_DIR
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 
-from replan_ros.benchmarks.tick_table import OVERLAPPED
+from replan_experiments.benchmarks.tick_table import OVERLAPPED
 from replan_ros.messages.stamps import stamp_to_sec
 from replan_ros.telemetry import diagnostics, tick_budget
 from replan_ros.telemetry.tick_budget import parse_diagnostic_values

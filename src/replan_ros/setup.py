@@ -50,7 +50,6 @@ setup(
             'recorder_node = replan_ros.nodes.recorder_node:main',
             'replay = replan_ros.tools.replay:main',
             'rerun = replan_ros.tools.rerun:main',
-            'scenario = replan_ros.experiments.scenario:main',
             'cmd_vel = replan_ros.tools.cmd_vel:main',
             'push = replan_ros.tools.push:main',
             'topic = replan_ros.tools.topic:main',

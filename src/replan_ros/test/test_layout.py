@@ -1,5 +1,7 @@
-"""The package map of docs/ARCHITECTURE.md ("Packages: the map"): what each sub-package of
-replan_ros may import, checked on every import statement, and replan_core free of ROS."""
+"""The package map of docs/ARCHITECTURE.md ("Packages: the map"), checked on every import
+statement, those inside functions too: what each sub-package of replan_ros may import;
+replan_core free of ROS; the runtime packages (replan_core, replan_ros, their tests) free of
+replan_experiments, matplotlib and Ray; no import circle in any of the three packages."""
 
 from __future__ import annotations
 
@@ -11,20 +13,24 @@ import pytest
 SRC = Path(__file__).resolve().parents[2]
 PACKAGE = SRC / 'replan_ros' / 'replan_ros'
 CORE = SRC / 'replan_core' / 'replan_core'
+EXPERIMENTS = SRC / 'replan_experiments' / 'replan_experiments'
+PACKAGES = {'replan_core': CORE, 'replan_ros': PACKAGE, 'replan_experiments': EXPERIMENTS}
 # Sub-package -> the replan_ros parts it may import.
 ALLOWED = {
     'messages': set(), 'transport': set(), 'telemetry': set(), 'params': set(),
-    'recording': set(),
+    'recording': {'messages'},
     'view': {'messages', 'transport', 'params', 'recording', 'nodes.node_main'},
     'nodes': {'messages', 'transport', 'telemetry', 'params', 'recording', 'view'},
     'launch': {'transport', 'params'},
     'tools': {'messages', 'transport', 'params', 'recording', 'launch'},
-    'experiments': {'messages', 'params', 'recording', 'launch', 'tools'},
-    'benchmarks': None,       # anything
 }
+# What only the experiments may use: a node, a tool or a runtime test that imports one of these
+# would need the plotting and cluster dependencies to run the robot.
+RUNTIME_FORBIDDEN = ('replan_experiments', 'matplotlib', 'ray')
 
 
 def _imports(path: Path) -> list[str]:
+    """Every name an import statement of ``path`` names, the module's and ``module.name``."""
     names = []
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.module:
@@ -37,6 +43,79 @@ def _imports(path: Path) -> list[str]:
 def _part(path: Path) -> str:
     rel = path.relative_to(PACKAGE)
     return rel.parts[0] if len(rel.parts) > 1 else rel.stem
+
+
+def _modules() -> dict[str, Path]:
+    """Dotted module name -> file, of the three packages (a package is its __init__.py)."""
+    out = {}
+    for root in PACKAGES.values():
+        for path in root.rglob('*.py'):
+            rel = path.relative_to(root.parent).with_suffix('')
+            parts = rel.parts[:-1] if rel.name == '__init__' else rel.parts
+            out['.'.join(parts)] = path
+    return out
+
+
+def _module_imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """The modules of the three packages that ``name`` imports (relative imports resolved;
+    ``from package import module`` is the module, ``from module import name`` the module)."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            base = node.module or ''
+            if node.level:
+                here = name.split('.') if path.name == '__init__.py' else name.split('.')[:-1]
+                here = here[:len(here) - node.level + 1]
+                base = '.'.join([*here, base] if base else here)
+            for alias in node.names:
+                full = f'{base}.{alias.name}'
+                out.add(full if full in modules else base)
+        elif isinstance(node, ast.Import):
+            out.update(alias.name for alias in node.names)
+    return {target for target in out if target in modules and target != name}
+
+
+def import_circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The groups of two or more modules that import each other, directly or through others
+    (the strongly connected components of ``graph``, iterative Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    circles = []
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, targets = work[-1]
+            target = next(targets, None)
+            if target is not None:
+                if target not in index:
+                    index[target] = low[target] = len(index)
+                    stack.append(target)
+                    on_stack.add(target)
+                    work.append((target, iter(sorted(graph.get(target, ())))))
+                elif target in on_stack:
+                    low[node] = min(low[node], index[target])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                group = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    group.append(member)
+                    if member == node:
+                        break
+                if len(group) > 1:
+                    circles.append(sorted(group))
+    return circles
 
 
 def test_the_root_holds_only_the_sub_packages():
@@ -52,8 +131,6 @@ def test_the_root_holds_only_the_sub_packages():
 def test_each_module_imports_only_what_its_package_may(path):
     part = _part(path)
     allowed = ALLOWED[part]
-    if allowed is None:
-        return
     bad = []
     for name in _imports(path):
         if not name.startswith('replan_ros.'):
@@ -69,8 +146,31 @@ def test_the_core_imports_no_ros():
     for path in CORE.rglob('*.py'):
         for name in _imports(path):
             root = name.split('.')[0]
-            assert root not in ('rclpy', 'replan_ros') and not root.endswith('_msgs'), \
-                f'{path.name} imports {name}'
+            assert root not in ('rclpy', 'replan_ros', 'replan_experiments') \
+                and not root.endswith('_msgs'), f'{path.name} imports {name}'
+
+
+def test_the_runtime_packages_and_their_tests_import_no_experiment_code():
+    bad = []
+    for package in ('replan_core', 'replan_ros'):
+        for path in sorted((SRC / package).rglob('*.py')):
+            names = {name.split('.')[0] for name in _imports(path)}
+            bad += [f'{path.relative_to(SRC)}: {name}'
+                    for name in sorted(names & set(RUNTIME_FORBIDDEN))]
+    assert not bad, '\n'.join(bad)
+
+
+def test_no_import_circle_in_any_package():
+    modules = _modules()
+    graph = {name: _module_imports(name, path, modules) for name, path in modules.items()}
+    circles = import_circles(graph)
+    assert not circles, '\n'.join(' <-> '.join(group) for group in circles)
+
+
+def test_the_circle_finder_finds_circles_through_other_modules():
+    graph = {'a': {'b'}, 'b': {'c'}, 'c': {'a', 'd'}, 'd': set(), 'e': {'e', 'd'}}
+    assert import_circles(graph) == [['a', 'b', 'c']]
+    assert import_circles({'a': {'b'}, 'b': set()}) == []
 
 
 NODE_LINES = 400        # a node converts messages, calls the core and publishes
@@ -79,7 +179,7 @@ MODULE_LINES = 700
 
 def test_nodes_stay_thin_and_modules_readable():
     too_long = []
-    for path in sorted([*PACKAGE.rglob('*.py'), *CORE.rglob('*.py')]):
+    for path in sorted(p for root in PACKAGES.values() for p in root.rglob('*.py')):
         lines = len(path.read_text().splitlines())
         limit = NODE_LINES if path.name.endswith('_node.py') else MODULE_LINES
         if lines > limit:

@@ -7,9 +7,9 @@ truth), the controller decodes them, publishes ``joint_torque_cmd`` and its esti
 ``contacts``), and the sim decodes the command: all on the lock-step chain or beside it. Each
 message through rclpy's Python classes costs a Python object per field both ways: 12-27 us
 per message to build and serialize or to decode, against 1-7 us by hand, on an idle core
-(``python -m replan_ros.benchmarks.bench_msgs``); in the running graph the difference was worth
-about a fifth of the real-time factor (docs/ARCHITECTURE.md, "Per-tick budget"). A re-plan's
-``com_plan`` (201 points over 8 s) is about 1800 Python message objects: building and
+(``python -m replan_experiments.benchmarks.bench_msgs``); in the running graph the difference
+was worth about a fifth of the real-time factor (docs/ARCHITECTURE.md, "Per-tick budget"). A
+re-plan's ``com_plan`` (201 points over 8 s) is about 1800 Python message objects: building and
 serializing it took the mpc node 4.6 ms and deserializing it took the controller 4.4 ms,
 against a 2 ms solve (docs/ARCHITECTURE.md, "Re-plan path").
 

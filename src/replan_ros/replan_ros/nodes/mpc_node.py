@@ -260,8 +260,8 @@ class MpcNode(Node):
 
     def _publish_plan(self, t: float, res: MpcResult) -> None:
         # Serialized by hand (messages.com_plan, messages.path: 0.19 ms against 4.05 ms through
-        # rclpy's messages, python -m replan_ros.benchmarks.bench_msgs), the controller's com_plan
-        # first: the re-plan waits for it.
+        # rclpy's messages, python -m replan_experiments.benchmarks.bench_msgs), the controller's
+        # com_plan first: the re-plan waits for it.
         plan = res.plan
         stamp_ns = sec_to_ns(t)                   # exactly the footholds' stamp
         self.com_plan_pub.publish(encode_com_plan(plan, stamp_ns, WORLD_FRAME))

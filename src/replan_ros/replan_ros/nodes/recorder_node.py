@@ -52,12 +52,12 @@ from replan_ros.nodes.node_main import refuse_configuration, run_node
 from replan_ros.params import ConfigError, declare_node_parameters
 from replan_ros.params.robot import node_robot
 from replan_ros.recording.bag_io import (
-    BagWriter,
     has_header,
     message_definition,
     normalize_type_name,
     qos_profiles_yaml,
 )
+from replan_ros.recording.bag_writer import BagWriter
 from replan_ros.recording.run_metadata import arrival_time, bag_path, run_records
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.on_demand import OnDemandSubscriptions

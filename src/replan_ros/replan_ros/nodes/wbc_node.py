@@ -262,7 +262,7 @@ class WbcNode(Node):
 
     def _on_com_plan(self, data: bytes) -> None:
         # Raw: decoding the 201 points from the bytes takes 0.29 ms, through rclpy's message
-        # 4.38 ms (python -m replan_ros.benchmarks.bench_msgs).
+        # 4.38 ms (python -m replan_experiments.benchmarks.bench_msgs).
         decoded = self.inputs.decoded(com_plan_from_cdr, data, 'com_plan')
         if decoded is not None:
             self._answer_held(self.protocol.add_com_plan(*decoded))

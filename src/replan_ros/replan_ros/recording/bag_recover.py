@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from replan_ros.recording.bag_dir import METADATA_FILE, write_directory_metadata
-from replan_ros.recording.bag_io import recover
+from replan_ros.recording.bag_writer import recover
 
 
 def default_output(bag: Path) -> Path:

@@ -11,7 +11,6 @@ import pytest
 from replan_core.estimator import EstimatorParams
 from replan_core.sim_world import STANDING_POSE, TERRAINS, ActuatorParams
 from replan_ros import params
-from replan_ros.experiments.scenario import check_scenario, parse_scenario
 from replan_ros.launch.param_files import check_run_files
 from replan_ros.params import ConfigError, Source, check_run, resolve, sources_from_argv
 
@@ -233,44 +232,6 @@ def test_sources_from_a_node_command_line(tmp_path):
     assert resolved.values['gait']['sequence'] == ['lf', 'rf', 'lh', 'rh']
     with pytest.raises(ConfigError, match=r'command line \(-p\): gait.replan_window = 0'):
         resolve(sources_from_argv([*argv, '-p', 'replan_window:=0'], 'gait'), ['gait'])
-
-
-# ------------------------------------------------------------------------------ scenarios
-def _scenario_error(text: str, extra=()) -> str:
-    scenario = parse_scenario(text, 'sc.yaml')
-    with pytest.raises(ConfigError) as info:
-        check_scenario(scenario, CONFIG, extra)
-    return str(info.value)
-
-
-def test_scenario_terrain_in_params_conflicts_with_the_top_level_terrain(tmp_path):
-    message = _scenario_error('duration: 5\nparams:\n  sim: {terrain: step_down}\n')
-    assert message.startswith("sc.yaml: params.sim.terrain = 'step_down' conflicts with the "
-                              'top-level terrain (flat, the default')
-    assert 'top-level terrain: key' in message
-    message = _scenario_error('duration: 5\nterrain: rough\n'
-                              'params:\n  sim: {terrain_step_height: 0.2}\n')
-    assert 'params.sim.terrain_step_height = 0.2 conflicts with the top-level terrain (rough)' \
-        in message
-    extra = tmp_path / 'extra.yaml'
-    extra.write_text('sim:\n  ros__parameters:\n    terrain: step_up\n')
-    assert _scenario_error('duration: 5\n', [extra]).startswith(
-        f"{extra}: sim.terrain = 'step_up' conflicts with the top-level terrain")
-
-
-def test_scenario_params_and_terrain_are_checked():
-    assert _scenario_error('duration: 5\nparams:\n  gait: {replan_window: 9}\n') == (
-        'sc.yaml (params): gait.replan_window = 9 is out of range [1, 8]')
-    assert 'sim.terrain_height = 0.05 is not a parameter of sim (did you mean ' in \
-        _scenario_error('duration: 5\nterrain: {type: step_up, height: 0.05}\n')
-    check_scenario(parse_scenario('duration: 5\nterrain: {type: step_up, step_height: 0.05}\n'
-                                  'params:\n  gait: {replan_window: 2}\n', 'sc.yaml'), CONFIG)
-
-
-@pytest.mark.parametrize('path', sorted((CONFIG / 'scenarios').glob('*.yaml')),
-                         ids=lambda p: p.stem)
-def test_shipped_scenarios_pass(path):
-    check_scenario(parse_scenario(path.read_text(), str(path)), CONFIG)
 
 
 def _same_types(a, b) -> list[str]:

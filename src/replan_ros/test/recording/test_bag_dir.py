@@ -14,7 +14,8 @@ from std_msgs.msg import String
 
 from replan_ros.recording import bag_io
 from replan_ros.recording.bag_dir import METADATA_FILE, main, write_directory_metadata
-from replan_ros.recording.bag_io import BagWriter, recover, summarize
+from replan_ros.recording.bag_io import summarize
+from replan_ros.recording.bag_writer import BagWriter, recover
 
 STRING = 'std_msgs/msg/String'
 ODOM = 'nav_msgs/msg/Odometry'

@@ -15,13 +15,8 @@ from sensor_msgs.msg import JointState, PointCloud2, PointField
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from replan_ros.recording import bag_io
-from replan_ros.recording.bag_io import (
-    SEPARATOR,
-    BagWriter,
-    iter_decoded,
-    message_definition,
-    recover,
-)
+from replan_ros.recording.bag_io import SEPARATOR, iter_decoded, message_definition
+from replan_ros.recording.bag_writer import BagWriter, recover
 from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
 

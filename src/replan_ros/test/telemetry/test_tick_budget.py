@@ -1,19 +1,11 @@
 """TickBudget: phases add up within a tick, ticks are kept in a ring, figures per period and
-for the run, the log line and the /diagnostics keys read back; the tick_budget tool's table."""
+for the run, the log line and the /diagnostics keys read back (the tick_budget tool's table:
+replan_experiments' test_tick_table.py)."""
 
 from __future__ import annotations
 
-import math
-
 import pytest
 
-from replan_ros.benchmarks.tick_table import (
-    OVERLAPPED,
-    OVERLAPPED_PREFIX,
-    ROUND_TRIP,
-    SIM_OWN,
-    table,
-)
 from replan_ros.telemetry.tick_budget import TickBudget, parse_diagnostic_values, parse_log_line
 
 
@@ -68,28 +60,6 @@ def test_log_line_and_diagnostic_values_read_back():
     assert parse_diagnostic_values(values) == {
         'sim_x': {'median_ms': 0.25, 'mean_ms': 0.25},
         'sim_y': {'median_ms': 0.0, 'mean_ms': 0.0}}
-
-
-def test_table_shares_add_up_to_the_tick():
-    def stats(mean):
-        return {'median_ms': mean, 'mean_ms': mean}
-    sim = {'ticks': 100, 'phases': {key: stats(0.1) for key, _ in SIM_OWN + OVERLAPPED
-                                    if key.startswith('sim_')}}
-    sim['phases'].update({'sim_wait': stats(2.0), 'sim_tick': stats(3.0),
-                          'sim_transport_cmd': stats(0.1), 'sim_wake': stats(0.1)})
-    wbc = {'ticks': 100, 'phases': {key: stats(0.1) for key, _ in ROUND_TRIP + OVERLAPPED
-                                    if key.startswith('wbc_')}}
-    rows, totals = table(sim, wbc)
-    top_level = [share for label, _, _, share in rows
-                 if not label.startswith('  ') and share == share]     # not the headings
-    assert math.fsum(top_level) == pytest.approx(1.0)
-    overlapped = [mean for label, _, mean, _ in rows if label.startswith(OVERLAPPED_PREFIX)]
-    assert math.fsum(overlapped) == pytest.approx(0.1 * len(OVERLAPPED))
-    assert totals['overlapped_ms'] == pytest.approx(0.1 * len(OVERLAPPED))
-    inside_wait = [mean for label, _, mean, _ in rows
-                   if label.startswith('  ') and not label.startswith(OVERLAPPED_PREFIX)]
-    assert math.fsum(inside_wait) == pytest.approx(totals['round_trip_ms'])
-    assert totals['tick_ms_mean'] == 3.0
 
 
 def test_delivery_from_the_message_info():

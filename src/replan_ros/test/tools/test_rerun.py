@@ -9,7 +9,7 @@ from geometry_msgs.msg import TwistStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 
-from replan_ros.recording.bag_io import BagWriter
+from replan_ros.recording.bag_writer import BagWriter
 from replan_ros.tools.rerun import (
     compare_trajectories,
     load_run,

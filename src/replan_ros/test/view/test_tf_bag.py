@@ -22,7 +22,8 @@ from replan_core.types import BaseState, ContactState, JointState
 from replan_ros.messages.contacts import contacts_to_msg
 from replan_ros.messages.joint_state import joint_state_to_msg
 from replan_ros.messages.odom import encode_odom, odom_fields_from_cdr, odom_from_base_state
-from replan_ros.recording.bag_io import BagWriter, qos_profiles_yaml
+from replan_ros.recording.bag_io import qos_profiles_yaml
+from replan_ros.recording.bag_writer import BagWriter
 from replan_ros.transport.qos import LATCHED
 from replan_ros.view.state_view import (
     COP_MARGIN_TOPIC,

@@ -1,0 +1,259 @@
+"""The text of the robots page (docs/robots.md) from the data ``robots_page.main`` collects
+(``robots.json``: meta, facts, robots): a table of each robot's facts and derived parameters, a
+table of what its runs measured, and how each figure is defined. Falls are reported as falls;
+a run that failed to produce metrics is reported as such, never as a figure."""
+
+from __future__ import annotations
+
+_AXES = {'forward': ('forward', 'm/s'), 'lateral': ('lateral', 'm/s'), 'yaw': ('yaw', 'rad/s')}
+
+
+def _num(value, digits: int = 3) -> str:
+    """A number to ``digits`` significant figures; a list value by value; '-' for None."""
+    if value is None:
+        return '-'
+    if isinstance(value, (list, tuple)):
+        return '[' + ', '.join(_num(v, digits) for v in value) + ']'
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return str(value)
+    return f'{value:.{digits}g}'
+
+
+def _unit(key: str) -> str:
+    """The unit of parameter ``node.name`` from its declaration (``params.tables``), the one
+    source of its unit; '' for one it does not know."""
+    from replan_ros.params.tables import TABLES, table
+    node, _, name = key.partition('.')
+    spec = table(node).get(name) if node in TABLES else None
+    return spec.unit if spec is not None else ''
+
+
+def _fall(row: dict) -> str:
+    at = row.get('fall_time_s')
+    return '**fell**' + (f' at {at:.1f} s' if at is not None else '')
+
+
+def _not_measured(row: dict | None) -> str | None:
+    """What a cell says of a run that measured nothing: none, failed, or fell; else None."""
+    if not row:
+        return '-'
+    if not row.get('ok'):
+        return 'run failed'
+    if row.get('fell'):
+        return _fall(row)
+    return None
+
+
+def walk_cell(row: dict | None, unit: str) -> str:
+    """Achieved of commanded (and the difference), or the fall, or the failure."""
+    if (said := _not_measured(row)) is not None:
+        return said
+    if row.get('achieved') is None:
+        return 'no figure'
+    achieved, commanded = row['achieved'], row['commanded']
+    partial = ' (no whole crawl cycle: after the settling)' if row.get('cycles') == 0 else ''
+    return (f'{_num(achieved)} of {commanded:g} {unit} '
+            f'({100.0 * (achieved - commanded) / commanded:+.1f} %){partial}')
+
+
+def stand_cell(row: dict | None) -> str:
+    if (said := _not_measured(row)) is not None:
+        return said
+    if row.get('travel_m') is None:
+        return 'no truth in the bag'
+    start, end = row['drift_window_s']
+    last = row.get('last_touchdown_s')
+    return (f'{100.0 * row["travel_m"]:.2f} cm ({start:g}-{end:g} s); '
+            f'{row["touchdowns"]} touchdowns' + (f' (last at {last:.2f} s)' if last is not None
+                                                else ''))
+
+
+def response_cell(row: dict | None, axis: str) -> str:
+    """Each whole crawl cycle after the change to ``axis``'s set-point, in per cent of it;
+    the first within 10 % and every later one within 5 % are met, else the cell says which
+    is not."""
+    if (said := _not_measured(row)) is not None:
+        return said
+    cell = row['axes'].get(axis)
+    if not cell or not cell['shares']:
+        return 'no whole cycle'
+    shares = ' '.join(f'{100.0 * x:.0f}' for x in cell['shares'])
+    misses = []
+    if cell['first_error'] > 0.10:
+        misses.append('first')
+    if cell['later_error'] is not None and cell['later_error'] > 0.05:
+        misses.append('later')
+    return f'{shares} %' + (f' (**{" and ".join(misses)} off**)' if misses else '')
+
+
+def push_cell(push: dict | None, skipped: str | None) -> str:
+    """The largest dv survived at every phase, its impulse, and the level that felled it."""
+    if push is None:
+        return f'not run: {skipped}' if skipped else '-'
+    levels = push['levels']
+    by_dv = {level['dv_mps']: level for level in levels}
+    parts = []
+    if push['survived_dv'] is None:
+        parts.append(f'none of the levels tried (< {levels[0]["dv_mps"]:g} m/s)'
+                     if levels else 'no level tried')
+    else:
+        level = by_dv[push['survived_dv']]
+        parts.append(f'**{push["survived_dv"]:g} m/s** ({level["impulse_ns"]:.1f} N s) at all '
+                     f'{push["phases"]} phases')
+    if push['fell_dv'] is not None:
+        fell = [p['phase'] for p in by_dv[push['fell_dv']]['phases'] if p['fell']]
+        parts.append(f'{push["fell_dv"]:g} m/s fell at phase {", ".join(map(str, fell))} '
+                     f'of {push["phases"]}')
+    elif push['failed']:
+        parts.append(f'a run at {levels[-1]["dv_mps"]:g} m/s failed')
+    elif levels:
+        parts.append(f'the largest level tried ({levels[-1]["dv_mps"]:g} m/s) survived')
+    return '; '.join(parts)
+
+
+def step_cell(steps: list[dict], skipped: str | None) -> str:
+    """The largest share crossed with every smaller one crossed, and what happened above."""
+    if not steps:
+        return f'not run: {skipped}' if skipped else '-'
+    crossed = 0        # the leading run of crossed shares (they rise)
+    while crossed < len(steps) and steps[crossed]['crossed']:
+        crossed += 1
+    best = steps[crossed - 1] if crossed else None
+    rest = []
+    for step in steps[crossed:]:
+        what = ('run failed' if not step['ok'] else _fall(step) if step['fell']
+                else f'stopped at x {step["final_x_m"]:.2f} m of {step["cross_x_m"]:.2f}'
+                if not step['crossed'] else 'crossed')
+        rest.append(f'{step["share"]:g}: {what}')
+    head = (f'**{best["share"]:g}** of the leg ({100.0 * best["height_m"]:.1f} cm)'
+            if best else f'none (< {steps[0]["share"]:g})')
+    return '; '.join([head, *rest])
+
+
+def timing_cells(timing: dict) -> tuple[str, str]:
+    if not timing.get('runs'):
+        return '-', '-'
+    rtf = f'{_num(timing["rtf_median"])} (min {_num(timing["rtf_min"])}; {timing["runs"]} runs)'
+    mpc = (f'{_num(timing["mpc_median_ms"])} ms median, p99 up to '
+           f'{_num(timing["mpc_p99_max_ms"])} ms')
+    return rtf, mpc
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    return ['| ' + ' | '.join(header) + ' |', '|' + '---|' * len(header),
+            *['| ' + ' | '.join(r) + ' |' for r in rows]]
+
+
+def facts_table(facts: dict) -> list[str]:
+    names = list(facts)
+    rows = [['mass kg (model)', *[_num(facts[n]['mass_kg'], 4) for n in names]],
+            ['leg length m', *[_num(facts[n]['leg_length_m']) for n in names]],
+            ['standing height m', *[_num(facts[n]['standing_height_m']) for n in names]],
+            ['CoM height m', *[_num(facts[n]['com_height_m']) for n in names]],
+            ['smallest joint inertia kg m^2',
+             *[_num(facts[n]['min_joint_inertia'], 2) for n in names]],
+            ['crawl cycle s (4 x (swing + four feet))', *[_num(facts[n]['cycle_s']) for n in
+                                                          names]]]
+    parameters = list(facts[names[0]]['parameters']) if names else []
+    for p in parameters:
+        unit = _unit(p)
+        rows.append([f'`{p}`' + (f' {unit}' if unit else ''),
+                     *[_num(facts[n]['parameters'].get(p)) for n in names]])
+    return _table(['', *names], rows)
+
+
+def results_table(robots: dict) -> list[str]:
+    names = list(robots)
+    rows = []
+    for axis, (label, unit) in _AXES.items():
+        rows.append([f'{label}: achieved of commanded',
+                     *[walk_cell(robots[n]['walks'].get(axis), unit) for n in names]])
+    for axis, (label, _unit) in _AXES.items():
+        rows.append([f'response, {label}: each whole cycle after the change, % of set-point',
+                     *[response_cell(robots[n].get('response'), axis) for n in names]])
+    rows.append(['standing from launch: trunk travel, touchdowns',
+                 *[stand_cell(robots[n]['stand']) for n in names]])
+    rows.append(['largest lateral push survived at every phase (dv = impulse / mass)',
+                 *[push_cell(robots[n]['push'], robots[n]['skipped']) for n in names]])
+    rows.append(['blind step down crossed (share of leg length)',
+                 *[step_cell(robots[n]['step_down'], robots[n]['skipped']) for n in names]])
+    cells = [timing_cells(robots[n]['timing']) for n in names]
+    rows.append(['real-time factor, median over its runs', *[c[0] for c in cells]])
+    rows.append(['MPC solve time', *[c[1] for c in cells]])
+    return _table(['', *names], rows)
+
+
+def how_section(meta: dict) -> list[str]:
+    tests = meta['tests']
+    stand, push, step = tests['stand'], tests['push'], tests['step_down']
+    response = tests['response']
+    return [
+        '## How each figure is made', '',
+        f'- **Set-points**: per robot in the plan. Each walk is its own run from standing '
+        f'(`{tests["walk"]["scenario"]}`, {tests["walk"]["duration"]:g} s), achieved = the '
+        'mean body-frame velocity of the simulator\'s truth over the last whole crawl cycles '
+        '(each from a true touchdown of a leg to its next: the crawl\'s sway and surge '
+        'average out; the trunk takes a few cycles from standing to get to the speed, which '
+        'the steady state leaves out; the run\'s `velocity_tracking`, `achieved_steady`, '
+        '`cycle_velocities`; yaw: the turn rate).',
+        f'- **Response**: one run of `{response["scenario"]}` from standing: the robot\'s '
+        f'forward set-point, then its lateral one, then its yaw one, each for '
+        f'{response["segment_cycles"]} of its crawl cycles; each cell gives the commanded '
+        'component\'s mean over each whole crawl cycle after the change (a true touchdown of a '
+        'leg to its next, the first starting at the first touchdown after the change), in per '
+        'cent of the set-point. Met: the first cycle within 10 % and every later one within '
+        '5 %; a cell says which is not.',
+        f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s '
+        f'from launch; travel = the largest horizontal distance of the trunk on the truth from '
+        f'its place at {stand["drift_from"]:g} s; touchdowns = true contact flags that rise '
+        'after it.',
+        f'- **Pushes**: walking forward at the set-point, one push of {push["push_duration"]:g} s '
+        f'to {push["direction"]} (world frame, the robot heading along x) of force = mass x dv / '
+        f'{push["push_duration"]:g} s, mass the model\'s (the table above; the realistic '
+        'profile\'s payload, `sim.payload_mass`, comes on top, so the simulated body gains a '
+        f'little less than dv); at {push["phases"]} phases over the robot\'s crawl cycle, the '
+        f'first {push["first_push_cycles"]:g} cycles after the walk starts, then '
+        f'{push["after_push_cycles"]:g} cycles of walking; levels {push["levels"]} m/s one '
+        'after the other, all phases at once, up to the first level that fells it at some '
+        'phase.',
+        f'- **Step down**: `{step["scenario"]}` with a step down of each share '
+        f'{step["shares"]} of the leg length, its edge {step["step_x_legs"]:g} leg lengths '
+        'ahead of the spawn, walking forward at the set-point; crossed = no fall and the base '
+        f'{step["cross_legs"]:g} leg lengths past the edge at the end (a run of '
+        f'{step["time_margin"]:g} times the time the set-point takes to get there). The planner '
+        'plans on flat ground: only the haptic touchdown finds the lower ground. The table '
+        'gives the largest share with every smaller one crossed too.',
+        '- **Real-time factor and MPC solve time**: from every completed run of the robot '
+        '(`real_time_factor`: sim time over wall time of the graph; the MPC\'s solve time from '
+        'its diagnostics: the median of the runs\' medians, and the largest p99). They depend '
+        f'on the machine\'s load: {meta.get("jobs", 1)} runs at a time here.',
+        '- A robot that falls walking forward on flat ground is not pushed or sent down a step '
+        '(its row says why).',
+    ]
+
+
+def render_page(data: dict) -> str:
+    """The page's markdown from ``robots.json``'s ``meta``, ``facts`` and ``robots``."""
+    meta, facts, robots = data['meta'], data['facts'], data['robots']
+    lines = [
+        '# Robots: what each does on the realistic profile', '',
+        f'Generated by `{meta["command"]}` on {meta["date"]} ({meta["machine"]}), revision '
+        f'{meta["revision"]}, code fingerprint {meta["code"]}: {meta["runs"]} runs '
+        f'({meta["reused"]} read from earlier calls), this call {meta["wall_time_min"]} min. '
+        f'Profile `{meta["profile"]}`, sim noise seed {meta["seed"]}, plan '
+        f'`{meta["plan_file"]}`. Do not edit by hand: every figure comes from the robots\' '
+        'models, the launcher\'s derivation (`launch/param_files.py` `robot_parameters`) and '
+        'the runs (`replan_experiments/robots_page.py`, `robots_plan.py`, '
+        '`robots_render.py`; docs/robot_files.md for the files and the scaling rules).', '']
+    if meta.get('quick'):
+        lines += ['**Quick run** (`--quick`): one short run of each kind, to check that the '
+                  'page is produced; its figures are not the robots\'.', '']
+    lines += ['## Facts and derived parameters', '',
+              'Facts measured on each model in its standing pose (`robot_facts`); parameters as '
+              f'the nodes get them on the `{meta["profile"]}` profile.', '',
+              *facts_table(facts), '',
+              '## Measured', '', *results_table(robots), '', *how_section(meta)]
+    if meta.get('failures'):
+        lines += ['', f'{len(meta["failures"])} runs failed to produce metrics:',
+                  *[f'- `{f}`' for f in meta['failures']]]
+    return '\n'.join(lines) + '\n'

@@ -1,0 +1,146 @@
+"""The robots page's plan (config/robots_page.yaml) and the scenario documents it gives each
+robot: forces from the mass, push times from the derived crawl cycle, steps from the leg
+length. No graph runs."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+
+from replan_experiments.plan import ExperimentError
+from replan_experiments.robot_info import RobotInfo, robot_info
+from replan_experiments.robots_plan import (
+    listed_parameters,
+    load_robots_plan,
+    push_doc,
+    push_force,
+    push_times,
+    stand_doc,
+    step_doc,
+    step_geometry,
+    walk_doc,
+)
+
+CONFIG = Path(__file__).resolve().parents[3] / 'config'
+PLAN = CONFIG / 'robots_page.yaml'
+WALK = {'name': 'exp_walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0, 0]}]}
+
+
+def synthetic(name: str = 'go1', mass: float = 10.0, leg: float = 0.5, swing: float = 0.4,
+              four_feet: float = 0.1) -> RobotInfo:
+    return RobotInfo(name, mass, leg, 0.3, 0.28, 0.005,
+                     {'gait': {'swing_duration': swing, 'four_feet_duration': four_feet,
+                               'max_linear_x': 0.2}})
+
+
+def test_the_committed_plan_loads_with_the_six_robots():
+    full = load_robots_plan(PLAN)
+    assert list(full.robots) == ['hyq', 'anymal_c', 'go1', 'b1', 'anymal_b', 'a1', 'go2']
+    assert full.robots['go1'] == {'forward': 0.05, 'lateral': 0.033, 'yaw': 0.067}
+    assert full.profile == 'realistic'
+    quick = load_robots_plan(PLAN, quick=True, only=['go1'])
+    assert list(quick.robots) == ['go1']
+    assert quick.tests['push']['phases'] < full.tests['push']['phases']
+
+
+def _mutated(tmp_path: Path, change) -> Path:
+    doc = yaml.safe_load(PLAN.read_text())
+    change(doc)
+    path = tmp_path / 'plan.yaml'
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@pytest.mark.parametrize('change, key', [
+    (lambda d: d['full']['push'].update(level=[0.2]), 'full.push.level: unknown key'),
+    (lambda d: d['full']['push'].pop('phases'), 'full.push.phases: missing'),
+    (lambda d: d['full']['push'].update(levels=[0.3, 0.2]), 'full.push.levels: must rise'),
+    (lambda d: d['full']['push'].update(phases=0), 'full.push.phases: expected a whole'),
+    (lambda d: d['full']['step_down'].update(shares=[0.05, 'x']), 'full.step_down.shares[1]'),
+    (lambda d: d['full']['stand'].update(drift_from=20.0), 'full.stand.drift_from'),
+    (lambda d: d['full'].pop('walk'), 'full.walk: missing'),
+    (lambda d: d['robots']['go1'].pop('yaw'), 'robots.go1.yaw: missing'),
+    (lambda d: d['robots']['go1'].update(forward=-0.1), 'robots.go1.forward: expected a pos'),
+    (lambda d: d.update(robot={}), 'robot: unknown key'),
+    (lambda d: d.update(parameters=['swing_duration']), 'parameters[0]: expected node.key'),
+])
+def test_a_bad_plan_is_one_line_naming_the_file_and_the_key(tmp_path, change, key):
+    path = _mutated(tmp_path, change)
+    with pytest.raises(ExperimentError) as err:
+        load_robots_plan(path)
+    message = str(err.value)
+    assert '\n' not in message
+    assert message.startswith(f'{path}: ') and key in message, message
+
+
+def test_an_unknown_robot_or_parameter_is_refused_by_name(tmp_path):
+    with pytest.raises(ExperimentError, match=r'--robot solo12: not in .*robots_page.yaml'):
+        load_robots_plan(PLAN, only=['solo12'])
+    plan = load_robots_plan(_mutated(tmp_path, lambda d: d.update(
+        parameters=['gait.swing_duration', 'gait.swing_durationn'])))
+    with pytest.raises(ExperimentError, match=r'parameters\[1\]: no node parameter '
+                                              r'gait.swing_durationn'):
+        listed_parameters(synthetic(), plan)
+
+
+def test_push_force_follows_the_mass_and_times_the_crawl_cycle():
+    plan = load_robots_plan(PLAN)
+    cfg = plan.tests['push']
+    light, heavy = synthetic(mass=10.0), synthetic(mass=80.0, swing=0.5, four_feet=0.25)
+    assert light.cycle_s == pytest.approx(2.0) and heavy.cycle_s == pytest.approx(3.0)
+    fx, fy, fz = push_force(light, plan, 0.3)
+    assert (fx, fz) == (0.0, 0.0) and fy == pytest.approx(10.0 * 0.3 / cfg['push_duration'])
+    assert push_force(heavy, plan, 0.3)[1] == pytest.approx(8.0 * fy)
+    for info in (light, heavy):
+        times = push_times(WALK, info, plan)
+        assert len(times) == cfg['phases']
+        assert times[0] == pytest.approx(0.5 + cfg['first_push_cycles'] * info.cycle_s)
+        gaps = {round(b - a, 3) for a, b in itertools.pairwise(times)}
+        assert gaps == {round(info.cycle_s / cfg['phases'], 3)}
+    doc = push_doc(WALK, light, plan, 0.3, push_times(WALK, light, plan)[1])
+    push = doc['events'][-1]
+    assert push['push']['force'][1] == pytest.approx(fy, abs=1e-4)
+    assert doc['events'][0]['cmd_vel'] == [0.05, 0.0, 0.0]            # go1's forward
+    assert doc['duration'] == pytest.approx(push['t'] + cfg['push_duration']
+                                            + cfg['after_push_cycles'] * 2.0, abs=1e-3)
+    assert doc['robot'] == 'go1' and doc['profile'] == 'realistic'
+    assert doc['params']['sim']['noise_seed'] == plan.seed
+
+
+def test_walks_stand_and_step_downs_for_one_robot():
+    plan = load_robots_plan(PLAN)
+    info = synthetic(leg=0.5)
+    lateral = walk_doc(WALK, info, plan, 'lateral')
+    assert lateral['events'] == [{'t': 0.5, 'cmd_vel': [0.0, 0.033, 0.0]}]
+    assert lateral['name'] == 'go1_lateral' and lateral['robot'] == 'go1'
+    assert walk_doc(WALK, info, plan, 'yaw')['events'][0]['cmd_vel'] == [0.0, 0.0, 0.067]
+    stand = stand_doc({'name': 'stand', 'duration': 12.0,
+                       'events': [{'t': 0.0, 'cmd_vel': [0.0, 0.0, 0.0]}]}, info, plan)
+    assert stand['duration'] == plan.tests['stand']['duration'] and stand['robot'] == 'go1'
+    cfg = plan.tests['step_down']
+    for share in cfg['shares']:
+        doc = step_doc(WALK, info, plan, share)
+        geometry = step_geometry(info, plan, share)
+        assert doc['terrain'] == {'type': 'step_down', 'step_height': round(share * 0.5, 4),
+                                  'step_x': round(cfg['step_x_legs'] * 0.5, 4)}
+        assert geometry['cross_x_m'] == pytest.approx((cfg['step_x_legs']
+                                                       + cfg['cross_legs']) * 0.5, abs=1e-4)
+        assert doc['duration'] == pytest.approx(
+            0.5 + cfg['time_margin'] * geometry['cross_x_m'] / 0.05, abs=0.01)
+
+
+def test_robot_info_is_the_launchers_derivation():
+    """Go1's crawl cycle is HyQ's scaled by sqrt(leg length ratio) (the time rule), its mass
+    and leg length the model's (docs/robot_files.md)."""
+    go1, hyq = robot_info(CONFIG, 'go1', 'realistic'), robot_info(CONFIG, 'hyq', 'realistic')
+    assert go1.mass_kg == pytest.approx(13.10, abs=0.01)
+    assert hyq.cycle_s == pytest.approx(3.0)
+    assert go1.cycle_s == pytest.approx(3.0 * math.sqrt(go1.leg_length_m / hyq.leg_length_m),
+                                        rel=1e-9)
+    assert go1.value('sim.payload_mass') < hyq.value('sim.payload_mass') == 5.0
+    parameters = listed_parameters(go1, load_robots_plan(PLAN))
+    assert parameters['mpc.com_height'] == pytest.approx(go1.com_height_m)

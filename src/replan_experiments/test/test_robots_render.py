@@ -1,0 +1,117 @@
+"""The robots page's text from synthetic data (as robots_page.main collects it): the header
+names revision, code fingerprint and command; falls read as falls, failures as failures."""
+
+from __future__ import annotations
+
+from test_robots_plan import PLAN
+
+from replan_experiments.robots_plan import load_robots_plan
+from replan_experiments.robots_render import push_cell, render_page, step_cell
+
+META = {'command': 'scripts/robots_page.sh --robot go1 --robot anymal_c', 'machine': '2 cores',
+        'revision': 'abc1234', 'code': 'feedc0ffee12', 'date': '2026-11-26 02:00 UTC',
+        'wall_time_min': 12.5, 'runs': 30, 'reused': 2, 'quick': False, 'jobs': 2,
+        'failures': ['go1_yaw-123: exit 1: boom'], 'plan_file': 'config/robots_page.yaml',
+        'profile': 'realistic', 'seed': 0, 'tests': load_robots_plan(PLAN).tests}
+
+
+def _facts(mass: float) -> dict:
+    return {'mass_kg': mass, 'leg_length_m': 0.426, 'standing_height_m': 0.274,
+            'com_height_m': 0.255, 'min_joint_inertia': 0.0057, 'cycle_s': 2.347,
+            'parameters': {'gait.swing_duration': 0.3912, 'wbc.swing_kp': [370.1, 370.1, 370.1],
+                           'mpc.com_height': 0.2548}}
+
+
+def _walk(commanded: float, achieved: float | None, fell: bool = False, ok: bool = True
+          ) -> dict:
+    return {'run': 'r', 'ok': ok, 'fell': fell, 'commanded': commanded, 'achieved': achieved,
+            'fall_time_s': 2.9 if fell else None}
+
+
+def _phases(fell_at: list[int], n: int = 4) -> list[dict]:
+    return [{'t': 4.0 + k, 'phase': k, 'ok': True, 'fell': k in fell_at, 'run': 'r'}
+            for k in range(n)]
+
+
+GO1 = {'robot': 'go1', 'skipped': None, 'cycle_s': 2.347,
+       'walks': {'forward': _walk(0.05, 0.0505), 'lateral': _walk(0.033, 0.030),
+                 'yaw': _walk(0.067, None, ok=False)},
+       'stand': {'run': 'r', 'ok': True, 'fell': False, 'drift_m': 0.0035,
+                 'travel_m': 0.0061, 'drift_window_s': [0.0, 12.0], 'touchdowns': 0,
+                 'last_touchdown_s': None},
+       'response': {'run': 'r', 'ok': True, 'fell': False, 'axes': {
+           'forward': {'shares': [0.93, 0.98, 1.01], 'first_error': 0.07, 'later_error': 0.02,
+                       'overshoot': 0.01},
+           'lateral': {'shares': [0.85, 0.93, 0.99], 'first_error': 0.15, 'later_error': 0.07,
+                       'overshoot': -0.01}}},
+       'push': {'levels': [{'dv_mps': 0.2, 'force_n': 10.48, 'impulse_ns': 2.62,
+                            'phases': _phases([])},
+                           {'dv_mps': 0.3, 'force_n': 15.72, 'impulse_ns': 3.93,
+                            'phases': _phases([])},
+                           {'dv_mps': 0.4, 'force_n': 20.96, 'impulse_ns': 5.24,
+                            'phases': _phases([1, 3])}],
+                'survived_dv': 0.3, 'fell_dv': 0.4, 'failed': False, 'phases': 4},
+       'step_down': [{'share': 0.05, 'height_m': 0.0213, 'cross_x_m': 0.68, 'ok': True,
+                      'fell': False, 'final_x_m': 0.9, 'crossed': True},
+                     {'share': 0.10, 'height_m': 0.0426, 'cross_x_m': 0.68, 'ok': True,
+                      'fell': False, 'final_x_m': 0.9, 'crossed': True},
+                     {'share': 0.15, 'height_m': 0.0639, 'cross_x_m': 0.68, 'ok': True,
+                      'fell': True, 'fall_time_s': 11.2, 'final_x_m': 0.5, 'crossed': False}],
+       'timing': {'runs': 14, 'rtf_median': 1.61, 'rtf_min': 0.82, 'mpc_median_ms': 1.43,
+                  'mpc_p99_max_ms': 9.1}}
+ANYMAL = {'robot': 'anymal_c', 'skipped': 'falls walking forward on flat ground',
+          'cycle_s': 2.9,
+          'walks': {'forward': _walk(0.10, None, fell=True), 'lateral': _walk(0.067, None, True),
+                    'yaw': _walk(0.133, None, fell=True)},
+          'stand': {'run': 'r', 'ok': True, 'fell': True, 'fall_time_s': 3.4},
+          'push': None, 'step_down': [],
+          'timing': {'runs': 4, 'rtf_median': 1.4, 'rtf_min': 1.3, 'mpc_median_ms': 1.6,
+                     'mpc_p99_max_ms': 5.0}}
+
+
+def test_the_page_names_its_revision_code_and_command_and_reports_falls():
+    text = render_page({'meta': META, 'facts': {'go1': _facts(13.1), 'anymal_c': _facts(52.13)},
+                        'robots': {'go1': GO1, 'anymal_c': ANYMAL}})
+    assert 'revision abc1234, code fingerprint feedc0ffee12' in text
+    assert '`scripts/robots_page.sh --robot go1 --robot anymal_c`' in text
+    assert '|  | go1 | anymal_c |' in text
+    assert '| mass kg (model) | 13.1 | 52.13 |' in text
+    assert '| `gait.swing_duration` s | 0.391 | 0.391 |' in text
+    assert '| `wbc.swing_kp` N/m | [370, 370, 370] |' in text
+    assert '0.0505 of 0.05 m/s (+1.0 %)' in text
+    assert '| yaw: achieved of commanded | run failed | **fell** at 2.9 s |' in text
+    assert '0.61 cm (0-12 s); 0 touchdowns |' in text
+    assert '| 93 98 101 % |' in text and '85 93 99 % (**first and later off**)' in text
+    assert '| response, yaw: each whole cycle after the change, % of set-point | no whole cycle' \
+        in text
+    assert '**0.3 m/s** (3.9 N s) at all 4 phases; 0.4 m/s fell at phase 1, 3 of 4' in text
+    assert '**0.1** of the leg (4.3 cm); 0.15: **fell** at 11.2 s' in text
+    assert text.count('not run: falls walking forward on flat ground') == 2
+    assert '1.61 (min 0.82; 14 runs)' in text and '1.43 ms median, p99 up to 9.1 ms' in text
+    assert '- `go1_yaw-123: exit 1: boom`' in text
+    assert '**Quick run**' not in text
+    assert render_page({'meta': {**META, 'quick': True}, 'facts': {'go1': _facts(13.1)},
+                        'robots': {'go1': GO1}}).count('**Quick run**') == 1
+
+
+def test_push_and_step_cells_at_the_edges():
+    first_falls = {**GO1['push'], 'levels': GO1['push']['levels'][:1], 'survived_dv': None,
+                   'fell_dv': 0.2}
+    first_falls['levels'] = [{**first_falls['levels'][0], 'phases': _phases([0])}]
+    assert push_cell(first_falls, None) == ('none of the levels tried (< 0.2 m/s); 0.2 m/s '
+                                            'fell at phase 0 of 4')
+    all_survived = {**GO1['push'], 'fell_dv': None}
+    assert push_cell(all_survived, None).endswith('the largest level tried (0.4 m/s) survived')
+    stopped = [{**GO1['step_down'][0], 'crossed': False, 'final_x_m': 0.4}]
+    assert step_cell(stopped, None) == 'none (< 0.05); 0.05: stopped at x 0.40 m of 0.68'
+    assert step_cell([], 'falls walking forward on flat ground').startswith('not run')
+
+
+def test_a_parameters_unit_is_its_declarations():
+    """The facts table names each parameter's unit from params.tables, the one source of it
+    (a hand-kept table there had left sim.actuator_time_constant without one)."""
+    from replan_experiments.robots_render import _unit
+    assert _unit('sim.actuator_time_constant') == 's'
+    assert _unit('wbc.fz_max') == 'N' and _unit('mpc.zmp_margin') == 'm'
+    assert _unit('wbc.estimator.contact_force_threshold') == 'N'
+    assert _unit('nosuch.node') == '' and _unit('wbc.nosuch') == ''

@@ -1,0 +1,348 @@
+"""The pre-registered verdicts (``stats``: Holm, effects and intervals, the four outcomes; the
+plan's primary blocks and hash, ``plan``; the page's verdict table, ``page``) on numbers
+worked out by hand."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from replan_experiments.findings import readme_table
+from replan_experiments.page import fill_readme, page_verdicts, write_page
+from replan_experiments.plan import (
+    ExperimentError,
+    load_plan,
+    pilot_plan,
+    plan_hash,
+    preregistration,
+)
+from replan_experiments.runs import run_key
+from replan_experiments.stats import (
+    _signed_rank_cdf,
+    binomial_two_sided,
+    exploratory,
+    fisher,
+    hodges_lehmann,
+    holm,
+    mcnemar,
+    outcome,
+    paired_t,
+    primary_sample,
+    verdicts,
+)
+
+CONFIG = Path(__file__).resolve().parents[3] / 'config'
+
+
+def test_holm_step_down_on_a_textbook_example():
+    # p = 0.01, 0.04, 0.03, 0.005 at alpha 0.05, m = 4. Sorted: 0.005 x 4 = 0.02 <= 0.05,
+    # reject; 0.01 x 3 = 0.03 <= 0.05, reject; 0.03 x 2 = 0.06 > 0.05: stop, keep it and
+    # 0.04. Adjusted (monotone): 0.02, 0.03, 0.06, max(0.04 x 1, 0.06) = 0.06.
+    adjusted, rejected = holm([0.01, 0.04, 0.03, 0.005])
+    assert adjusted == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    assert rejected == [True, False, False, True]
+    # A single test is its own family.
+    assert holm([0.049]) == ([0.049], [True])
+
+
+def test_paired_t_mean_interval_and_p():
+    # Differences 1, 2, 3, 4: mean 2.5, sd 1.291, se 0.6455; t(0.975, 3) = 3.1824:
+    # 2.5 +- 2.054; t = 3.873 on 3 df: p = 0.0305.
+    mean, (low, high), p = paired_t([1.0, 2.0, 3.0, 4.0])
+    assert mean == 2.5
+    assert (low, high) == pytest.approx((0.4457, 4.5543), abs=1e-4)
+    assert p == pytest.approx(0.0305, abs=1e-4)
+    assert paired_t([0.5, 0.5, 0.5]) == (0.5, (0.5, 0.5), 0.0)      # no spread
+    assert paired_t([0.5]) == (0.5, (-math.inf, math.inf), 1.0)      # no interval at all
+
+
+def test_hodges_lehmann_estimate_and_interval():
+    # n = 10: P(T+ <= 8) = 25/1024 = 0.0244 <= 0.025 < P(T+ <= 9) = 33/1024, so the 95 %
+    # interval runs from the 9th smallest to the 9th largest of the 55 Walsh averages.
+    assert _signed_rank_cdf(10)[8] == pytest.approx(25 / 1024)
+    assert _signed_rank_cdf(10)[9] == pytest.approx(33 / 1024)
+    # Differences -2..7: the Walsh averages start -2, -1.5, -1, -1, -0.5, -0.5, 0, 0, 0 (the
+    # 9th: 0) and, symmetric about 2.5, end ... 5 (the 9th largest); their median 2.5.
+    estimate, interval = hodges_lehmann(np.arange(10) - 2.0)
+    assert estimate == 2.5 and interval == (0.0, 5.0)
+    # Five differences cannot give a 95 % interval (P(T+ = 0) = 1/32 > 0.025).
+    assert hodges_lehmann([1.0, 2.0, 3.0, 4.0, 5.0])[1] == (-math.inf, math.inf)
+
+
+def test_mcnemar_exact_on_known_tables():
+    # 9 pairs better with the treatment, 2 worse, 5 alike: the binomial on 11 discordant
+    # pairs, 2 x P(X <= 2) = 2 x (1 + 11 + 55) / 2048 = 134 / 2048 = 0.0654.
+    pairs = [(True, False)] * 9 + [(False, True)] * 2 + [(True, True)] * 5
+    diff, (low, high), p = mcnemar(pairs)
+    assert p == pytest.approx(134 / 2048)
+    assert diff == pytest.approx((9 - 2) / 16) and -1.0 <= low < diff < high <= 1.0
+    # 10 of 10 discordant pairs one way: 2 / 2^10.
+    assert mcnemar([(True, False)] * 10 + [(False, False)] * 10)[2] == pytest.approx(2 / 1024)
+    assert binomial_two_sided(5, 10) == 1.0 and binomial_two_sided(0, 0) == 1.0
+
+
+def test_fisher_exact_and_newcombes_interval():
+    # 8 of 10 against 2 of 10: Fisher's two-sided p = 0.0230 (the textbook table).
+    assert fisher([True] * 8 + [False] * 2, [True] * 2 + [False] * 8)[2] == pytest.approx(
+        0.0230, abs=1e-4)
+    # Newcombe (1998), unpaired, method 10: 56/70 against 48/80, difference 0.2,
+    # interval 0.0524 to 0.3339.
+    diff, interval, _ = fisher([True] * 56 + [False] * 14, [True] * 48 + [False] * 32)
+    assert diff == pytest.approx(0.2) and interval == pytest.approx((0.0524, 0.3339), abs=1e-4)
+
+
+@pytest.mark.parametrize('estimate, interval, significant, direction, expected', [
+    (2.0, (1.2, 2.8), True, 'higher', 'holds'),            # beyond the smallest effect 1
+    (0.6, (0.3, 0.9), True, 'higher', 'negligible'),       # significant, too small, CI in +-1
+    (0.6, (0.3, 1.3), True, 'higher', 'not resolved'),     # significant, too small, CI out
+    (-0.6, (-0.9, -0.3), True, 'higher', 'opposite'),      # significant with the other sign
+    (-2.0, (-2.8, -1.2), True, 'lower', 'holds'),
+    (0.1, (-0.5, 0.7), False, 'higher', 'negligible'),     # the equivalence: CI in +-1
+    (0.1, (-1.5, 1.7), False, 'higher', 'not resolved'),   # the CI reaches beyond +-1
+])
+def test_the_four_outcomes(estimate, interval, significant, direction, expected):
+    assert outcome(estimate, interval, significant, direction, 1.0) == expected
+
+
+def test_verdicts_correct_over_the_whole_family():
+    # Two tests with p = 0.0305 each: Holm makes the smaller 2 x 0.0305 = 0.061 (not
+    # significant), the other max(0.0305, 0.061); alone each would hold.
+    block = {'test': 'paired_t', 'direction': 'higher', 'smallest_effect': 1.0}
+    out = verdicts([{**block, 'sample': [1.0, 2.0, 3.0, 4.0]},
+                    {**block, 'sample': [1.0, 2.0, 3.0, 4.0]}])
+    assert [v['p_holm'] for v in out] == pytest.approx([0.061, 0.061], abs=1e-3)
+    assert [v['outcome'] for v in out] == ['not resolved', 'not resolved']
+    assert verdicts([{**block, 'sample': [1.0, 2.0, 3.0, 4.0]}])[0]['outcome'] == 'holds'
+    # A claim that cannot be judged still counts in the family, with p = 1.
+    out = verdicts([{**block, 'sample': [1.0, 2.0, 3.0, 4.0]},
+                    {**block, 'sample': None, 'reason': 'not run'}])
+    assert out[0]['p_holm'] == pytest.approx(0.061, abs=1e-3)
+    assert out[1]['outcome'] == 'no verdict: not run'
+
+
+def _plan_text() -> str:
+    return (CONFIG / 'experiments.yaml').read_text()
+
+
+def test_the_plan_hash_follows_the_primary_blocks_only(tmp_path):
+    path = tmp_path / 'experiments.yaml'
+    path.write_text(_plan_text())
+    plan, _ = load_plan(path, False, [])
+    first = plan_hash(plan)
+    assert first and len(first) == 12
+    # A comment, the reason's words, an exploratory setting: the same plan hash.
+    path.write_text(_plan_text().replace('# paper VI: window 2 lets the model errors grow',
+                                         '# paper VI: a comment changed'))
+    assert plan_hash(load_plan(path, False, [])[0]) == first
+    doc = yaml.safe_load(_plan_text())
+    doc['full']['haptic']['primary']['reason'] = 'another reason'
+    doc['full']['haptic']['duration'] = 19.0
+    path.write_text(yaml.safe_dump(doc))
+    assert plan_hash(load_plan(path, False, [])[0]) == first
+    # The smallest effect, the test or the confirmatory seeds: another plan.
+    for change in ({'smallest_effect': 0.4}, {'test': 'fisher'}):
+        doc = yaml.safe_load(_plan_text())
+        doc['full']['haptic']['primary'].update(change)
+        path.write_text(yaml.safe_dump(doc))
+        assert plan_hash(load_plan(path, False, [])[0]) != first, change
+    doc = yaml.safe_load(_plan_text())
+    doc['full']['haptic']['seeds'] = list(range(20, 30))
+    path.write_text(yaml.safe_dump(doc))
+    assert plan_hash(load_plan(path, False, [])[0]) != first
+    # The quick plan pre-registers nothing; the pilot plan runs the pilot seeds, unhashed.
+    assert plan_hash(load_plan(CONFIG / 'experiments.yaml', True, [])[0]) is None
+    pilot = pilot_plan(plan)
+    assert plan_hash(pilot) is None
+    assert pilot['haptic']['seeds'] == plan['haptic']['primary']['pilot_seeds']
+
+
+@pytest.mark.parametrize('change, message', [
+    ({'drop': 'smallest_effect'}, r"full.haptic.primary: missing keys \['smallest_effect'\]"),
+    ({'add': {'smalest': 1}}, r"full.haptic.primary: unknown keys \['smalest'\]"),
+    ({'add': {'n': 9}}, r'full.haptic.primary: n: 9, but the confirmatory seeds are 10'),
+    ({'add': {'pilot_seeds': [0, 10]}}, r'full.haptic.primary: pilot_seeds: \[10\] are '
+                                        r'confirmatory seeds too'),
+    ({'add': {'test': 'paired_t'}}, r'full.haptic.primary: test: paired_t does not fit'),
+    ({'add': {'measure': 'pitch'}}, r"full.haptic.primary: measure: 'pitch' is not one"),
+    ({'add': {'direction': 'up'}}, r'full.haptic.primary: direction: higher or lower'),
+    ({'add': {'against': 1.0}}, r'full.haptic.primary: needs one of compare'),
+])
+def test_the_plan_loader_checks_the_primary_block(tmp_path, change, message):
+    doc = yaml.safe_load(_plan_text())
+    block = doc['full']['haptic']['primary']
+    block.pop(change.get('drop'), None)
+    block.update(change.get('add', {}))
+    path = tmp_path / 'experiments.yaml'
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ExperimentError, match=f'^{path}: ' + message):
+        load_plan(path, False, [])
+
+
+def test_a_confirmatory_runs_key_holds_the_plan_hash():
+    doc = {'name': 'walk', 'duration': 9.0}
+    assert run_key(doc, 'c') == run_key(doc, 'c', None)          # as before plans had hashes
+    key = run_key(doc, 'c', 'abc123abc123')
+    assert key.startswith('walk-planabc123abc123-') and key != run_key(doc, 'c')
+    assert key != run_key(doc, 'c', 'def456def456')
+
+
+# -- the page --------------------------------------------------------------------------------
+
+def _haptic_rows(plan: str | None, seeds, off_more: float = 0.5) -> list[dict]:
+    """Haptic rows on the 10 cm step: off peaks ``off_more`` deg above on in every pair, and
+    the setting that peaks higher falls (off with ``off_more`` > 0), except at every fifth
+    seed."""
+    def fell(on: bool, s: int) -> bool:
+        return s % 5 != 0 and (on if off_more < 0 else not on)
+    return [{'ok': True, 'fell': fell(on, s), 'world': 'realistic', 'terrain': 'step_down_10cm',
+             'haptic': on, 'seed': s, 'plan': plan, 'pitch_peak_mean_deg': 0.4,
+             'pitch_peak_max_deg': 1.0 + 0.01 * s + (0.0 if on else off_more + 0.01 * (s % 3)),
+             'touchdown_timing_median_abs_s': 0.02, 'crossed': not fell(on, s)}
+            for on in (True, False) for s in seeds]
+
+
+def _meta(prereg: dict) -> dict:
+    return {'command': 'scripts/experiments.sh', 'machine': 'test', 'revision': 'abc',
+            'date': 'today', 'wall_time_min': 1.0, 'runs': 20, 'failures': [],
+            'preregistration': prereg}
+
+
+def _haptic_prereg(role: str = 'confirmatory') -> dict:
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    return preregistration({'haptic': plan['haptic']}, 'config/experiments.yaml', role)
+
+
+def test_the_page_judges_the_runs_of_this_plan(tmp_path):
+    prereg = _haptic_prereg()
+    seeds = prereg['claims']['haptic']['seeds']
+    results = {'haptic': _haptic_rows(prereg['hash'], seeds)
+               + _haptic_rows(None, prereg['claims']['haptic']['pilot_seeds'], -0.5)}
+    page = tmp_path / 'results.md'
+    write_page(page, results, _meta(prereg))
+    text = page.read_text()
+    assert f'Plan hash **{prereg["hash"]}**' in text
+    assert ('| without haptic touchdown the pitch is disturbed (V.A, VI) | '
+            '`fell` (haptic off minus haptic on, terrain step_down_10cm, paired by seed) | '
+            'higher | 0.3 share of runs (three falls in ten walks') in text
+    assert '| 10 (10, 11, 12, 13, 14, 15, 16, 17, 18, 19) | 0, 1, 2, 3, 4, 5, 6, 7, 8, 9 |' in text
+    # The pilot rows (the other sign) never enter: off fell at 8 of 10 seeds, on at none
+    # (McNemar exact: 2 / 2^8).
+    row = next(line for line in text.splitlines()
+               if line.startswith('| without haptic') and '| 10 |' in line)
+    assert row.endswith('| 0.0078 | holds |') and '`fell` | 0.8 [0.384, 0.943] share' in row
+    assert 'One family: the 1 claims\' primary tests, Holm\'s step-down' in text
+    assert '## Every measure (exploratory)' in text
+    assert readme_table(page_verdicts(results, _meta(prereg))) == (
+        '| Claim | Verdict | Effect (95 % CI) |\n|---|---|---|\n'
+        '| without haptic touchdown the pitch is disturbed (V.A, VI) | holds | '
+        '0.8 [0.384, 0.943] share |\n')
+
+
+def test_the_page_refuses_verdicts_on_runs_of_another_plan(tmp_path):
+    prereg = _haptic_prereg()
+    seeds = prereg['claims']['haptic']['seeds']
+    page = tmp_path / 'results.md'
+    for plan in ('0123456789ab', None):
+        write_page(page, {'haptic': _haptic_rows(plan, seeds)}, _meta(prereg))
+        text = page.read_text()
+        assert (f'| - | - | - | no verdict: runs of another plan (hash {plan or "none"}, this '
+                f'plan {prereg["hash"]}) |') in text
+        # The runs' figures are still on the page.
+        assert '| haptic | step down 10cm, off | largest touchdown pitch peak (deg) |' in text
+    # A pilot call never judges, even on runs that would hold.
+    pilot = _haptic_prereg('pilot')
+    write_page(page, {'haptic': _haptic_rows(None, seeds)}, _meta(pilot))
+    assert 'no verdict: pilot runs (seeds [10, 11, 12, 13, 14, 15, 16, 17, 18, 19]) never ' \
+        'enter a verdict' in page.read_text()
+
+
+def test_the_sample_pairs_by_the_blocks_keys_and_leaves_out_censored_pairs():
+    block = {'measure': 'survived_ns', 'test': 'wilcoxon', 'seeds': [5, 6],
+             'compare': {'by': 'setting', 'treatment': 'on', 'control': 'off'},
+             'pair_by': ['phase', 'seed']}
+    rows = [{'setting': name, 'phase': k, 'seed': s, 'survived_ns': v, 'censored': c}
+            for name, k, s, v, c in (('on', 0, 5, 90.0, False), ('off', 0, 5, 75.0, False),
+                                     ('on', 1, 5, 135.0, True), ('off', 1, 5, 135.0, True),
+                                     ('on', 0, 6, 120.0, True), ('off', 0, 6, 105.0, False),
+                                     ('on', 0, 0, 150.0, False), ('off', 0, 0, 30.0, False))]
+    sample, used = primary_sample(rows, block)
+    assert sample == [15.0, 15.0] and len(used) == 4      # seed 0: a pilot seed, left out
+
+
+def test_readme_block_is_filled_between_its_markers(tmp_path):
+    prereg = _haptic_prereg()
+    results = {'haptic': _haptic_rows(prereg['hash'], prereg['claims']['haptic']['seeds'])}
+    readme = tmp_path / 'README.md'
+    readme.write_text('# X\n\nbefore\n<!-- results:begin -->\nOLD TABLE\n'
+                      '<!-- results:end -->\nafter\n')
+    assert fill_readme(readme, results, _meta(prereg))
+    text = readme.read_text()
+    assert text.startswith('# X\n\nbefore\n<!-- results:begin -->\nThe pre-registered')
+    assert '| without haptic touchdown the pitch is disturbed (V.A, VI) | holds |' in text
+    assert 'OLD TABLE' not in text and text.endswith('<!-- results:end -->\nafter\n')
+    readme.write_text('no markers\n')
+    assert not fill_readme(readme, results, _meta(prereg))
+    assert readme.read_text() == 'no markers\n'
+
+
+def test_exploratory_comparisons_carry_no_verdict_words():
+    assert exploratory('holds (20 pairs), p = 0.001') == (
+        'the claimed direction (20 pairs), p = 0.001')
+    assert exploratory('does not hold (the opposite) (5 pairs)') == (
+        'the other direction (5 pairs)')
+    assert exploratory('not resolved (within the spread)') == 'undecided (within the spread)'
+
+
+def test_a_pilot_call_is_not_a_quick_one():
+    from replan_experiments.runner import main
+    with pytest.raises(SystemExit) as stop:
+        main(['--quick', '--pilot'])
+    assert stop.value.code == 2
+
+
+def test_a_confirmatory_call_keys_its_runs_by_the_plan_and_judges_them(tmp_path, monkeypatch):
+    """experiments.sh on the full plan's haptic claim with a stand-in for the graph (each run
+    writes its metrics at once: without haptic it falls at 8 seeds of 10): the
+    runs' keys hold the plan hash, the page judges them; --pilot makes the pilot seeds' runs,
+    without a hash, and judges nothing."""
+    from replan_experiments import runner as runner_module
+    from replan_experiments.runs import Runner
+
+    def execute(self, folder: Path, bag: bool) -> int:
+        doc = yaml.safe_load((folder / 'input.yaml').read_text())
+        off = (doc.get('params') or {}).get('gait', {}).get('haptic') is False
+        seed = doc['params']['sim']['noise_seed']
+        (folder / 'metrics.json').write_text(json.dumps({
+            'sim_time_s': doc['duration'], 'fell': off and seed % 5 != 0, 'completed': True,
+            'final_position_m': [3.0, 0.0, 0.5],
+            'touchdown_pitch_peak_deg': {'mean': 0.4, 'max': 1.0 + 0.01 * seed
+                                         + (0.5 + 0.01 * (seed % 3) if off else 0.0)}}))
+        return 0
+
+    monkeypatch.setattr(Runner, '_execute', execute)
+    monkeypatch.setenv('REPLAN_ROOT', str(CONFIG.parent))
+    monkeypatch.setenv('REPLAN_CONFIG', str(CONFIG))
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    hashed = plan_hash(plan)
+    page = tmp_path / 'results.md'
+    assert runner_module.main(['--only', 'haptic', '--out', str(tmp_path / 'out'), '--page',
+                               str(page), '--quiet']) == 0
+    keys = [p.name for p in (tmp_path / 'out' / 'runs').iterdir()]
+    assert len(keys) == 80 and all(f'-plan{hashed}-' in k for k in keys)
+    text = page.read_text()
+    assert ('| without haptic touchdown the pitch is disturbed (V.A, VI) | '
+            '`fell` | 0.8 [0.384, 0.943] share | 10 |') in text
+    assert 'no verdict: not run in this call' in text      # the six other claims
+    data = json.loads((tmp_path / 'out' / 'results.json').read_text())
+    assert data['meta']['preregistration']['hash'] == hashed
+    assert runner_module.main(['--pilot', '--only', 'haptic', '--out', str(tmp_path / 'out'),
+                               '--quiet']) == 0
+    pilot = (tmp_path / 'out' / 'results-pilot.md').read_text()
+    assert '**Pilot run**' in pilot and 'no verdict: pilot runs (seeds [10,' in pilot
+    keys = [p.name for p in (tmp_path / 'out' / 'runs').iterdir()]
+    assert len(keys) == 160 and sum('-plan' in k for k in keys) == 80
