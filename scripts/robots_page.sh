@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The robots page (issue 30): per robot its facts, derived parameters and what it does on the
+# The robots page: per robot its facts, derived parameters and what it does on the
 # realistic profile (speed against set-point, standing drift, largest lateral push, blind step
 # down, real-time factor, MPC solve time), from scenario runs; writes docs/robots.md.
 # Usage: scripts/robots_page.sh [--quick] [--jobs N] [--robot NAME ...] [--out DIR] [--page FILE]

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Soak benchmark (issue 15): 10 min of sim time walking with changing set-points and pushes on
+# Soak benchmark: 10 min of sim time walking with changing set-points and pushes on
 # the realistic profile; reports falls, memory growth after warm-up, solve and tick time trends.
 # Usage: scripts/soak.sh [--duration SIM_S] [--out DIR] [--profile NAME] ...  (see --help)
 # On a shared machine: flock /tmp/graph.lock scripts/soak.sh   (one graph at a time)

@@ -1,5 +1,5 @@
 """scripts/experiments.sh --quick: one short run of each experiment, as CI runs it, and the
-results page generated from them (issue 13). The runs are real graphs on the session's
+results page generated from them. The runs are real graphs on the session's
 reserved ROS_DOMAIN_ID, one at a time (the session's ``quick_experiments``, which test_ray.py
 shares)."""
 

@@ -16,6 +16,7 @@ smallest joint inertia) are ``robot_facts``'s.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -31,6 +32,21 @@ SOURCES = ('project', 'example-robot-data')
 _KEYS = {'name', 'model', 'root_link', 'legs', 'foot_contact', 'standing_pose', 'actuator',
          'parameters'}
 _MODEL_KEYS = {'source', 'urdf', 'srdf'}
+
+
+# The model a run uses without a robot file: the reference robot's, under the project's root.
+DEFAULT_URDF = Path('urdf') / 'hyq.urdf'
+
+
+def default_urdf(*roots: str | Path) -> str:
+    """The URDF of a run without a robot file: ``$REPLAN_URDF`` (scripts/env.sh sets it), else
+    ``DEFAULT_URDF`` under the first of ``roots`` (project roots, e.g. the repository and an
+    installed share) that holds it, else under the first root."""
+    env = os.environ.get('REPLAN_URDF', '')
+    if env:
+        return env
+    candidates = [Path(root) / DEFAULT_URDF for root in roots]
+    return str(next((path for path in candidates if path.is_file()), candidates[0]))
 
 
 class RobotFileError(ValueError):

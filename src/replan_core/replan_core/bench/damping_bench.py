@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
 from replan_core.metrics import roll_pitch_yaw
+from replan_core.robot_file import default_urdf
 from replan_core.robot_model import RobotModel
 from replan_core.robot_variant import perturbed_urdf
 from replan_core.sim_world import ActuatorParams, SimWorld
@@ -71,8 +71,7 @@ def main(argv=None) -> None:
     root = Path(__file__).resolve().parents[4]
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--urdf', default=os.environ.get('REPLAN_URDF',
-                                                         str(root / 'urdf' / 'hyq.urdf')))
+    parser.add_argument('--urdf', default=default_urdf(root))
     parser.add_argument('--stiffness', type=float, nargs='+', default=[0.0, 200.0],
                         help='abduction stiffnesses to compare (N m/rad; 200 is the default)')
     args = parser.parse_args(argv)

@@ -14,12 +14,12 @@ of its covariance work itself. The accuracy figures are printed as a sanity chec
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 
+from replan_core.robot_file import default_urdf
 from replan_core.types import ImuReading, JointState
 
 DT = 0.004                                   # s, control period
@@ -126,8 +126,7 @@ def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False,
 def main() -> None:
     root = Path(__file__).resolve().parents[4]
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--urdf', default=os.environ.get('REPLAN_URDF',
-                                                         str(root / 'urdf' / 'hyq.urdf')))
+    parser.add_argument('--urdf', default=default_urdf(root))
     parser.add_argument('--ticks', type=int, default=2000, help='control ticks (updates)')
     parser.add_argument('--no-prepare', action='store_true',
                         help='no prepare_next between updates (the estimator before it)')

@@ -20,13 +20,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from replan_core.robot_file import default_urdf
 from replan_core.types import ComPlan, FootholdPlan, Step
 
 CRAWL_ORDER = (0, 3, 1, 2)    # lf, rh, rf, lh: the crawl sequence
@@ -210,8 +210,7 @@ def run(urdf: str, cycles: int, quiet: bool = False,
 def main() -> None:
     root = Path(__file__).resolve().parents[4]
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--urdf', default=os.environ.get('REPLAN_URDF',
-                                                         str(root / 'urdf' / 'hyq.urdf')))
+    parser.add_argument('--urdf', default=default_urdf(root))
     parser.add_argument('--cycles', type=int, default=2, help='crawl cycles (4 steps each)')
     parser.add_argument('--robot', default='', help='a robot file: a name of config/robots/ '
                         '(go1) or a path (default: HyQ from --urdf)')

@@ -21,7 +21,6 @@ decisions are ``replan_core.replanner``'s, this node reads the messages and publ
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from collections import deque
@@ -44,7 +43,7 @@ from replan_ros.messages.contacts import contacts_from_cdr
 from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.stamps import ns_to_stamp, sec_to_stamp, stamp_to_ns
-from replan_ros.nodes.node_main import load_node_robot, log_at, run_node
+from replan_ros.nodes.node_main import ThrottledLog, load_node_robot, log_at, run_node
 from replan_ros.params import declare_node_parameters, gait_params
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.on_demand import OnDemandSubscriptions
@@ -77,7 +76,7 @@ class GaitNode(Node):
         # Set-points, stamped and live (cmd_vel: from the sim time it arrived at).
         self.setpoints = SetpointArbiter(float(p['cmd_vel_timeout']))
         self.reject_above = float(p['cmd_vel_reject_above'])
-        self.warn_period = float(p['warn_period'])
+        self._warn = ThrottledLog(self.get_logger(), float(p['warn_period']))
         self.contacts_wait_warn = float(p['contacts_wait_warn'])    # wall s
         self._started = time.monotonic()
         self.model = self._robot_model(p)
@@ -108,7 +107,6 @@ class GaitNode(Node):
 
         self.latest_stamp = 0.0        # s, newest state stamp seen (sim time for cmd_vel)
         self.rejected = 0
-        self._warned: dict[str, float] = {}
         self._odom_wait: tuple[int, float] | None = None   # (re-plan stamp ns, wall s since)
         # The touchdown rule, re-plan trigger and foothold planning (replan_core.replanner).
         self.replanner = GaitReplanner(
@@ -131,7 +129,7 @@ class GaitNode(Node):
         elif name == 'cmd_vel_reject_above':
             self.reject_above = float(value)
         elif name == 'warn_period':
-            self.warn_period = float(value)
+            self._warn.period = float(value)
 
     def _gait_params(self, p) -> GaitParams:
         try:
@@ -163,14 +161,6 @@ class GaitNode(Node):
     def _log(self, level: str, text: str) -> None:
         """The re-planner's log lines (replanner.Log)."""
         log_at(self.get_logger(), level, text)
-
-    def _warn(self, key: str, text: str) -> None:
-        """Warning throttled per ``key`` (rclpy's throttle is per call site, and all of these
-        share one), at most one every ``warn_period`` wall seconds."""
-        now = time.monotonic()
-        if now - self._warned.get(key, -math.inf) >= self.warn_period:
-            self._warned[key] = now
-            self.get_logger().warn(text)
 
     # ----------------------------------------------------------------------------- set-point
 
@@ -314,7 +304,7 @@ class GaitNode(Node):
             self._odom_wait = (ns, now)
             return
         waited = now - self._odom_wait[1]
-        if waited >= self.warn_period:
+        if waited >= self._warn.period:
             newest = f'{max(stamps) * 1e-9:.3f} s' if stamps else 'none received yet'
             self._warn('odom wait', f're-plan at t={ns * 1e-9:.3f} s has waited {waited:.1f} '
                        f'wall s for the odom of its tick (newest odom: {newest})')

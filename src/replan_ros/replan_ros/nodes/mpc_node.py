@@ -24,9 +24,7 @@
 from __future__ import annotations
 
 import json
-import math
 import os
-import time
 from collections import deque
 
 import numpy as np
@@ -49,7 +47,7 @@ from replan_ros.messages.joint_state import joint_state_from_msg
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.path import encode_path
 from replan_ros.messages.stamps import sec_to_ns, sec_to_stamp, stamp_to_ns
-from replan_ros.nodes.node_main import load_node_robot, run_node
+from replan_ros.nodes.node_main import ThrottledLog, load_node_robot, run_node
 from replan_ros.params import declare_node_parameters, mpc_settings
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.on_demand import OnDemandSubscriptions
@@ -79,8 +77,7 @@ class MpcNode(Node):
         self.state_buffer = max(int(p['state_buffer']), 2)
         self.state_wait = max(float(p['state_wait']), 0.0)
         self.fallback_window_ns = round(float(p['state_fallback_window']) * 1e9)
-        self.warn_period = float(p['warn_period'])
-        self._warned: dict[str, float] = {}
+        self._warn = ThrottledLog(self.get_logger(), float(p['warn_period']))
 
         self.com_plan_pub = self.create_publisher(MultiDOFJointTrajectory, 'com_plan', LATCHED,
                                                   event_callbacks=INTERNAL_PUB_EVENTS)
@@ -120,7 +117,7 @@ class MpcNode(Node):
     def _on_parameter_change(self, name: str, value) -> None:
         """A run-time change of one of the writable parameters (params.MPC)."""
         if name == 'warn_period':
-            self.warn_period = float(value)
+            self._warn.period = float(value)
 
     def _settings(self, p) -> MpcSettings:
         # The values were checked against params.MPC; horizon >= dt and a position_sway only
@@ -147,13 +144,6 @@ class MpcNode(Node):
             # from; exit non-zero so that the launcher reports it (and respawns, up to a limit)
             self.get_logger().fatal(f'cannot load the URDF {path!r} ({err}): exiting')
             raise SystemExit(1) from None
-
-    def _warn(self, key: str, text: str) -> None:
-        """Warning throttled per ``key``: at most one every ``warn_period`` wall seconds."""
-        now = time.monotonic()
-        if now - self._warned.get(key, -math.inf) >= self.warn_period:
-            self._warned[key] = now
-            self.get_logger().warn(text)
 
     # ----------------------------------------------------------------------------- inputs
 

@@ -3,6 +3,7 @@ external shutdown, then destroyed and rclpy down, whatever happened in between."
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import sys
@@ -34,6 +35,24 @@ def log_at(logger, level: str, text: str) -> None:
         logger.error(text)
     else:
         raise ValueError(f'unknown log level {level!r}')
+
+
+class ThrottledLog:
+    """Log lines throttled per key: at most one every ``period`` wall seconds for each key.
+    rclpy's own throttle is per call site, and a node's warnings about different inputs
+    (``key``) would share one; a repeated fault must not flood the log at the tick rate."""
+
+    def __init__(self, logger, period: float, clock=time.monotonic) -> None:
+        self.logger = logger
+        self.period = float(period)       # wall s; a node's run-time parameter may change it
+        self._clock = clock
+        self._last: dict[str, float] = {}
+
+    def __call__(self, key: str, text: str, level: str = 'warning') -> None:
+        now = self._clock()
+        if now - self._last.get(key, -math.inf) >= self.period:
+            self._last[key] = now
+            log_at(self.logger, level, text)
 
 
 # The exit code of a node that refuses its configuration (as params.declare's): the launcher

@@ -15,10 +15,7 @@ timed by phase (`telemetry.tick_budget`; docs/ARCHITECTURE.md, "Per-tick budget"
 
 from __future__ import annotations
 
-import math
-import os
 import time
-from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -27,6 +24,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from replan_core.inputs import WrenchSchedule
+from replan_core.robot_file import default_urdf
 from replan_core.robot_variant import perturbed_urdf
 from replan_core.sensors import ImuSensor, JointSensor
 from replan_core.sim_modes import (
@@ -47,7 +45,12 @@ from replan_core.types import JOINT_NAMES
 from replan_ros.messages.joint_state import torque_command_from_cdr
 from replan_ros.messages.stamps import ns_to_stamp, sec_to_ns
 from replan_ros.messages.wrench import wrench_from_msg, wrench_to_msg
-from replan_ros.nodes.node_main import load_node_robot, log_at, run_node, stop_if_domain_shared
+from replan_ros.nodes.node_main import (
+    ThrottledLog,
+    load_node_robot,
+    run_node,
+    stop_if_domain_shared,
+)
 from replan_ros.nodes.sim_outputs import TickOutputs
 from replan_ros.params import (
     actuator_params,
@@ -55,6 +58,7 @@ from replan_ros.params import (
     imu_noise_params,
     joint_sensor_params,
 )
+from replan_ros.params.robot import project_root
 from replan_ros.telemetry import diagnostics
 from replan_ros.telemetry.real_time_factor import RealTimeFactor
 from replan_ros.telemetry.tick_budget import SIM_PHASES, TickBudget
@@ -67,13 +71,6 @@ _WATCHDOG_PERIOD = 0.02      # wall s
 _GRAPH_CHECK_PERIOD = 1.0    # wall s between two looks for another graph on the domain
 
 
-def _default_urdf() -> str:
-    env = os.environ.get('REPLAN_URDF', '')
-    if env:
-        return env
-    return str(Path(__file__).resolve().parents[4] / 'urdf' / 'hyq.urdf')
-
-
 class SimNode(Node):
     """PyBullet simulator: torques in, sensed state, contact events and /clock out."""
 
@@ -82,7 +79,7 @@ class SimNode(Node):
         # Declared from params.SIM (defaults, units, ranges); a bad value exits with 2.
         p = declare_node_parameters(self, 'sim', on_change=self._on_parameter_change)
         # The robot file's model; its names map to the project's (topics keep those).
-        robot = load_node_robot(self, p, _default_urdf())
+        robot = load_node_robot(self, p, default_urdf(project_root()))
         urdf = robot.urdf
         terrain_params = {
             'step_x': p['terrain_step_x'], 'step_height': p['terrain_step_height'],
@@ -152,7 +149,7 @@ class SimNode(Node):
         self.command = np.zeros(len(JOINT_NAMES))     # last accepted (safe) command, N m
         self.rejected = 0
         self.ignored = 0
-        self._log_times: dict[str, float] = {}
+        self._log_throttled = ThrottledLog(self.get_logger(), _LOG_THROTTLE)
         self.wrenches = WrenchSchedule()
         self.rtf = RealTimeFactor()
 
@@ -181,12 +178,6 @@ class SimNode(Node):
             self.damping_abduction_stiffness = float(value)
 
     # ------------------------------------------------------------------ helpers
-    def _log_throttled(self, level: str, key: str, text: str) -> None:
-        now = time.monotonic()
-        if now - self._log_times.get(key, -math.inf) >= _LOG_THROTTLE:
-            self._log_times[key] = now
-            log_at(self.get_logger(), level, text)
-
     @property
     def now_ns(self) -> int:
         """Current sim time (the state stamp), ns."""
@@ -258,7 +249,7 @@ class SimNode(Node):
             stamp = cdr_header_stamp_ns(data)
             stamped = f' stamped {stamp * 1e-9:.3f} s' if stamp is not None else ''
             self._log_throttled(
-                'warning', f'reject:{err}',
+                f'reject:{err}',
                 f'rejected joint_torque_cmd{stamped}: {err}; keeping the previous '
                 f'command ({self.rejected} rejected so far)')
             return
@@ -284,8 +275,8 @@ class SimNode(Node):
         elif action != ALIVE:
             self.ignored += 1
             self._log_throttled(
-                'debug', 'stale', f'ignored joint_torque_cmd stamped {stamp_ns * 1e-9:.3f} s '
-                f'(state is {self.world.time:.3f} s)')
+                'stale', f'ignored joint_torque_cmd stamped {stamp_ns * 1e-9:.3f} s '
+                f'(state is {self.world.time:.3f} s)', level='debug')
 
     def _holding(self) -> bool:
         """True at or after ``stop_time``: no more steps (logged once)."""
@@ -318,7 +309,7 @@ class SimNode(Node):
         try:
             stamp_ns, force, torque = wrench_from_msg(msg)
         except ValueError as err:
-            self._log_throttled('warning', f'wrench:{err}', f'rejected external_wrench: {err}')
+            self._log_throttled(f'wrench:{err}', f'rejected external_wrench: {err}')
             return
         if stamp_ns == 0:                  # zero stamp: from now on
             stamp_ns = self.now_ns

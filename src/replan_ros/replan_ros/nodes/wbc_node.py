@@ -15,9 +15,7 @@ queue (`transport.direct_take`) until a tick waits. Every answered tick is timed
 
 from __future__ import annotations
 
-import os
 import time
-from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
@@ -28,6 +26,7 @@ from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.estimator import StateEstimator
+from replan_core.robot_file import default_urdf
 from replan_core.robot_model import RobotModel
 from replan_core.tick_protocol import ControllerProtocol
 from replan_core.wbc import WholeBodyController
@@ -44,6 +43,7 @@ from replan_ros.params import (
     protocol_params,
     wbc_params,
 )
+from replan_ros.params.robot import project_root
 from replan_ros.telemetry import diagnostics
 from replan_ros.telemetry.tick_budget import WBC_PHASES, TickBudget
 from replan_ros.telemetry.wbc_status import ControllerStats
@@ -82,8 +82,7 @@ class WbcNode(Node):
                                         float(p['first_command_wait_timeout']))
 
         # The robot file's model; its names map to the project's (topics keep those).
-        robot = load_node_robot(self, p, os.environ.get('REPLAN_URDF') or str(
-            Path(__file__).resolve().parents[4] / 'urdf' / 'hyq.urdf'))
+        robot = load_node_robot(self, p, default_urdf(project_root()))
         urdf = robot.urdf
         try:
             self.robot = RobotModel(urdf, robot.joints, robot.feet)

@@ -23,7 +23,6 @@ robot").
 from __future__ import annotations
 
 import math
-import os
 import struct
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -39,6 +38,7 @@ from visualization_msgs.msg import Marker
 
 from replan_core.frames import LinkFrames, base_transform
 from replan_core.metrics import cop_margins
+from replan_core.robot_file import default_urdf
 from replan_core.support import convex_hull
 from replan_core.types import WORLD_FRAME
 from replan_ros.messages.cdr import ENCAPSULATION, CdrWriter
@@ -92,15 +92,8 @@ class Derived:
 
 def default_urdf_path() -> str:
     """``$REPLAN_URDF``, else the repository's (or the installed share's) ``urdf/hyq.urdf``."""
-    env = os.environ.get('REPLAN_URDF', '')
-    if env:
-        return env
     here = Path(__file__).resolve()
-    for candidate in (here.parents[4] / 'urdf' / 'hyq.urdf',
-                      here.parents[2] / 'share' / 'replan_ros' / 'urdf' / 'hyq.urdf'):
-        if candidate.is_file():
-            return str(candidate)
-    return str(here.parents[4] / 'urdf' / 'hyq.urdf')
+    return default_urdf(here.parents[4], here.parents[2] / 'share' / 'replan_ros')
 
 
 def definition(type_name: str) -> str:
