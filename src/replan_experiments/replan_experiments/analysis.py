@@ -1,7 +1,7 @@
 """Metrics and plots of a recorded run (the bag written by the recorder node).
 
-Reads the mcap bag, decodes the messages with rclpy's deserializer, computes the metrics with
-``replan_core.metrics`` and draws the plots with matplotlib (Agg, headless).
+Reads the mcap bag (``replan_ros.recording.bag_read``: the messages decoded by topic), computes
+the metrics with ``replan_core.metrics`` and draws the plots with matplotlib (Agg, headless).
 """
 
 from __future__ import annotations
