@@ -16,8 +16,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
-from replan_core.gait import GaitParams, clamp_velocity
-from replan_core.types import LEGS, BaseState, ContactState
+from replan_core.common.types import LEGS, BaseState, ContactState
+from replan_core.gait.crawl import GaitParams, clamp_velocity
 from replan_ros.messages.contacts import contacts_to_msg
 from replan_ros.messages.footholds import footholds_from_msg
 from replan_ros.messages.odom import odom_from_base_state

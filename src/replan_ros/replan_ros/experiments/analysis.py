@@ -1,7 +1,7 @@
 """Metrics and plots of a recorded run (the bag written by the recorder node).
 
 Reads the mcap bag, decodes the messages with rclpy's deserializer, computes the metrics with
-``replan_core.metrics`` and draws the plots with matplotlib (Agg, headless).
+``replan_core.evaluation.metrics`` and draws the plots with matplotlib (Agg, headless).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from rclpy.serialization import deserialize_message
 
-from replan_core.metrics import (
+from replan_core.evaluation.metrics import (
     FallLimits,
     command_segments,
     cop_margins,
@@ -46,8 +46,8 @@ TRUTH_TOPIC = '/ground_truth/odom'
 TOPICS = ('/clock', TRUTH_TOPIC, '/odom', '/ground_truth/contacts', '/footholds', '/zmp_plan',
           '/com_plan', '/diagnostics', '/velocity_setpoint', '/applied_wrench',
           '/contacts', '/joint_states')
-LEG_LABELS = ('LF', 'RF', 'LH', 'RH')      # replan_core.types.LEGS order
-JOINT_LABELS = ('HAA', 'HFE', 'KFE')       # per leg, replan_core.types.JOINTS_PER_LEG order
+LEG_LABELS = ('LF', 'RF', 'LH', 'RH')      # replan_core.common.types.LEGS order
+JOINT_LABELS = ('HAA', 'HFE', 'KFE')       # per leg, replan_core.common.types.JOINTS_PER_LEG order
 GAIT_WINDOW = 6.0     # s of sim time in the detail view of the gait diagram of a long run
 
 

@@ -279,7 +279,7 @@ def _robot_mass(runner: Runner) -> float | None:
             from replan_ros.experiments.robots_plan import robot_info
             info = robot_info(runner.config_dir, runner.robot, 'realistic')
             return info.mass_kg + float(info.value('sim.payload_mass'))
-        from replan_core.robot_model import RobotModel
+        from replan_core.robot.model import RobotModel
         urdf = os.environ.get('REPLAN_URDF', str(runner.config_dir.parent / 'urdf' / 'hyq.urdf'))
         profile = yaml.safe_load((runner.config_dir / 'profiles' / 'realistic.yaml').read_text())
         payload = float(profile['sim']['ros__parameters'].get('payload_mass', 0.0))
