@@ -3,7 +3,7 @@
 Run: ``scripts/bench_wbc.sh [--robot NAME|FILE]`` (or ``python -m replan_core.bench.wbc_bench
 --help``).
 
-The run is realistic for the controller: the PyBullet world (``sim_world.SimWorld``) in closed
+The run is realistic for the controller: the PyBullet world (``world.SimWorld``) in closed
 loop with a static crawl (four haptic steps per cycle, CoM shifted into each support triangle
 before its swing) generated here from the actual feet, so every tick has a swing leg or a
 moving CoM and a 3- or 4-foot force QP. The time measured is ``WholeBodyController.compute``

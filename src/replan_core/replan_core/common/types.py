@@ -99,7 +99,7 @@ class FootholdPlan:
     initial_feet: np.ndarray          # (4, 3) m, world: actual feet at start_time, all in stance
     initial_yaw: float                # rad, trunk yaw reference at start_time
     steps: list[Step] = field(default_factory=list)
-    # The touchdown rule (contact.StepTracker) travels with the plan, so the gait node and the
+    # The touchdown rule (touchdown.StepTracker) travels with the plan, so the gait node and the
     # controller cannot disagree on it: a haptic touchdown counts from this fraction of the
     # planned swing on, and is forced this long (s) after the planned touchdown.
     min_swing_fraction: float = 0.5

@@ -20,7 +20,7 @@ later footholds of a leg are its previous foothold plus one stride in both cases
 Idle stance (issue 16): after ``idle_after`` s of zero set-point the crawl stops at a re-plan
 (a touchdown, so all four feet are down) and a *stand plan* follows: no real step, only a
 zero-length, ``replan`` "trigger" step every ``idle_replan_period``. The shared touchdown rule
-(``contact.StepTracker``) ends it one tick after its lift-off tick, so both the gait node and
+(``touchdown.StepTracker``) ends it one tick after its lift-off tick, so both the gait node and
 the controller see the same re-plan tick and the simulator waits for its plans, exactly as for
 a touchdown: a set-point that becomes non-zero is picked up at the next trigger,
 deterministically (docs/gait.md, "Idle stance").

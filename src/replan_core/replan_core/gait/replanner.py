@@ -71,7 +71,7 @@ class GaitReplanner:
                  start_delay: float, log: Log = _ignore,
                  warn: Callable[[str, str], None] = _ignore) -> None:
         self.params = params
-        self.min_swing_fraction = min_swing_fraction     # travel with each plan (contact.py)
+        self.min_swing_fraction = min_swing_fraction     # travel with each plan (gait/touchdown.py)
         self.max_extension = max_extension               # s
         self.start_delay = max(start_delay, 0.0)         # s, standing before the first step
         self.log = log
@@ -91,7 +91,7 @@ class GaitReplanner:
         self.pending: Replan | None = None
         self.replans = 0
         # Half a step of slack: the zero run is timed from re-plan (touchdown) ticks, which
-        # jitter by a few ms (gait.IdleMonitor).
+        # jitter by a few ms (crawl.IdleMonitor).
         self.idle = IdleMonitor(self.params.idle_after, self.params.idle_stance,
                                 0.5 * self.params.step_period)
         # Velocity feedback in foot placement, over one crawl cycle (speed_feedback.py).
@@ -251,6 +251,6 @@ class GaitReplanner:
         """When a stand plan's trigger lifts off: ``idle_replan_period`` after ``t``, half a
         control tick early. The trackers lift it off at the next tick (on the tick grid) and
         end it one tick later; half a tick off the grid it is never an MPC sample, so the
-        support stays four feet at every sample (gait.stand_plan)."""
+        support stays four feet at every sample (crawl.stand_plan)."""
         tick = (self.tick_ns or DEFAULT_TICK_NS) * 1e-9
         return t + self.params.idle_replan_period - 0.5 * tick

@@ -2,7 +2,7 @@
 commanded speed (issue 31; docs/gait.md, "Velocity feedback").
 
 Why. Each first foothold of a plan is the leg's actual foot plus one reference stride
-(``gait.compute_footholds``). A foot that lands short (a haptic touchdown ends the swing at
+(``crawl.compute_footholds``). A foot that lands short (a haptic touchdown ends the swing at
 first contact, before the foot has reached its target) is a permanent loss: the next stride
 starts from where it landed. The trunk follows the feet, so the walk settles a few per cent
 below the set-point (-4 to -8 % measured, more while turning).
@@ -34,13 +34,13 @@ re-plan times the next steps from the actual touchdown. A stride planned for a 3
 then walked in 3.17 s (0.792 s per step measured on the realistic HyQ): 5 % slow whatever the
 footholds. ``StepTiming`` measures the step period the robot actually walks (the median of the
 intervals between the last cycle's touchdowns) and the foothold planner lays the strides out
-for it (``gait.compute_footholds(stride_time_scale=)``): the footholds are where the reference
+for it (``crawl.compute_footholds(stride_time_scale=)``): the footholds are where the reference
 trunk will be at the actual touchdowns, not at the planned ones.
 
 Trunk trend (``trunk_trend``). The base pose at the re-plans of the last cycle, one at each
 phase of the crawl, gives where the trunk is now without its sway: each moved on to now with
 the twist measured over the cycle, and averaged (the sway of the four phases cancels). The
-foothold correction places the feet about the hips of that trunk (gait.GaitParams.
+foothold correction places the feet about the hips of that trunk (crawl.GaitParams.
 correction_hips), not about the swaying one.
 
 ROS-free and clock-free: times are the touchdown and re-plan stamps (s).

@@ -1,13 +1,14 @@
-"""LIP-ZMP re-planner: the jerk QP of eq. (6) with the coupled support-polygon rows of eq. (7).
+"""LIP-ZMP MPC, the CoM plan of a re-plan: the jerk QP of eq. (6) with the coupled
+support-polygon rows of eq. (7).
 
-This module is the re-planner's interface: :class:`MpcSettings`, :class:`MpcResult`, the status
+This module is the MPC's interface: :class:`MpcSettings`, :class:`MpcResult`, the status
 and fallback names, and :class:`LipMpc`, which checks the input, builds the support schedule,
 solves, checks the plan against every row and falls back. Three formulations of the same QP,
 all built once, solved by the two classes :class:`LipMpc` mixes in:
 
-- ``working_set`` (default, ``mpc_working_set.py``): the dual restricted to a working set of
+- ``working_set`` (default, ``mpc/working_set.py``): the dual restricted to a working set of
   polygon rows, solved exactly by a small active-set method (docs/mpc.md);
-- ``sparse`` and ``dense`` (``mpc_full_qp.py``): the full QP with proxsuite, states and jerks
+- ``sparse`` and ``dense`` (``mpc/full_qp.py``): the full QP with proxsuite, states and jerks
   with the dynamics as equality rows, or the condensed form of the paper (jerks only).
 
 A solve never raises: bad input or an infeasible problem gives a :class:`MpcResult` whose

@@ -44,7 +44,7 @@ def simulator_model(urdf_path: str, keep: Iterable[str],
     with ``foot_sphere`` (radius m, centre (3,) m in the foot frame), a kept foot whose
     collision is not one sphere gets that sphere as its only collision; without ``visuals``,
     no visual mesh. ``urdf_path`` itself when nothing changes. The copy is named by a hash of
-    its content (``robot_variant.write_variant``)."""
+    its content (``variant.write_variant``)."""
     source = Path(urdf_path).resolve()
     tree = ET.parse(source)
     robot = tree.getroot()

@@ -162,7 +162,7 @@ Reference = tuple[tuple[np.ndarray, np.ndarray, np.ndarray], float, np.ndarray,
 class PlanFollower:
     """Turns one (FootholdPlan, ComPlan) pair into ``compute`` arguments, tick by tick.
 
-    Swing/stance comes from ``contact.StepTracker`` fed with the sensed contact flags: the same
+    Swing/stance comes from ``touchdown.StepTracker`` fed with the sensed contact flags: the same
     rule as the gait node, so both agree on every touchdown and on when a re-plan is due. The
     swing reference starts at the foot position sensed at the actual lift-off tick; a haptic
     swing keeps its planned duration from the actual lift-off, then descends (haptic mode); a

@@ -248,7 +248,7 @@ class ControllerProtocol:
         newer = [s for s in self.pair_stamps()
                  if s <= stamp and (self.plan_stamp is None or s > self.plan_stamp)]
         if self.stand is not None:
-            # Leave a stand only for a plan made for about now (wbc.plan_ends_stand).
+            # Leave a stand only for a plan made for about now (controller.plan_ends_stand).
             # After a stand-up, only plans made from the estimate started over then.
             newer = [s for s in newer if s >= self.stand_floor and self._ends_stand(s, stamp)]
         # A robot that sat down (the sim's damping mode) stands up before it walks: a plan

@@ -1,4 +1,4 @@
-"""Crawl schedule and footholds (gait.py)."""
+"""Crawl schedule and footholds (gait/crawl.py)."""
 
 import math
 from dataclasses import replace

@@ -1,4 +1,4 @@
-"""The shared touchdown rule (contact.StepTracker)."""
+"""The shared touchdown rule (touchdown.StepTracker)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Robot files (robot_file.py) and the scaling rules (robot_scaling.py): the four robots of
+"""Robot files (robot_file.py) and the scaling rules (robot/scaling.py): the four robots of
 config/robots/ load with every name checked against their models, their facts agree with
 independent measurements (shared/notes/quadrupeds.md), a wrong name stops with one line, and
 the derived parameters follow the rules."""

@@ -1,4 +1,4 @@
-"""The simulator's mode machine (sim_modes.SimModes) with fixed sim and wall times: the first
+"""The simulator's mode machine (modes.SimModes) with fixed sim and wall times: the first
 command, lock-step, stale stamps, stop_time, the dead controller's damping and its return,
 free-run and its catch-up."""
 

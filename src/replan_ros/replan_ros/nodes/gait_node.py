@@ -1,7 +1,7 @@
 """Gait node: crawl schedule, the shared touchdown rule and foothold re-planning (issue 4); the
 decisions are ``replan_core.gait.replanner``'s, this node reads the messages and publishes.
 
-- Every tick of ``contacts`` goes through ``contact.StepTracker`` (the rule the controller runs
+- Every tick of ``contacts`` goes through ``touchdown.StepTracker`` (the rule the controller runs
   too). The ticks are read on demand (``on_demand.py``), in batches: when a ``contact_events``
   edge arrives (a haptic touchdown: at once) and every ``contacts_poll_period`` otherwise. When a
   step with ``replan`` touches down at ``t_k`` (and at the first state seen, the start of a run),

@@ -1,4 +1,4 @@
-"""The planner alone in a closed loop: the gait's footholds (``gait.compute_footholds``) and the
+"""The planner alone in a closed loop: the gait's footholds (``crawl.compute_footholds``) and the
 LIP MPC, re-planned at every planned touchdown from the state of the MPC's own plan there (the
 trunk exactly on the plan: no dynamics, no controller, no sensing, no DDS). A 26 s walk takes
 seconds, so a planner setting can be tried before the graph runs it.

@@ -14,7 +14,8 @@ REAL_ROOT = Path(__file__).resolve().parents[4]
 
 
 def _checkout(root: Path) -> Path:
-    """A checkout with one core module (in a role's sub-package) and the robot files a fingerprint reads."""
+    """A checkout with one core module (in a role's sub-package) and the robot files a
+    fingerprint reads."""
     (root / 'src/replan_core/replan_core/mpc').mkdir(parents=True)
     (root / 'src/replan_core/replan_core/mpc/lip.py').write_text('A = 1\n')
     (root / 'config/robots').mkdir(parents=True)
