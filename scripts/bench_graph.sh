@@ -31,7 +31,7 @@ out="${1:-$(mktemp -d)/bench_graph}"
 mkdir -p "$out"
 # The robot's walk; a robot that cannot be used stops here in one line, before any run.
 walk=$(python -c 'import sys
-from replan_core.robot_file import RobotFileError
+from replan_core.robot.robot_file import RobotFileError
 from replan_experiments.benchmarks.bench_speed import walk_scenario
 try:
     print(walk_scenario(sys.argv[1]))

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Speed of the bare PyBullet world (replan_core.sim_world.SimWorld): simulated seconds per wall
+# Speed of the bare PyBullet world (replan_core.sim.world.SimWorld): simulated seconds per wall
 # second. The robot stands under a joint PD (cheap numpy, included), with and without the
 # per-tick state queries the sim node makes; best of 3 runs (the machine is shared).
 # The last row is the realistic world, every realism option on: actuator lag, delay and joint

@@ -2,7 +2,7 @@
 run's state and decisions, and both runs end at the scenario's duration, in both profiles.
 ``scripts/scenario.sh --repeat N`` is the check a user runs (docs/ARCHITECTURE.md, "Bit-exact
 runs"); the core's share (no result depends on where the heap put an array) is tested without
-processes in src/replan_core/test/test_proxqp.py."""
+processes in src/replan_core/test/common/test_proxqp.py."""
 
 from __future__ import annotations
 

@@ -16,8 +16,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
-from replan_core.gait import GaitParams, clamp_velocity
-from replan_core.types import LEGS, BaseState, ContactState
+from replan_core.common.types import LEGS, BaseState, ContactState
+from replan_core.gait.crawl import GaitParams, clamp_velocity
 from replan_ros.messages.contacts import contacts_to_msg
 from replan_ros.messages.footholds import footholds_from_msg
 from replan_ros.messages.odom import odom_from_base_state
@@ -185,7 +185,7 @@ def test_bad_cmd_vel_is_rejected_or_clamped(sim, launcher):
     plan = sim.replan_at(2.1, launcher)
     used = sim.setpoint_at(2.1)
     # Each component clipped to its limit (0.15, 0.1, 0.25), then the combination scaled to
-    # strides the legs can make (gait.clamp_velocity, the node's defaults).
+    # strides the legs can make (crawl.clamp_velocity, the node's defaults).
     node_params = GaitParams(swing_duration=TIMING['swing_duration'],
                              four_feet_duration=TIMING['four_feet_duration'])
     np.testing.assert_allclose(used, clamp_velocity((0.5, -0.3, -0.4), node_params), atol=1e-9)

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from test_walk import run_scenario, segment, trajectory
 
-from replan_core.gait import GaitParams, is_idle_trigger, is_stand_plan
+from replan_core.gait.crawl import GaitParams, is_idle_trigger, is_stand_plan
 from replan_ros.messages.contacts import contacts_from_msg
 from replan_ros.messages.footholds import footholds_from_msg
 from replan_ros.recording.bag_read import read_messages

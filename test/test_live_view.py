@@ -31,8 +31,8 @@ from std_msgs.msg import String
 from test_launch import LaunchProcess
 from visualization_msgs.msg import Marker, MarkerArray
 
-from replan_core.robot_file import example_robot_data_dir
-from replan_core.types import JOINT_NAMES
+from replan_core.common.types import JOINT_NAMES
+from replan_core.robot.robot_file import example_robot_data_dir
 from replan_ros.view.live_client import LiveClient, free_port
 
 URDF = (REPO_ROOT / 'urdf' / 'hyq.urdf').read_text()

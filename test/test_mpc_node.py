@@ -19,8 +19,8 @@ from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.bench.mpc_bench import bench_crawl, crawl_plan
-from replan_core.robot_model import RobotModel
-from replan_core.types import BaseState, JointState
+from replan_core.common.types import BaseState, JointState
+from replan_core.robot.model import RobotModel
 from replan_ros.messages.com_plan import com_plan_from_msg
 from replan_ros.messages.footholds import footholds_to_msg
 from replan_ros.messages.joint_state import joint_state_to_msg

@@ -24,7 +24,7 @@ from harness import CONFIG_DIR, REPO_ROOT, graph_env
 from test_launch import LaunchProcess
 from test_live_view import Viewer
 
-from replan_core.robot_file import example_robot_data_dir, load_robot_file, robot_names
+from replan_core.robot.robot_file import example_robot_data_dir, load_robot_file, robot_names
 from replan_ros.view.live_client import free_port
 
 DURATION = 3.0          # sim s: the live view's checks and the bag's /tf need no more

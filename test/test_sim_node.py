@@ -13,7 +13,7 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
-from replan_core.types import JOINT_NAMES
+from replan_core.common.types import JOINT_NAMES
 from replan_ros.messages.contacts import contacts_from_msg
 from replan_ros.messages.imu import imu_from_msg
 from replan_ros.messages.joint_state import joint_state_from_msg, torque_cmd_to_msg

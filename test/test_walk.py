@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from harness import REPO_ROOT, graph_env
 
-from replan_core.metrics import achieved_velocity, roll_pitch_yaw
+from replan_core.evaluation.metrics import achieved_velocity, roll_pitch_yaw
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.recording.bag_read import read_messages
 

@@ -19,7 +19,14 @@ from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from replan_core.types import BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
+from replan_core.common.types import (
+    BaseState,
+    ComPlan,
+    ContactState,
+    FootholdPlan,
+    JointState,
+    Step,
+)
 from replan_ros.messages.com_plan import com_plan_to_msg
 from replan_ros.messages.contacts import contacts_to_msg
 from replan_ros.messages.footholds import footholds_to_msg

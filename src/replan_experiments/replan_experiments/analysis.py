@@ -1,7 +1,8 @@
 """Metrics and plots of a recorded run (the bag written by the recorder node).
 
 Reads the mcap bag (``replan_ros.recording.bag_read``: the messages decoded by topic), computes
-the metrics with ``replan_core.metrics`` and draws the plots with matplotlib (Agg, headless).
+the metrics with ``replan_core.evaluation.metrics`` and draws the plots with matplotlib (Agg,
+headless).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.metrics import (
+from replan_core.evaluation.metrics import (
     FallLimits,
     command_segments,
     cop_margins,
@@ -38,8 +39,8 @@ from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.stamps import stamp_to_ns, stamp_to_sec
 from replan_ros.recording.bag_read import TRUTH_TOPIC, read_messages
 
-LEG_LABELS = ('LF', 'RF', 'LH', 'RH')      # replan_core.types.LEGS order
-JOINT_LABELS = ('HAA', 'HFE', 'KFE')       # per leg, replan_core.types.JOINTS_PER_LEG order
+LEG_LABELS = ('LF', 'RF', 'LH', 'RH')      # replan_core.common.types.LEGS order
+JOINT_LABELS = ('HAA', 'HFE', 'KFE')       # per leg, replan_core.common.types.JOINTS_PER_LEG order
 GAIT_WINDOW = 6.0     # s of sim time in the detail view of the gait diagram of a long run
 
 

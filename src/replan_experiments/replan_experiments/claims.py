@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from replan_core.robot_file import default_urdf
+from replan_core.robot.robot_file import default_urdf
 from replan_experiments.motion_effects import cached_motion_effects
 from replan_experiments.plan import (
     node_settings,
@@ -280,7 +280,7 @@ def _robot_mass(runner: Runner) -> float | None:
         if getattr(runner, 'robot', None):
             info = robot_info(runner.config_dir, runner.robot, 'realistic')
             return info.mass_kg + float(info.value('sim.payload_mass'))
-        from replan_core.robot_model import RobotModel
+        from replan_core.robot.model import RobotModel
         urdf = default_urdf(runner.config_dir.parent)
         profile = yaml.safe_load((runner.config_dir / 'profiles' / 'realistic.yaml').read_text())
         payload = float(profile['sim']['ros__parameters'].get('payload_mass', 0.0))

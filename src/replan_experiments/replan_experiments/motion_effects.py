@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.rotations import yaw_of
+from replan_core.common.rotations import yaw_of
 from replan_experiments.push_effects import cached_from_bag, read_truth
 
 

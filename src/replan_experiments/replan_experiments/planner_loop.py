@@ -1,4 +1,4 @@
-"""The planner alone in a closed loop: the gait's footholds (``gait.compute_footholds``) and the
+"""The planner alone in a closed loop: the gait's footholds (``crawl.compute_footholds``) and the
 LIP MPC, re-planned at every planned touchdown from the state of the MPC's own plan there (the
 trunk exactly on the plan: no dynamics, no controller, no sensing, no DDS). A 26 s walk takes
 seconds, so a planner setting can be tried before the graph runs it.
@@ -49,11 +49,11 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
     itself by default, or ``base_offset`` (m, body x, y) behind it, as a robot whose CoM is
     that far ahead of its base (the CoM still starts over the centre of the feet); the
     position term's ``mpc.com_offset`` is ``base_offset`` unless ``overrides`` set it."""
-    from replan_core.gait import compute_footholds
-    from replan_core.mpc import LipMpc
-    from replan_core.robot_file import robot_facts
-    from replan_core.robot_model import RobotModel
-    from replan_core.support import implied_velocity
+    from replan_core.gait.crawl import compute_footholds
+    from replan_core.mpc.lip_mpc import LipMpc
+    from replan_core.mpc.support import implied_velocity
+    from replan_core.robot.model import RobotModel
+    from replan_core.robot.robot_file import robot_facts
     from replan_ros.launch.param_files import check_run_files, profile_file, robot_parameters
     from replan_ros.params.convert import gait_params, mpc_settings
 

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.metrics import polygon_margin
-from replan_core.rotations import yaw_of
+from replan_core.common.rotations import yaw_of
+from replan_core.evaluation.metrics import polygon_margin
 
 G = 9.81     # m/s^2
 

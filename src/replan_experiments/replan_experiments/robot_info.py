@@ -36,7 +36,7 @@ def robot_info(config_dir: Path, robot: str, profile: str) -> RobotInfo:
     """The robot's facts (``robot_facts`` on its model) and every node parameter as a run on
     ``profile`` gives it (the launcher's derivation: node files, profile, the scaling rules,
     the robot file's own parameters). ConfigError for an unknown robot or a bad file."""
-    from replan_core.robot_file import robot_facts  # pinocchio: only here
+    from replan_core.robot.robot_file import robot_facts  # pinocchio: only here
     from replan_ros.launch.param_files import check_run_files, profile_file, robot_parameters
 
     profile_path = profile_file(config_dir, profile)

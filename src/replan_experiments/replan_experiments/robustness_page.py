@@ -68,8 +68,8 @@ How each fault is handled:
 - **a missing or malformed URDF**: the node says so in one line and exits with code 1 (the gait
   node alone goes on with the nominal HyQ hips, as before).
 - **an infeasible MPC problem**: the status names the first violated block and sample
-  (`replan_core/mpc.py`), a slack-relaxed plan (or the previous one shifted) is published and
-  flagged as fallback, `/diagnostics` says WARN (ERROR without any plan).
+  (`replan_core/mpc/lip_mpc.py`), a slack-relaxed plan (or the previous one shifted) is
+  published and flagged as fallback, `/diagnostics` says WARN (ERROR without any plan).
 """
 
 

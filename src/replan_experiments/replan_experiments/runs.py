@@ -77,7 +77,7 @@ def _robot_files(root: Path, robot: str) -> set[str] | None:
     if '/' in robot or robot.endswith('.yaml'):
         return None
     from replan_core.bench import scaling_rules
-    from replan_core.robot_file import RobotFileError
+    from replan_core.robot.robot_file import RobotFileError
     try:
         reference = scaling_rules(root)['reference']
     except RobotFileError as err:

@@ -44,7 +44,7 @@ from pathlib import Path
 import yaml
 from geometry_msgs.msg import TwistStamped
 
-from replan_core.metrics import FallLimits
+from replan_core.evaluation.metrics import FallLimits
 from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
 from replan_ros.launch.launch_graph import (
     add_live_option,

@@ -29,8 +29,8 @@ def values(rows: list[dict], key: str, **where) -> list[float]:
 
 def steady_velocity(row: dict) -> list | None:
     """A velocity-tracking row's steady state (vx, vy, wz): over its last whole crawl cycles
-    (``achieved_steady``, replan_core.metrics.tracking_errors: the trunk has got to the speed
-    and the sway is averaged out); else over the whole cycles after the settling
+    (``achieved_steady``, replan_core.evaluation.metrics.tracking_errors: the trunk has got to
+    the speed and the sway is averaged out); else over the whole cycles after the settling
     (``achieved_cycles``, runs of older code), else after the settling (``achieved``); None
     without any."""
     if row.get('achieved_steady'):
@@ -89,8 +89,9 @@ def cycles_to_within(row: dict, tolerance: float) -> int | None:
     return outside[-1] + 1 if outside else 0
 
 
-# Share of the set-point: the band of "followed promptly" (replan_core.metrics.settle_time's
-# default tolerance), judged here on whole-cycle means.
+# Share of the set-point: the band of "followed promptly"
+# (replan_core.evaluation.metrics.settle_time's default tolerance), judged here on whole-cycle
+# means.
 PROMPT_BAND = 0.10
 
 

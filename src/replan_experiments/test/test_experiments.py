@@ -61,7 +61,7 @@ def test_variant_changes_only_what_it_is_asked_to():
 def test_the_run_key_changes_with_the_code_and_configuration_that_shape_a_run(tmp_path):
     """The cache serves a run only to the code that made it: a change to the core, a node or
     a parameter file gives a new fingerprint, and so a new key; the plan and the page do not."""
-    files = {'src/replan_core/replan_core/gait.py': 'A = 1\n',
+    files = {'src/replan_core/replan_core/gait/crawl.py': 'A = 1\n',
              'src/replan_ros/replan_ros/nodes/gait_node.py': 'B = 1\n',
              'src/replan_experiments/replan_experiments/page.py': 'C = 1\n',
              'src/replan_ros/test/test_x.py': 'D = 1\n',
@@ -78,7 +78,7 @@ def test_the_run_key_changes_with_the_code_and_configuration_that_shape_a_run(tm
         (tmp_path / rel).write_text('changed = 2\n')
         assert code_fingerprint(tmp_path) == first, rel
     seen = {first}
-    for rel in ('src/replan_core/replan_core/gait.py',
+    for rel in ('src/replan_core/replan_core/gait/crawl.py',
                 'src/replan_ros/replan_ros/nodes/gait_node.py', 'config/gait.yaml',
                 'config/robots/hyq.yaml', 'urdf/hyq.urdf'):
         (tmp_path / rel).write_text('changed = 2\n')
@@ -109,7 +109,7 @@ def test_a_robot_file_shapes_only_its_own_robots_runs(tmp_path):
     """A run's key has its robot's fingerprint: a robot file added or changed for another
     robot leaves HyQ's runs (and so the results page's cache) as they were; its own file, the
     scaling rules and the reference robot's file change them. Without a robot: every file."""
-    files = {'src/replan_core/replan_core/gait.py': 'A = 1\n',
+    files = {'src/replan_core/replan_core/gait/crawl.py': 'A = 1\n',
              'config/robots/scaling.yaml': 'reference: hyq\n',
              'config/robots/hyq.yaml': 'name: hyq\n', 'config/robots/go1.yaml': 'name: go1\n'}
     for rel, text in files.items():

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from replan_core.types import BaseState, ContactState
+from replan_core.common.types import BaseState, ContactState
 from replan_experiments.motion_effects import cached_motion_effects, motion_from_states
 
 FEET = np.array([[0.4, 0.3, 0.0], [0.4, -0.3, 0.0], [-0.4, 0.3, 0.0], [-0.4, -0.3, 0.0]])

@@ -14,9 +14,10 @@ REAL_ROOT = Path(__file__).resolve().parents[3]
 
 
 def _checkout(root: Path) -> Path:
-    """A checkout with one core module and the robot files a fingerprint reads."""
-    (root / 'src/replan_core/replan_core').mkdir(parents=True)
-    (root / 'src/replan_core/replan_core/lip.py').write_text('A = 1\n')
+    """A checkout with one core module (in a role's sub-package) and the robot files a
+    fingerprint reads."""
+    (root / 'src/replan_core/replan_core/mpc').mkdir(parents=True)
+    (root / 'src/replan_core/replan_core/mpc/lip.py').write_text('A = 1\n')
     (root / 'config/robots').mkdir(parents=True)
     (root / 'config/robots/scaling.yaml').write_text('reference: hyq\n')
     for robot in ('hyq', 'go1'):
@@ -36,7 +37,7 @@ def test_a_page_of_todays_runs_is_current_and_a_change_to_the_core_makes_it_stal
     status = page_status(root, 'docs/results.md', per_robot=True)
     assert status.current and status.revision == 'abc1234'
     assert status.line().startswith('docs/results.md: current: runs of code ')
-    (root / 'src/replan_core/replan_core/lip.py').write_text('A = 2\n')
+    (root / 'src/replan_core/replan_core/mpc/lip.py').write_text('A = 2\n')
     status = page_status(root, 'docs/results.md', per_robot=True)
     assert not status.current
     assert status.line().endswith('made again by `scripts/experiments.sh --jobs 2`')

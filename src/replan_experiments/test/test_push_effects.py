@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from replan_core.types import BaseState, ContactState
+from replan_core.common.types import BaseState, ContactState
 from replan_experiments.push_effects import cached_push_effects, effects_from_states
 
 FEET = np.array([[0.4, 0.3, 0.0], [0.4, -0.3, 0.0], [-0.4, 0.3, 0.0], [-0.4, -0.3, 0.0]])

@@ -4,7 +4,14 @@ import numpy as np
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
-from replan_core.types import BaseState, ComPlan, ContactState, FootholdPlan, JointState, Step
+from replan_core.common.types import (
+    BaseState,
+    ComPlan,
+    ContactState,
+    FootholdPlan,
+    JointState,
+    Step,
+)
 from replan_experiments.analysis import (
     GAIT_WINDOW,
     analyse_run,

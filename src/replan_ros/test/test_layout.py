@@ -1,7 +1,8 @@
 """The package map of docs/ARCHITECTURE.md ("Packages: the map"), checked on every import
-statement, those inside functions too: what each sub-package of replan_ros may import;
-replan_core free of ROS; the runtime packages (replan_core, replan_ros, their tests) free of
-replan_experiments, matplotlib and Ray; no import circle in any of the three packages."""
+statement, those inside functions too: what each sub-package of replan_ros and each role of
+replan_core may import; replan_core free of ROS; the runtime packages (replan_core,
+replan_ros, their tests) free of replan_experiments, matplotlib and Ray; no import circle in
+any of the three packages."""
 
 from __future__ import annotations
 
@@ -27,6 +28,20 @@ ALLOWED = {
 # What only the experiments may use: a node, a tool or a runtime test that imports one of these
 # would need the plotting and cluster dependencies to run the robot.
 RUNTIME_FORBIDDEN = ('replan_experiments', 'matplotlib', 'ray')
+# Role of replan_core -> the roles it may import, along the data's flow: the common base, the
+# robot, then each stage (sensors and world, estimate, gait, MPC, controller); run metrics read
+# recorded series only. Nothing but ``bench`` may import ``bench``.
+CORE_ALLOWED = {
+    'common': set(),
+    'robot': {'common'},
+    'sim': {'common', 'robot'},
+    'estimation': {'common', 'robot'},
+    'gait': {'common'},
+    'mpc': {'common', 'gait'},
+    'wbc': {'common', 'robot', 'gait'},
+    'evaluation': {'common'},
+    'bench': None,            # anything
+}
 
 
 def _imports(path: Path) -> list[str]:
@@ -40,8 +55,8 @@ def _imports(path: Path) -> list[str]:
     return names
 
 
-def _part(path: Path) -> str:
-    rel = path.relative_to(PACKAGE)
+def _part(path: Path, package: Path = PACKAGE) -> str:
+    rel = path.relative_to(package)
     return rel.parts[0] if len(rel.parts) > 1 else rel.stem
 
 
@@ -140,6 +155,32 @@ def test_each_module_imports_only_what_its_package_may(path):
             continue
         bad.append(name)
     assert not bad, f'{path.name} ({part}) imports {sorted(set(bad))}'
+
+
+def test_the_core_root_holds_only_its_roles():
+    modules = sorted(p.name for p in CORE.glob('*.py') if p.name != '__init__.py')
+    packages = sorted(p.name for p in CORE.iterdir() if (p / '__init__.py').is_file())
+    assert set(packages) == set(CORE_ALLOWED)
+    assert modules == []
+
+
+@pytest.mark.parametrize('path', sorted(p for p in CORE.rglob('*.py')
+                                         if p != CORE / '__init__.py'),
+                         ids=lambda p: str(p.relative_to(CORE)))
+def test_each_core_module_imports_only_what_its_role_may(path):
+    role = _part(path, CORE)
+    allowed = CORE_ALLOWED[role]
+    if allowed is None:
+        return
+    bad = sorted({name for name in _imports(path) if name.startswith('replan_core.')
+                  and name.split('.')[1] not in allowed | {role}})
+    assert not bad, f'{path.relative_to(CORE)} ({role}) imports {bad}'
+
+
+def test_the_core_roles_follow_the_flow_without_a_circle():
+    roles = {role: allowed or set() for role, allowed in CORE_ALLOWED.items()}
+    assert import_circles(roles) == []
+    assert all('bench' not in allowed for allowed in roles.values())
 
 
 def test_the_core_imports_no_ros():

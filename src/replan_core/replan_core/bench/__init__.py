@@ -11,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-from replan_core.robot_file import RobotFileError, RobotSpec, load_robot_file, robot_file_path
+from replan_core.robot.robot_file import RobotFileError, RobotSpec, load_robot_file, robot_file_path
 
 SCALING_FILE = Path('config') / 'robots' / 'scaling.yaml'
 

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.metrics import roll_pitch_yaw
-from replan_core.robot_file import default_urdf
-from replan_core.robot_model import RobotModel
-from replan_core.robot_variant import perturbed_urdf
-from replan_core.sim_world import ActuatorParams, SimWorld
-from replan_core.wbc import SwingReference, WholeBodyController
+from replan_core.evaluation.metrics import roll_pitch_yaw
+from replan_core.robot.model import RobotModel
+from replan_core.robot.robot_file import default_urdf
+from replan_core.robot.variant import perturbed_urdf
+from replan_core.sim.world import ActuatorParams, SimWorld
+from replan_core.wbc.controller import SwingReference, WholeBodyController
 
 DT = 0.004              # s, control period
 SIDEWAYS = (-0.3, 0.0, 0.3)   # m/s

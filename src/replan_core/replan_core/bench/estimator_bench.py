@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.robot_file import default_urdf
-from replan_core.types import ImuReading, JointState
+from replan_core.common.types import ImuReading, JointState
+from replan_core.robot.robot_file import default_urdf
 
 DT = 0.004                                   # s, control period
 _G_WORLD = np.array([0.0, 0.0, -9.81])       # m/s^2
@@ -31,11 +31,11 @@ def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False,
     """Closed-loop crawl for ``ticks`` control ticks; returns timing (s) and accuracy figures.
     ``prepare``: call ``prepare_next`` after each update (timed apart)."""
     from replan_core.bench.wbc_bench import crawl_plan
-    from replan_core.estimator import EstimatorParams, StateEstimator
-    from replan_core.robot_model import RobotModel
-    from replan_core.rotations import quaternion_to_matrix
-    from replan_core.sim_world import SimWorld
-    from replan_core.wbc import PlanFollower, WholeBodyController
+    from replan_core.common.rotations import quaternion_to_matrix
+    from replan_core.estimation.estimator import EstimatorParams, StateEstimator
+    from replan_core.robot.model import RobotModel
+    from replan_core.sim.world import SimWorld
+    from replan_core.wbc.controller import PlanFollower, WholeBodyController
 
     rng = np.random.default_rng(seed)
     gyro_bias = np.array([0.002, -0.002, 0.002])       # rad/s

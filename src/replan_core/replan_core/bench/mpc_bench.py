@@ -5,7 +5,7 @@ footholds. Each re-plan starts at a haptic touchdown (planned time +- jitter, so
 shift is not a whole number of samples), from the previous plan sampled there plus a tracking
 error, with footholds recomputed about the actual CoM (foothold correction) for a velocity
 set-point that changes over the run. The crawl is built here on purpose (no dependency on
-``replan_core.gait``). The last printed line is one JSON object.
+``replan_core.gait.crawl``). The last printed line is one JSON object.
 
     python -m replan_core.bench.mpc_bench [--formulation sparse|dense] [--replans 200] ...
                                           [--robot NAME|FILE --root DIR]
@@ -30,10 +30,10 @@ from pathlib import Path
 import numpy as np
 
 from replan_core.bench import bench_robots, is_reference
-from replan_core.mpc import LipMpc, MpcSettings
-from replan_core.robot_file import robot_facts
-from replan_core.robot_scaling import SCALES
-from replan_core.types import FootholdPlan, Step
+from replan_core.common.types import FootholdPlan, Step
+from replan_core.mpc.lip_mpc import LipMpc, MpcSettings
+from replan_core.robot.robot_file import robot_facts
+from replan_core.robot.scaling import SCALES
 
 CRAWL_ORDER = (2, 0, 3, 1)                 # lh, lf, rh, rf
 SWING, FOUR_FEET = 0.6, 0.4                # s, the reference robot's bench crawl

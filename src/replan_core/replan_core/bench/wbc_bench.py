@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.robot_file import default_urdf
-from replan_core.types import ComPlan, FootholdPlan, Step
+from replan_core.common.types import ComPlan, FootholdPlan, Step
+from replan_core.robot.robot_file import default_urdf
 
 CRAWL_ORDER = (0, 3, 1, 2)    # lf, rh, rf, lh: the crawl sequence
 CONTACT_THRESHOLD = 30.0      # N: the sim's contact threshold for the reference robot (HyQ)
@@ -106,9 +106,9 @@ def bench_robot(spec, reference, rules: dict) -> WbcBenchRobot:
     parameters scaled to it by ``rules`` (config/robots/scaling.yaml: each ``wbc.`` parameter
     of ``WbcParams`` and ``sim.contact_threshold`` it names; ``bench.bench_robots``) and the
     bench crawl scaled with the leg length and pendulum time."""
-    from replan_core.robot_file import robot_facts
-    from replan_core.robot_scaling import SCALES, derived_parameters
-    from replan_core.wbc import WbcParams
+    from replan_core.robot.robot_file import robot_facts
+    from replan_core.robot.scaling import SCALES, derived_parameters
+    from replan_core.wbc.controller import WbcParams
 
     facts, ref = robot_facts(spec), robot_facts(reference)
     base = WbcParams()
@@ -139,9 +139,9 @@ def bench_robot(spec, reference, rules: dict) -> WbcBenchRobot:
 def run(urdf: str, cycles: int, quiet: bool = False,
         robot: WbcBenchRobot | None = None) -> dict[str, float]:
     """Closed-loop crawl; returns timing figures (s) and tracking figures (m)."""
-    from replan_core.robot_model import RobotModel
-    from replan_core.sim_world import SimWorld
-    from replan_core.wbc import PlanFollower, WbcParams, WholeBodyController
+    from replan_core.robot.model import RobotModel
+    from replan_core.sim.world import SimWorld
+    from replan_core.wbc.controller import PlanFollower, WbcParams, WholeBodyController
 
     robot = robot or WbcBenchRobot(urdf)
     world = SimWorld(robot.urdf, contact_threshold=robot.contact_threshold, **robot.names)
@@ -219,7 +219,7 @@ def main() -> None:
     robot = None
     if args.robot:
         from replan_core.bench import bench_robots
-        from replan_core.robot_file import RobotFileError
+        from replan_core.robot.robot_file import RobotFileError
         try:
             spec, reference, rules = bench_robots(args.robot, Path(args.root))
         except RobotFileError as err:

@@ -29,8 +29,15 @@ from sensor_msgs.msg import Imu, PointCloud2
 from sensor_msgs.msg import JointState as JointStateMsg
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from replan_core import rotations
-from replan_core.types import WORLD_FRAME, BaseState, ComPlan, ContactState, ImuReading, JointState
+from replan_core.common import rotations
+from replan_core.common.types import (
+    WORLD_FRAME,
+    BaseState,
+    ComPlan,
+    ContactState,
+    ImuReading,
+    JointState,
+)
 from replan_ros.messages.com_plan import (
     com_plan_from_cdr,
     com_plan_from_msg,

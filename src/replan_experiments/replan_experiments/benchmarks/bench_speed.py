@@ -61,7 +61,7 @@ import yaml
 from replan_core.bench import bench_robots
 from replan_core.bench.mpc_bench import BenchCrawl, bench_crawl
 from replan_core.bench.mpc_bench import run as mpc_bench_run
-from replan_core.robot_file import load_robot_file, robot_file_path
+from replan_core.robot.robot_file import load_robot_file, robot_file_path
 from replan_experiments.analysis import replan_wall_latency
 from replan_experiments.benchmarks.tick_table import read_budgets, table
 from replan_experiments.runner import git_revision, machine_description

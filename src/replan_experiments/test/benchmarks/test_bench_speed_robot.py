@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from replan_core.bench.sim_bench import PD_GAINS
-from replan_core.robot_file import RobotFileError
+from replan_core.robot.robot_file import RobotFileError
 from replan_experiments.benchmarks.bench_speed import (
     CONFIG,
     SETUPS,

@@ -37,7 +37,7 @@ import socket
 import sys
 from pathlib import Path
 
-from replan_core.robot_file import robot_names
+from replan_core.robot.robot_file import robot_names
 from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
 from replan_ros.launch.param_files import DEFAULT_PROFILE, DEFAULT_ROBOT, PROFILES, profile_file
 from replan_ros.launch.progress import ProgressLine

@@ -14,7 +14,7 @@ from geometry_msgs.msg import Quaternion, Transform, Twist, Vector3
 from rclpy.serialization import deserialize_message
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
-from replan_core.types import ComPlan
+from replan_core.common.types import ComPlan
 from replan_ros.messages.cdr import NS, CdrReader, CdrWriter
 from replan_ros.messages.stamps import (
     duration_to_sec,

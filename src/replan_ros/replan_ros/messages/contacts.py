@@ -12,7 +12,7 @@ import struct
 import numpy as np
 from sensor_msgs.msg import PointCloud2
 
-from replan_core.types import WORLD_FRAME, ContactState
+from replan_core.common.types import WORLD_FRAME, ContactState
 from replan_ros.messages.cdr import (
     ENCAPSULATION,
     NS,

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from sensor_msgs.msg import PointCloud2
 
-from replan_core.types import FootholdPlan, Step
+from replan_core.common.types import FootholdPlan, Step
 from replan_ros.messages.clouds import cloud_to_table, require_finite, table_to_cloud
 from replan_ros.messages.stamps import header, stamp_to_sec
 

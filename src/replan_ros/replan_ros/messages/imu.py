@@ -13,7 +13,7 @@ import struct
 import numpy as np
 from sensor_msgs.msg import Imu
 
-from replan_core.types import BASE_FRAME, ImuReading
+from replan_core.common.types import BASE_FRAME, ImuReading
 from replan_ros.messages.cdr import (
     ENCAPSULATION,
     NS,

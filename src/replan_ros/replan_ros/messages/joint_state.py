@@ -13,7 +13,7 @@ import struct
 import numpy as np
 from sensor_msgs.msg import JointState as JointStateMsg
 
-from replan_core.types import JOINT_NAMES, JointState
+from replan_core.common.types import JOINT_NAMES, JointState
 from replan_ros.messages.cdr import (
     ENCAPSULATION,
     NS,

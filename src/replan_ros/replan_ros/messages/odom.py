@@ -13,8 +13,8 @@ import struct
 import numpy as np
 from nav_msgs.msg import Odometry
 
-from replan_core import rotations
-from replan_core.types import BASE_FRAME, WORLD_FRAME, BaseState
+from replan_core.common import rotations
+from replan_core.common.types import BASE_FRAME, WORLD_FRAME, BaseState
 from replan_ros.messages.cdr import (
     ENCAPSULATION,
     NS,

@@ -13,7 +13,7 @@ import numpy as np
 from geometry_msgs.msg import Point, PoseStamped
 from nav_msgs.msg import Path
 
-from replan_core.types import WORLD_FRAME
+from replan_core.common.types import WORLD_FRAME
 from replan_ros.messages.cdr import CdrWriter
 from replan_ros.messages.stamps import header
 

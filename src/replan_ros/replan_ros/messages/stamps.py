@@ -9,7 +9,7 @@ from __future__ import annotations
 from builtin_interfaces.msg import Duration, Time
 from std_msgs.msg import Header
 
-from replan_core.types import WORLD_FRAME
+from replan_core.common.types import WORLD_FRAME
 
 
 def stamp_to_sec(stamp: Time) -> float:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
 
-from replan_core.types import WORLD_FRAME
+from replan_core.common.types import WORLD_FRAME
 from replan_ros.messages.stamps import ns_to_stamp, stamp_to_ns
 
 

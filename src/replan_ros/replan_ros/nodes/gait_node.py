@@ -1,7 +1,7 @@
 """Gait node: crawl schedule, the shared touchdown rule and foothold re-planning (issue 4); the
-decisions are ``replan_core.replanner``'s, this node reads the messages and publishes.
+decisions are ``replan_core.gait.replanner``'s, this node reads the messages and publishes.
 
-- Every tick of ``contacts`` goes through ``contact.StepTracker`` (the rule the controller runs
+- Every tick of ``contacts`` goes through ``touchdown.StepTracker`` (the rule the controller runs
   too). The ticks are read on demand (``on_demand.py``), in batches: when a ``contact_events``
   edge arrives (a haptic touchdown: at once) and every ``contacts_poll_period`` otherwise. When a
   step with ``replan`` touches down at ``t_k`` (and at the first state seen, the start of a run),
@@ -34,11 +34,11 @@ from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
-from replan_core.gait import GaitParams
-from replan_core.inputs import SetpointArbiter
-from replan_core.replanner import GaitReplanner, check_setpoint
-from replan_core.robot_model import RobotModel
-from replan_core.types import LEGS, ContactState
+from replan_core.common.types import LEGS, ContactState
+from replan_core.gait.crawl import GaitParams
+from replan_core.gait.replanner import GaitReplanner, check_setpoint
+from replan_core.gait.setpoints import SetpointArbiter
+from replan_core.robot.model import RobotModel
 from replan_ros.messages.contacts import contacts_from_cdr
 from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
 from replan_ros.messages.odom import base_state_from_odom
@@ -108,7 +108,7 @@ class GaitNode(Node):
         self.latest_stamp = 0.0        # s, newest state stamp seen (sim time for cmd_vel)
         self.rejected = 0
         self._odom_wait: tuple[int, float] | None = None   # (re-plan stamp ns, wall s since)
-        # The touchdown rule, re-plan trigger and foothold planning (replan_core.replanner).
+        # The touchdown rule, re-plan trigger and foothold planning (replan_core.gait.replanner).
         self.replanner = GaitReplanner(
             self.params, float(p['min_swing_fraction']), float(p['max_extension']),
             float(p['start_delay']), log=self._log, warn=self._warn)

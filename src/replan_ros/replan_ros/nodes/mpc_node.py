@@ -10,7 +10,7 @@
   of ``t_k`` are there the request stays pending and is retried every ``retry_period``; the
   simulator republishes the state of ``t_k`` while the controller waits for this plan, so it
   does arrive.
-- It solves the jerk QP (``replan_core.mpc``, built once, warm-started) and publishes
+- It solves the jerk QP (``replan_core.mpc.lip_mpc``, built once, warm-started) and publishes
   ``com_plan``, ``zmp_plan`` and ``com_path`` stamped ``t_k`` (reliable, transient local, depth 1)
   and a ``/diagnostics`` status: solve time, iterations, status, ZMP margin, fallback flag.
 - A failed solve still publishes the core's safe fallback plan (flagged WARN on /diagnostics); a
@@ -36,11 +36,11 @@ from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from replan_core.gait import is_stand_plan
-from replan_core.mpc import LipMpc, MpcResult, MpcSettings, replan_start_state
-from replan_core.robot_model import RobotModel
-from replan_core.support import implied_velocity
-from replan_core.types import WORLD_FRAME, BaseState, ComPlan, FootholdPlan, JointState
+from replan_core.common.types import WORLD_FRAME, BaseState, ComPlan, FootholdPlan, JointState
+from replan_core.gait.crawl import is_stand_plan
+from replan_core.mpc.lip_mpc import LipMpc, MpcResult, MpcSettings, replan_start_state
+from replan_core.mpc.support import implied_velocity
+from replan_core.robot.model import RobotModel
 from replan_ros.messages.com_plan import encode_com_plan
 from replan_ros.messages.footholds import footholds_from_msg
 from replan_ros.messages.joint_state import joint_state_from_msg

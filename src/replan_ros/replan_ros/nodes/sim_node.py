@@ -6,8 +6,8 @@ wakes on them) and, for metrics and bags, the truth (`ground_truth/odom`,
 `ground_truth/contacts`) and `/clock` (`sim_outputs.py`), runs the next period's lead physics
 steps while the controller computes, and steps on with the `joint_torque_cmd` stamped t_k.
 When it steps, holds at `stop_time`, republishes a tick, free-runs or damps a robot whose
-controller died is `replan_core.sim_modes`'s decision; the wrenches on `external_wrench` act
-from their stamps (`replan_core.inputs.WrenchSchedule`). The realistic robot
+controller died is `replan_core.sim.modes`'s decision; the wrenches on `external_wrench` act
+from their stamps (`replan_core.sim.wrenches.WrenchSchedule`). The realistic robot
 (config/profiles/realistic.yaml) is made of separate parameters (actuator dynamics, sensor
 noise, model mismatch, compliant feet), each off in config/sim.yaml. Every lock-step tick is
 timed by phase (`telemetry.tick_budget`; docs/ARCHITECTURE.md, "Per-tick budget").
@@ -23,11 +23,10 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
-from replan_core.inputs import WrenchSchedule
-from replan_core.robot_file import default_urdf
-from replan_core.robot_variant import perturbed_urdf
-from replan_core.sensors import ImuSensor, JointSensor
-from replan_core.sim_modes import (
+from replan_core.common.types import JOINT_NAMES
+from replan_core.robot.robot_file import default_urdf
+from replan_core.robot.variant import perturbed_urdf
+from replan_core.sim.modes import (
     ALIVE,
     APPLY,
     DAMPING,
@@ -40,8 +39,9 @@ from replan_core.sim_modes import (
     ModeChange,
     SimModes,
 )
-from replan_core.sim_world import SimWorld
-from replan_core.types import JOINT_NAMES
+from replan_core.sim.sensors import ImuSensor, JointSensor
+from replan_core.sim.world import SimWorld
+from replan_core.sim.wrenches import WrenchSchedule
 from replan_ros.messages.joint_state import torque_command_from_cdr
 from replan_ros.messages.stamps import ns_to_stamp, sec_to_ns
 from replan_ros.messages.wrench import wrench_from_msg, wrench_to_msg
@@ -122,7 +122,7 @@ class SimNode(Node):
             (imu_noise.gyro_noise_density ** 2 / dt, imu_noise.accel_noise_density ** 2 / dt),
             self.budget, max(1, round(p['clock_period'] / dt)))
         self._tick_start_ns: int | None = None     # perf_counter_ns of the last lock-step
-        # When it steps, holds, free-runs or damps (replan_core.sim_modes); it holds at the
+        # When it steps, holds, free-runs or damps (replan_core.sim.modes); it holds at the
         # first tick at or after stop_time (0: never): a run ends at one tick.
         self.modes = SimModes(p['lock_step'], p['command_timeout'],
                               sec_to_ns(p['stop_time']) if p['stop_time'] > 0.0 else None,

@@ -3,8 +3,8 @@ and re-plan protocol (docs/wbc.md, "Node `wbc`"; docs/ARCHITECTURE.md, "Time and
 "Re-plan protocol").
 
 It wakes on the sim's `joint_states`, takes the tick's `imu` (or the truth) from its queue, runs
-the state estimator (`replan_core.estimator`) once per tick, lets the protocol
-(`replan_core.tick_protocol`) decide what the tick tracks, answers with one `joint_torque_cmd`
+the state estimator (`replan_core.estimation.estimator`) once per tick, lets the protocol
+(`replan_core.wbc.tick_protocol`) decide what the tick tracks, answers with one `joint_torque_cmd`
 stamped with the tick and publishes the estimate (`odom`, `contacts`, `contact_events`) while
 the sim steps. A republished tick gets the same estimate and command again. A tick the protocol
 holds for its plans is answered from the plan callbacks, or by a one-shot wall-clock timer
@@ -25,11 +25,11 @@ from sensor_msgs.msg import JointState as JointStateMsg
 from sensor_msgs.msg import PointCloud2
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from replan_core.estimator import StateEstimator
-from replan_core.robot_file import default_urdf
-from replan_core.robot_model import RobotModel
-from replan_core.tick_protocol import ControllerProtocol
-from replan_core.wbc import WholeBodyController
+from replan_core.estimation.estimator import StateEstimator
+from replan_core.robot.model import RobotModel
+from replan_core.robot.robot_file import default_urdf
+from replan_core.wbc.controller import WholeBodyController
+from replan_core.wbc.tick_protocol import ControllerProtocol
 from replan_ros.messages.com_plan import com_plan_from_cdr
 from replan_ros.messages.contacts import encode_contact_events
 from replan_ros.messages.footholds import footholds_from_msg

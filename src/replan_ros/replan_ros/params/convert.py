@@ -12,7 +12,7 @@ import dataclasses
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
-from replan_core.types import LEGS
+from replan_core.common.types import LEGS
 
 
 def dataclass_from_params(cls: type, values: Mapping[str, Any], *, prefix: str = '',
@@ -71,7 +71,7 @@ def _stance_offsets(values) -> tuple:
 def gait_params(values: Mapping[str, Any]):
     """``GaitParams`` of the gait node (leg names to indices, offsets to pairs; the hip
     offsets are the core's)."""
-    from replan_core.gait import GaitParams
+    from replan_core.gait.crawl import GaitParams
     return dataclass_from_params(GaitParams, values, fixed=('hip_offsets',), convert={
         'sequence': lambda names: tuple(LEGS.index(str(n).lower()) for n in names),
         'stance_offsets': _stance_offsets})
@@ -79,31 +79,31 @@ def gait_params(values: Mapping[str, Any]):
 
 def mpc_settings(values: Mapping[str, Any]):
     """``MpcSettings`` of the mpc node."""
-    from replan_core.mpc import MpcSettings
+    from replan_core.mpc.lip_mpc import MpcSettings
     return dataclass_from_params(MpcSettings, values, fixed=MPC_FIXED)
 
 
 def wbc_params(values: Mapping[str, Any]):
     """``WbcParams`` of the wbc node (the force QP's solver settings are the core's)."""
-    from replan_core.wbc import WbcParams
+    from replan_core.wbc.controller import WbcParams
     return dataclass_from_params(WbcParams, values, fixed=('qp_max_iter', 'qp_eps_abs'))
 
 
 def protocol_params(values: Mapping[str, Any]):
     """``ProtocolParams`` of the wbc node (the controller's re-plan protocol)."""
-    from replan_core.tick_protocol import ProtocolParams
+    from replan_core.wbc.tick_protocol import ProtocolParams
     return dataclass_from_params(ProtocolParams, values)
 
 
 def estimator_params(values: Mapping[str, Any]):
     """``EstimatorParams`` of the wbc node (``estimator.<field>``)."""
-    from replan_core.estimator import EstimatorParams
+    from replan_core.estimation.estimator import EstimatorParams
     return dataclass_from_params(EstimatorParams, values, prefix='estimator.')
 
 
 def actuator_params(values: Mapping[str, Any]):
     """``ActuatorParams`` of the sim node."""
-    from replan_core.sim_world import ActuatorParams
+    from replan_core.sim.world import ActuatorParams
     return dataclass_from_params(ActuatorParams, values, names={
         'time_constant': 'actuator_time_constant', 'delay': 'actuator_delay',
         'viscous_damping': 'joint_viscous_damping', 'coulomb_friction': 'joint_coulomb_friction'})
@@ -111,12 +111,12 @@ def actuator_params(values: Mapping[str, Any]):
 
 def imu_noise_params(values: Mapping[str, Any]):
     """``ImuNoiseParams`` of the sim node (``imu_<field>``)."""
-    from replan_core.sensors import ImuNoiseParams
+    from replan_core.sim.sensors import ImuNoiseParams
     return dataclass_from_params(ImuNoiseParams, values, prefix='imu_')
 
 
 def joint_sensor_params(values: Mapping[str, Any]):
     """``JointSensorParams`` of the sim node (``joint_<field>``)."""
-    from replan_core.sensors import JointSensorParams
+    from replan_core.sim.sensors import JointSensorParams
     return dataclass_from_params(JointSensorParams, values, prefix='joint_',
                                  names={'encoder_counts_per_rev': 'encoder_counts_per_rev'})

@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from replan_core.types import LEGS
+from replan_core.common.types import LEGS
 from replan_ros.params.spec import BUILTIN, ConfigError, _fmt, _suggest, check_value
 from replan_ros.params.tables import TABLES, defaults, table
 

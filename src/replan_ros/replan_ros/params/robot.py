@@ -4,8 +4,8 @@ a launcher gives the nodes for a robot (``robot_layer``: the robot file itself, 
 pose, the parameters derived by ``config/robots/scaling.yaml`` and the file's own
 ``parameters:``).
 
-Topics keep the project's names (``replan_core.types``: legs lf rf lh rh, joints haa hfe kfe):
-the sim and the controllers map the model's joints and feet to them by position in the robot
+Topics keep the project's names (``replan_core.common.types``: legs lf rf lh rh, joints haa hfe
+kfe): the sim and the controllers map the model's joints and feet to them by position in the robot
 file's lists, so only the processes that load the model know its names.
 """
 
@@ -19,13 +19,13 @@ from typing import Any
 
 import yaml
 
-from replan_core.robot_file import (
+from replan_core.common.types import BASE_FRAME, FOOT_FRAMES, JOINT_NAMES
+from replan_core.robot.robot_file import (
     RobotFileError,
     RobotSpec,
     load_robot_file,
     robot_file_path,
 )
-from replan_core.types import BASE_FRAME, FOOT_FRAMES, JOINT_NAMES
 from replan_ros.params.files import Source, _flatten
 from replan_ros.params.spec import ConfigError
 
@@ -130,8 +130,8 @@ def robot_layer(robot: str, configs: Path, root: Path,
     """The parameters of ``robot`` (a name of ``configs/robots/`` or a robot file) for a run
     whose reference-robot values (node files and profile, resolved) are ``reference_values``.
     ConfigError with one line for an unknown name or a file that does not fit its model."""
-    from replan_core.robot_file import robot_facts  # pinocchio: only when launching
-    from replan_core.robot_scaling import derived_parameters
+    from replan_core.robot.robot_file import robot_facts  # pinocchio: only when launching
+    from replan_core.robot.scaling import derived_parameters
 
     try:
         path = robot_file_path(robot, configs)

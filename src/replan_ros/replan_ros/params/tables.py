@@ -16,7 +16,7 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from replan_core.types import LEGS
+from replan_core.common.types import LEGS
 from replan_ros.params.spec import ParamSpec
 
 _INT_MAX = 2 ** 31 - 1
@@ -29,7 +29,7 @@ def _p(name: str, default: Any, description: str, unit: str = '', **kw) -> Param
 # GAIT, MPC and WBC take their defaults from the core's dataclasses, whose modules load
 # pinocchio, proxsuite and scipy (60 MB): those tables are built on first use (_LazyTables), so
 # the sim and the recorder, which read only their own, do not load them.
-# As replan_core.sim_world (TERRAINS, STANDING_POSE, ActuatorParams' defaults), written out:
+# As replan_core.sim.world (TERRAINS, STANDING_POSE, ActuatorParams' defaults), written out:
 # importing it loads PyBullet, which prints to stdout and would spoil the launcher's one-line
 # error. test/params/test_params.py checks that the two agree.
 TERRAINS = ('flat', 'step_down', 'step_up', 'rough')
@@ -45,7 +45,7 @@ _ROBOT_FILE = _p(
 
 
 def _gait_table() -> tuple[ParamSpec, ...]:
-    from replan_core.gait import CORRECTION_HIPS, GaitParams  # lazy: see _LazyTables
+    from replan_core.gait.crawl import CORRECTION_HIPS, GaitParams  # lazy: see _LazyTables
     _G = GaitParams()
     return (
         _ROBOT_FILE,
@@ -126,7 +126,7 @@ def _gait_table() -> tuple[ParamSpec, ...]:
 
 
 def _mpc_table() -> tuple[ParamSpec, ...]:
-    from replan_core.mpc import MpcSettings  # lazy: see _LazyTables
+    from replan_core.mpc.lip_mpc import MpcSettings  # lazy: see _LazyTables
     _M = MpcSettings()
     return (
         _ROBOT_FILE,
@@ -194,7 +194,7 @@ _ESTIMATOR_RANGES = {'contact_observer_gain': (0.0, 1000.0)}
 
 def _estimator_specs() -> tuple[ParamSpec, ...]:
     """``estimator.<field>`` of ``EstimatorParams``, its defaults (the core is the source)."""
-    from replan_core.estimator import EstimatorParams  # lazy: see _LazyTables
+    from replan_core.estimation.estimator import EstimatorParams  # lazy: see _LazyTables
 
     defaults = EstimatorParams()
     specs = []
@@ -205,15 +205,16 @@ def _estimator_specs() -> tuple[ParamSpec, ...]:
         high = 1000 if isinstance(value, int) and not isinstance(value, bool) else 1e6
         low, high = _ESTIMATOR_RANGES.get(item.name, (low, high))
         specs.append(_p(f'estimator.{item.name}', value,
-                        f'state estimator: {item.name} (replan_core.estimator.EstimatorParams)',
+                        f'state estimator: {item.name} '
+                        '(replan_core.estimation.estimator.EstimatorParams)',
                         _ESTIMATOR_UNITS.get(item.name, ''), min=low, max=high))
     return tuple(specs)
 
 
 def _wbc_table() -> tuple[ParamSpec, ...]:
-    from replan_core.wbc import WbcParams  # lazy: see _LazyTables
+    from replan_core.wbc.controller import WbcParams  # lazy: see _LazyTables
     _W = WbcParams()
-    from replan_core.tick_protocol import ProtocolParams  # lazy, as WbcParams
+    from replan_core.wbc.tick_protocol import ProtocolParams  # lazy, as WbcParams
     _P = ProtocolParams()   # one default each: the protocol's dataclass
     return (
         _ROBOT_FILE,

@@ -1,5 +1,5 @@
 """The wbc's /diagnostics status: the answered ticks' figures over one period and the state of
-its protocol (replan_core.tick_protocol); docs/usage.md lists the keys."""
+its protocol (replan_core.wbc.tick_protocol); docs/usage.md lists the keys."""
 
 from __future__ import annotations
 

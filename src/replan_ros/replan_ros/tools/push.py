@@ -23,7 +23,7 @@ from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 from rosgraph_msgs.msg import Clock
 
-from replan_core.types import WORLD_FRAME
+from replan_core.common.types import WORLD_FRAME
 from replan_ros.messages.stamps import sec_to_ns, stamp_to_ns
 from replan_ros.messages.wrench import wrench_to_msg
 from replan_ros.transport import qos

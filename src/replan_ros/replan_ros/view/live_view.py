@@ -15,7 +15,7 @@
   Teleop panel), checked by the gait node like any other ``cmd_vel``;
 - serves the meshes the robot's URDF names (``package://...``) to viewers that fetch them
   (the protocol's ``assets`` capability), from the model folders only
-  (``replan_core.model_assets``): example-robot-data's share tree and the project's ``urdf/``.
+  (``replan_core.robot.assets``): example-robot-data's share tree and the project's ``urdf/``.
 
 Off the critical path: its own process; a topic is advertised to viewers as soon as it is
 discovered but read over DDS only once a viewer subscribes to it (or to a derived topic that
@@ -40,7 +40,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
-from replan_core.model_assets import served_model_assets
+from replan_core.robot.assets import served_model_assets
 from replan_ros.messages.introspection import message_class
 from replan_ros.nodes.node_main import load_node_robot, refuse_configuration, run_node
 from replan_ros.params import ConfigError, declare_node_parameters

@@ -6,8 +6,8 @@ from geometry_msgs.msg import Point, Vector3
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from replan_core.gait import stance_phases
-from replan_core.types import WORLD_FRAME, FootholdPlan
+from replan_core.common.types import WORLD_FRAME, FootholdPlan
+from replan_core.gait.crawl import stance_phases
 from replan_ros.messages.stamps import header
 
 # Leg colours of the markers (r, g, b), LEGS order.

@@ -36,11 +36,11 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import String
 from visualization_msgs.msg import Marker
 
-from replan_core.frames import LinkFrames, base_transform
-from replan_core.metrics import cop_margins
-from replan_core.robot_file import default_urdf
-from replan_core.support import convex_hull
-from replan_core.types import WORLD_FRAME
+from replan_core.common.types import WORLD_FRAME
+from replan_core.evaluation.metrics import cop_margins
+from replan_core.mpc.support import convex_hull
+from replan_core.robot.frames import LinkFrames, base_transform
+from replan_core.robot.robot_file import default_urdf
 from replan_ros.messages.cdr import ENCAPSULATION, CdrWriter
 from replan_ros.messages.contacts import contacts_from_cdr
 from replan_ros.messages.joint_state import joint_state_from_cdr

@@ -9,7 +9,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 from wire_checks import through_wire
 
-from replan_core.types import ComPlan
+from replan_core.common.types import ComPlan
 from replan_ros.messages.com_plan import (
     com_plan_from_msg,
     com_plan_to_msg,

@@ -11,7 +11,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2
 from wire_checks import STAMPS, same_bytes_as_rclpy, through_wire
 
-from replan_core.types import ContactState
+from replan_core.common.types import ContactState
 from replan_ros.messages.contacts import (
     _encode_table,
     contact_events_from_msg,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from wire_checks import through_wire
 
-from replan_core.types import FootholdPlan, Step
+from replan_core.common.types import FootholdPlan, Step
 from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
 
 

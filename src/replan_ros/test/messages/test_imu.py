@@ -10,7 +10,7 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu
 from wire_checks import STAMPS, same_bytes_as_rclpy
 
-from replan_core.types import ImuReading
+from replan_core.common.types import ImuReading
 from replan_ros.messages.imu import encode_imu, imu_from_cdr, imu_from_msg, imu_to_msg
 
 

@@ -11,7 +11,7 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState as JointStateMsg
 from wire_checks import STAMPS, same_bytes_as_rclpy, through_wire
 
-from replan_core.types import JOINT_NAMES, JointState
+from replan_core.common.types import JOINT_NAMES, JointState
 from replan_ros.messages.joint_state import (
     JOINT_STATES,
     TORQUE_COMMAND,

@@ -9,9 +9,9 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
 from wire_checks import STAMPS, same_bytes_as_rclpy, through_wire
 
-from replan_core import rotations
-from replan_core.rotations import yaw_of
-from replan_core.types import BaseState, JointState
+from replan_core.common import rotations
+from replan_core.common.rotations import yaw_of
+from replan_core.common.types import BaseState, JointState
 from replan_ros.messages.joint_state import joint_state_from_msg, joint_state_to_msg
 from replan_ros.messages.odom import (
     base_state_from_cdr,

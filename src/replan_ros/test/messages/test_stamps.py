@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from replan_core.types import ImuReading
+from replan_core.common.types import ImuReading
 from replan_ros.messages.imu import encode_imu, imu_from_cdr
 from replan_ros.messages.stamps import (
     ns_to_sec,

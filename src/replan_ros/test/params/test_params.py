@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from replan_core.estimator import EstimatorParams
-from replan_core.sim_world import STANDING_POSE, TERRAINS, ActuatorParams
+from replan_core.estimation.estimator import EstimatorParams
+from replan_core.sim.world import STANDING_POSE, TERRAINS, ActuatorParams
 from replan_ros import params
 from replan_ros.launch.param_files import check_run_files
 from replan_ros.params import ConfigError, Source, check_run, resolve, sources_from_argv
@@ -250,13 +250,13 @@ def _same_types(a, b) -> list[str]:
 
 
 @pytest.mark.parametrize('node, build, core', [
-    ('gait', params.gait_params, 'replan_core.gait.GaitParams'),
-    ('mpc', params.mpc_settings, 'replan_core.mpc.MpcSettings'),
-    ('wbc', params.wbc_params, 'replan_core.wbc.WbcParams'),
-    ('wbc', params.estimator_params, 'replan_core.estimator.EstimatorParams'),
-    ('sim', params.actuator_params, 'replan_core.sim_world.ActuatorParams'),
-    ('sim', params.imu_noise_params, 'replan_core.sensors.ImuNoiseParams'),
-    ('sim', params.joint_sensor_params, 'replan_core.sensors.JointSensorParams'),
+    ('gait', params.gait_params, 'replan_core.gait.crawl.GaitParams'),
+    ('mpc', params.mpc_settings, 'replan_core.mpc.lip_mpc.MpcSettings'),
+    ('wbc', params.wbc_params, 'replan_core.wbc.controller.WbcParams'),
+    ('wbc', params.estimator_params, 'replan_core.estimation.estimator.EstimatorParams'),
+    ('sim', params.actuator_params, 'replan_core.sim.world.ActuatorParams'),
+    ('sim', params.imu_noise_params, 'replan_core.sim.sensors.ImuNoiseParams'),
+    ('sim', params.joint_sensor_params, 'replan_core.sim.sensors.JointSensorParams'),
 ])
 def test_each_core_dataclass_is_filled_from_its_table(node, build, core):
     """The one conversion (dataclass_from_params) fills every field from the table's defaults

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from replan_core.types import BASE_FRAME, FOOT_FRAMES, JOINT_NAMES
+from replan_core.common.types import BASE_FRAME, FOOT_FRAMES, JOINT_NAMES
 from replan_ros.launch.param_files import check_run_files, profile_file, robot_parameters
 from replan_ros.params import ConfigError, load_param_file
 from replan_ros.params.robot import POSE_NODES, ROBOT_NODES, node_robot

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import yaml
 
-from replan_core.robot_file import load_robot_file, robot_facts
-from replan_core.robot_scaling import derived_parameters
+from replan_core.robot.robot_file import load_robot_file, robot_facts
+from replan_core.robot.scaling import derived_parameters
 from replan_ros.params import defaults, load_param_file, table
 
 ROOT = Path(__file__).resolve().parents[4]

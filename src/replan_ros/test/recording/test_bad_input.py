@@ -13,7 +13,7 @@ from mcap.reader import make_reader
 from sensor_msgs.msg import PointCloud2, PointField
 from test_bag_io import _write_bag
 
-from replan_core.types import ContactState, FootholdPlan, Step
+from replan_core.common.types import ContactState, FootholdPlan, Step
 from replan_ros.messages.contacts import contact_events_from_msg, contacts_from_msg, contacts_to_msg
 from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
 from replan_ros.recording.bag_io import check_bag
@@ -111,7 +111,7 @@ def test_an_infeasible_mpc_problem_gives_a_reason_and_a_safe_plan():
     import time
 
     from replan_core.bench.mpc_bench import bench_crawl, crawl_plan
-    from replan_core.mpc import FALLBACK_RELAXED, STATUS_INFEASIBLE, LipMpc
+    from replan_core.mpc.lip_mpc import FALLBACK_RELAXED, STATUS_INFEASIBLE, LipMpc
     from replan_ros.params.robot import project_root
 
     layout = bench_crawl('hyq', project_root()).feet_xy       # m, HyQ's standing feet

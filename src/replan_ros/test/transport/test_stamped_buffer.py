@@ -5,7 +5,7 @@ import pytest
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 
-from replan_core.types import BaseState
+from replan_core.common.types import BaseState
 from replan_ros.messages.odom import base_state_from_odom, odom_from_base_state
 from replan_ros.transport.stamped_buffer import (
     RawStampedBuffer,

@@ -12,8 +12,8 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from replan_core.model_assets import served_model_assets
-from replan_core.robot_file import example_robot_data_dir, load_robot_file
+from replan_core.robot.assets import served_model_assets
+from replan_core.robot.robot_file import example_robot_data_dir, load_robot_file
 from replan_ros.view.foxglove_server import FoxgloveServer
 
 

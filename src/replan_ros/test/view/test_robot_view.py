@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from replan_core.robot_file import robot_names
+from replan_core.robot.robot_file import robot_names
 from replan_ros.params import ConfigError
 from replan_ros.params.robot import NodeRobot, config_dir, node_robot
 from replan_ros.view.state_view import DESCRIPTION_TOPIC, robot_state_view

@@ -17,8 +17,8 @@ from rosbags.highlevel import AnyReader
 from std_msgs.msg import ColorRGBA, Float64
 from visualization_msgs.msg import Marker, MarkerArray
 
-from replan_core.frames import LinkFrames, base_transform
-from replan_core.types import BaseState, ContactState, JointState
+from replan_core.common.types import BaseState, ContactState, JointState
+from replan_core.robot.frames import LinkFrames, base_transform
 from replan_ros.messages.contacts import contacts_to_msg
 from replan_ros.messages.joint_state import joint_state_to_msg
 from replan_ros.messages.odom import encode_odom, odom_fields_from_cdr, odom_from_base_state

@@ -1,0 +1,1 @@
+"""The state estimate from the sensors: contact forces, attitude, base and feet."""

@@ -1,0 +1,1 @@
+"""Run metrics from recorded time series."""

@@ -1,0 +1,2 @@
+"""The robot: its model, robot files, scaling, variants with model errors, asset names and
+frames."""

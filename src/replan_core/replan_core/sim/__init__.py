@@ -1,0 +1,2 @@
+"""The simulated world: physics, sensor noise, mode machine, external wrenches and its copy
+of the model."""

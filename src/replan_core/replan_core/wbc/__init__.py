@@ -1,0 +1,1 @@
+"""The whole-body controller and its per-tick protocol: plans to joint torques."""

@@ -1,0 +1,263 @@
+"""The gait side of the re-plan protocol (replanner.GaitReplanner), with fixed stamps: the
+initial plan, re-plan triggers, forced touchdowns, republished and lost ticks, a new run,
+idle stance and walking off, a foot still in the air, and set-point checks."""
+
+import numpy as np
+import pytest
+
+from replan_core.common.types import BaseState, ContactState
+from replan_core.gait.crawl import GaitParams, is_stand_plan
+from replan_core.gait.replanner import GaitReplanner, Replan, check_setpoint
+
+TICK = 0.004          # s
+FEET = np.array([[0.44, 0.33, 0.0], [0.44, -0.33, 0.0], [-0.44, 0.33, 0.0],
+                 [-0.44, -0.33, 0.0]])
+BASE = BaseState(0.0, np.array([0.0, 0.0, 0.55]), np.array([0.0, 0.0, 0.0, 1.0]),
+                 np.zeros(3), np.zeros(3))
+WALK = np.array([0.1, 0.0, 0.0])
+ZERO = np.zeros(3)
+
+
+def contacts(t: float, contact=(1, 1, 1, 1), feet=FEET) -> ContactState:
+    return ContactState(t, feet.copy(), np.zeros((4, 3)), np.array(contact, bool),
+                        np.zeros(4, bool), np.zeros(4, bool))
+
+
+def make(**gait) -> tuple[GaitReplanner, list, list]:
+    logs, warnings = [], []
+    replanner = GaitReplanner(GaitParams(**gait), 0.5, 0.3, start_delay=1.0,
+                              log=lambda level, text: logs.append((level, text)),
+                              warn=lambda key, text: warnings.append(key))
+    return replanner, logs, warnings
+
+
+def plan_now(replanner, setpoint=WALK, source='cmd_vel'):
+    plan = replanner.plan_pending(BASE, None, setpoint, source)
+    assert plan is not None and replanner.pending is None
+    replanner.adopt(plan)
+    return plan
+
+
+def run_until_pending(replanner, t: float, contact_of=lambda t: (1, 1, 1, 1),
+                      limit: float = 20.0) -> float:
+    """Ticks from ``t`` on until a re-plan is due; its time."""
+    while t < limit:
+        replanner.tick(contacts(t, contact_of(t)))
+        if replanner.pending is not None:
+            return t
+        t = round(t + TICK, 6)
+    raise AssertionError('no re-plan came')
+
+
+def test_the_first_state_seen_is_planned_with_the_start_delay():
+    replanner, logs, _ = make()
+    replanner.tick(contacts(0.0))
+    assert replanner.pending.initial and replanner.pending.stamp == 0
+    plan = plan_now(replanner)
+    assert plan.start_time == 0.0 and len(plan.steps) == 8
+    assert plan.steps[0].liftoff_time == pytest.approx(1.0)      # after start_delay
+    assert plan.min_swing_fraction == 0.5 and plan.max_extension == 0.3
+    assert replanner.replans == 1
+    assert logs == [('info', 'initial plan at t=0.000 s: stand 1.0 s, then lh first')]
+
+
+def test_a_replan_step_touching_down_makes_a_replan_due_at_its_tick():
+    replanner, _, _ = make()
+    replanner.tick(contacts(0.0))
+    plan = plan_now(replanner)
+    first = plan.steps[0]
+    # The swing leg's contact comes back at its planned touchdown (haptic).
+    def contact_of(t):
+        flags = [1, 1, 1, 1]
+        if first.liftoff_time < t < first.touchdown_time:
+            flags[first.leg] = 0
+        return flags
+    t = run_until_pending(replanner, TICK, contact_of)
+    assert first.replan
+    assert t == pytest.approx(first.touchdown_time, abs=TICK)
+    assert not replanner.pending.initial
+    assert replanner.schedule.next_leg != first.leg
+    # A republished tick changes nothing.
+    pending = replanner.pending
+    replanner.tick(contacts(t))
+    assert replanner.pending is pending
+
+
+def test_a_forced_touchdown_is_counted_and_logged():
+    replanner, logs, _ = make()
+    replanner.tick(contacts(0.0))
+    first = plan_now(replanner).steps[0]
+    # Never any contact of the swing leg after its lift-off: forced at touchdown + 0.3 s.
+    def contact_of(t):
+        flags = [1, 1, 1, 1]
+        if t > first.liftoff_time:
+            flags[first.leg] = 0
+        return flags
+    t = run_until_pending(replanner, TICK, contact_of)
+    assert t == pytest.approx(first.touchdown_time + 0.3, abs=TICK)
+    assert replanner.forced == 1
+    assert logs[-1][0] == 'warning' and 'touchdown forced' in logs[-1][1]
+    # The foot is still in the air: it is planned at the height of its foothold.
+    air = FEET.copy()
+    air[first.leg, 2] = 0.07
+    replanner.pending.contacts = contacts(t, contact_of(t), feet=air)
+    plan = plan_now(replanner)
+    assert plan.initial_feet[first.leg, 2] == pytest.approx(first.target[2])
+
+
+def test_lost_ticks_are_warned_and_time_going_back_starts_a_new_run():
+    replanner, logs, warnings = make()
+    replanner.tick(contacts(0.0))
+    plan_now(replanner)
+    replanner.tick(contacts(TICK))
+    replanner.tick(contacts(2 * TICK))
+    assert not replanner.tick(contacts(5 * TICK))      # two ticks lost
+    assert warnings == ['ticks lost']
+    assert replanner.tick(contacts(TICK))              # a new run
+    assert replanner.pending.initial and replanner.replans == 0 and replanner.plan is None
+    assert logs[-1] == ('warning', 'gait: sim time went back from 0.020 s to 0.004 s; '
+                                   'starting over with a new initial plan')
+
+
+def test_a_robot_never_told_to_walk_stands_from_its_first_plan_until_a_setpoint():
+    replanner, logs, _ = make()
+    replanner.tick(contacts(0.0))
+    plan = plan_now(replanner, ZERO)
+    assert is_stand_plan(plan) and replanner.standing
+    assert logs == [('info', 'initial plan at t=0.000 s: standing still until a non-zero '
+                             'set-point')]
+    # A trigger every idle_replan_period, each re-plan standing again: no step ever lifts off.
+    t = 0.0
+    for _ in range(6):
+        trigger = replanner.plan.steps[0]
+        assert trigger.liftoff_time == trigger.touchdown_time == pytest.approx(
+            t + 0.5 - 0.5 * TICK)
+        t = run_until_pending(replanner, round(t + TICK, 6))
+        assert is_stand_plan(plan_now(replanner, ZERO))
+    # The first set-point walks off after one four-feet phase, the first leg of the sequence.
+    t = run_until_pending(replanner, round(t + TICK, 6))
+    plan = plan_now(replanner, WALK)
+    assert not is_stand_plan(plan) and len(plan.steps) == 8
+    assert plan.steps[0].liftoff_time == pytest.approx(t + 0.25)
+    assert plan.steps[0].leg == 2                      # lh, the sequence's first
+    assert logs[-1][1].startswith(f'walking again at t={t:.3f} s (cmd_vel')
+
+
+def test_without_idle_stance_the_first_plan_steps_in_place_after_the_start_delay():
+    replanner, _, _ = make(idle_stance=False)
+    replanner.tick(contacts(0.0))
+    plan = plan_now(replanner, ZERO)
+    assert not is_stand_plan(plan) and plan.steps[0].liftoff_time == pytest.approx(1.0)
+
+
+def test_zero_setpoint_for_idle_after_stands_and_a_new_one_walks_off():
+    replanner, logs, _ = make(idle_after=2.5)
+    replanner.tick(contacts(0.0))
+    t, plans = 0.0, [plan_now(replanner, WALK)]
+    on_time = late_touchdowns(replanner, 0.0)
+    t = run_until_pending(replanner, round(t + TICK, 6), on_time)
+    plans.append(plan_now(replanner, ZERO))
+    zero_at = t
+    while not replanner.standing:
+        t = run_until_pending(replanner, round(t + TICK, 6), on_time)
+        plans.append(plan_now(replanner, ZERO))
+    assert t - zero_at >= 2.5 - 0.5 * GaitParams().step_period
+    # The plan before the stand ends at its trigger (the feet stay down from that touchdown
+    # on, so the MPC settles the CoM during the last swing); the ones before it do not.
+    before = plans[-2]
+    assert len(before.steps) == 1 and before.steps[0].replan
+    assert len(plans) >= 3 and all(len(p.steps) == 8 for p in plans[:-2])
+    assert is_stand_plan(replanner.plan) and len(replanner.plan.steps) == 1
+    trigger = replanner.plan.steps[0]
+    assert trigger.liftoff_time == pytest.approx(t + 0.5 - 0.5 * TICK)   # off the tick grid
+    assert ('info', f'idle stance at t={t:.3f} s: set-point zero since {zero_at:.3f} s, all '
+                    'four feet down') in logs
+    # The trigger's tick re-plans; a set-point then walks off: the reference trunk stands
+    # through a four-feet phase first.
+    t = run_until_pending(replanner, round(t + TICK, 6))
+    plan = plan_now(replanner, WALK, 'cmd_vel_stamped')
+    assert not is_stand_plan(plan)
+    assert plan.steps[0].liftoff_time == pytest.approx(t + 0.25)
+    assert logs[-1][1].startswith(f'walking again at t={t:.3f} s (cmd_vel_stamped')
+
+
+def late_touchdowns(replanner, late: float):
+    """Contact flags of a swing leg that comes back ``late`` s after its planned touchdown."""
+    def contact_of(t):
+        flags = [1, 1, 1, 1]
+        step = replanner.plan.steps[0]
+        if step.liftoff_time < t < step.touchdown_time + late:
+            flags[step.leg] = 0
+        return flags
+    return contact_of
+
+
+@pytest.mark.parametrize('measured', [True, False])
+def test_late_touchdowns_stretch_the_strides_after_one_cycle(measured):
+    replanner, _, _ = make(measured_step_period=measured, foothold_correction=False)
+    replanner.tick(contacts(0.0))
+    plan_now(replanner)
+    t, scales = 0.0, []
+    for _ in range(7):
+        t = run_until_pending(replanner, round(t + TICK, 6), late_touchdowns(replanner, 0.04))
+        scales.append(replanner.stride_time_scale)
+        plan = plan_now(replanner)
+    # Steps of 0.75 + 0.04 s (on the tick grid): measured from the fifth touchdown on (four
+    # intervals), never from the start's standing delay.
+    period = replanner.timing.measured_period
+    assert period == pytest.approx(0.79, abs=TICK)
+    expected = period / 0.75 if measured else 1.0
+    assert scales[:4] == [1.0] * 4 and scales[4:] == [pytest.approx(expected)] * 3
+    # The first stride of the last plan is stretched accordingly (0.1 m/s straight walk).
+    step = plan.steps[0]
+    stride = step.target[0] - plan.initial_feet[step.leg, 0]
+    assert stride == pytest.approx(0.1 * 3.0 * expected, abs=1e-9)
+
+
+def test_a_plan_that_cannot_be_computed_keeps_the_previous_one():
+    replanner, logs, _ = make()
+    replanner.tick(contacts(0.0))
+    plan = plan_now(replanner)
+    replanner.params.n_footholds = 0             # invalid: compute_footholds refuses
+    replanner.pending = Replan(4_000_000, contacts(TICK), False)
+    assert replanner.plan_pending(BASE, None, WALK, 'cmd_vel') is None
+    assert replanner.pending is None and replanner.plan is plan
+    assert logs[-1][0] == 'error' and 'keeping the previous plan' in logs[-1][1]
+
+
+@pytest.mark.parametrize('value, expected, problem', [
+    ((0.1, 0.0, 0.0), (0.1, 0.0, 0.0), ''),
+    ((0.5, 0.0, 0.0), (0.2, 0.0, 0.0), 'clamped to'),
+    ((float('nan'), 0.0, 0.0), None, 'non-finite or above 10.0'),
+    ((11.0, 0.0, 0.0), None, 'non-finite or above 10.0'),
+])
+def test_setpoints_are_rejected_or_clamped(value, expected, problem):
+    v, text = check_setpoint(value, 10.0, GaitParams())
+    assert (v is None) == (expected is None)
+    if expected is not None:
+        assert np.allclose(v, expected)
+    assert problem in text and (text == '') == (problem == '')
+
+
+def test_the_trend_shift_is_known_once_a_cycle_is_walked_at_the_set_point():
+    """The shift of the hips the foothold correction places the feet about: none (the actual
+    hips) until a cycle of re-plans at the set-point is known, then the trunk's trend minus the
+    base (speed_feedback.trunk_trend), sway removed; a new set-point goes back to none, and so
+    does correction_hips 'actual'."""
+    replanner, _, _ = make()
+    params = replanner.params
+    step = params.step_period
+    shifts = []
+    for k in range(6):
+        t = 5.0 + k * step
+        sway = 0.03 * np.sin(2 * np.pi * t / params.cycle_duration)
+        base = BaseState(t, np.array([0.1 * t, sway, 0.55]), np.array([0.0, 0.0, 0.0, 1.0]),
+                         np.zeros(3), np.zeros(3))
+        shifts.append(replanner._trend_shift(t, base, 0.0, WALK))
+    assert [s is not None for s in shifts] == [False, False, False, True, True, True]
+    np.testing.assert_allclose(shifts[-1], [0.0, -sway], atol=1e-12)   # the trend: y = 0
+    base = BaseState(t + step, np.array([0.1 * (t + step), 0.0, 0.55]),
+                     np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3), np.zeros(3))
+    assert replanner._trend_shift(t + step, base, 0.0, np.array([0.05, 0.0, 0.0])) is None
+    actual = make(correction_hips='actual')[0]
+    assert actual._trend_shift(t, base, 0.0, WALK) is None

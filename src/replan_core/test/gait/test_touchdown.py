@@ -1,0 +1,170 @@
+"""The shared touchdown rule (touchdown.StepTracker)."""
+
+import numpy as np
+import pytest
+
+from replan_core.common.types import FootholdPlan, Step
+from replan_core.gait.touchdown import StepTracker
+
+DT = 0.004    # s, control tick
+
+
+def tick(k):
+    """Tick times as the simulator makes them: integer count times the period."""
+    return k * DT
+
+
+def make_plan(haptic=True, replan=(True, True, True), four_feet=0.2, swing=0.4, t0=0.0):
+    feet = np.array([[0.37, 0.2, 0.0], [0.37, -0.2, 0.0], [-0.37, 0.2, 0.0], [-0.37, -0.2, 0.0]])
+    steps = []
+    t = t0
+    for i, leg in enumerate((2, 0, 3)):
+        lo = t + four_feet
+        td = lo + swing
+        steps.append(Step(leg=leg, liftoff_time=lo, touchdown_time=td,
+                          target=feet[leg] + [0.1, 0.0, 0.0], step_height=0.1, haptic=haptic,
+                          replan=replan[i], yaw=0.0))
+        t = td
+    return FootholdPlan(start_time=t0, initial_feet=feet, initial_yaw=0.0, steps=steps)
+
+
+def run(tracker, flags_of, k_end):
+    """Feed ticks 0..k_end; ``flags_of(k)`` gives the contact flags. Returns all events."""
+    events = []
+    for k in range(k_end + 1):
+        events += tracker.update(tick(k), flags_of(k))
+    return events
+
+
+def all_down(_k):
+    return np.ones(4, dtype=bool)
+
+
+def test_liftoff_at_planned_time_and_swing_state():
+    plan = make_plan()
+    tracker = StepTracker(plan, min_swing_fraction=0.5, max_extension=0.1)
+    k_lo = round(0.2 / DT)
+    assert run(tracker, all_down, k_lo - 1) == []
+    events = tracker.update(tick(k_lo), np.ones(4, dtype=bool))
+    assert [(e.kind, e.step, e.leg) for e in events] == [('liftoff', 0, 2)]
+    assert events[0].time == tick(k_lo)
+    assert tracker.in_swing.tolist() == [False, False, True, False]
+    assert tracker.active_step(2) == 0 and tracker.active_step(0) is None
+    assert not tracker.replan_due
+
+
+def test_non_haptic_ends_at_planned_touchdown_whatever_the_contacts():
+    plan = make_plan(haptic=False)
+    tracker = StepTracker(plan, min_swing_fraction=0.1, max_extension=0.1)
+    # Contact flags set all the time (an early touchdown): ignored without haptic mode.
+    events = run(tracker, all_down, round(0.7 / DT))
+    td = [e for e in events if e.kind == 'touchdown']
+    assert td[0].time == pytest.approx(0.6, abs=1e-9) and td[0].reason == 'planned'
+    # No contact at all: it still ends on time.
+    tracker2 = StepTracker(plan)
+    events2 = run(tracker2, lambda k: np.zeros(4, dtype=bool), round(0.7 / DT))
+    first_td = next(e.time for e in events2 if e.kind == 'touchdown')
+    assert first_td == pytest.approx(0.6, abs=1e-9)
+
+
+def test_haptic_ignores_contact_before_min_swing_fraction_then_ends_at_contact():
+    plan = make_plan()
+    tracker = StepTracker(plan, min_swing_fraction=0.5, max_extension=0.1)
+    contact_from = 0.5    # s: contact sensed from here on, before the planned 0.6
+    events = run(tracker, lambda k: np.array([True, True, tick(k) < 0.25 or tick(k) >= contact_from,
+                                              True]), round(0.5 / DT))
+    td = [e for e in events if e.kind == 'touchdown']
+    assert len(td) == 1
+    assert td[0].time == pytest.approx(0.5, abs=1e-9)
+    assert td[0].reason == 'contact' and td[0].replan
+    assert tracker.replan_due and tracker.touchdown_reason[0] == 'contact'
+    # Flags set right after lift-off (debounce lag) did not end the swing before 0.2 + 0.5 * 0.4.
+    assert tracker.touchdown_tick[0] >= 0.4
+
+
+def test_haptic_contact_exactly_at_the_window_start_counts():
+    plan = make_plan()
+    tracker = StepTracker(plan, min_swing_fraction=0.5, max_extension=0.1)
+    events = run(tracker, all_down, round(0.45 / DT))
+    td = [e for e in events if e.kind == 'touchdown']
+    assert td[0].time == pytest.approx(0.4, abs=1e-9)   # 0.2 + 0.5 * 0.4, float-tolerant
+
+
+def test_haptic_late_contact_extends_the_swing():
+    plan = make_plan()
+    tracker = StepTracker(plan, min_swing_fraction=0.5, max_extension=0.2)
+    events = run(tracker, lambda k: np.array([True, True, tick(k) >= 0.66, True]),
+                 round(0.9 / DT))
+    td = [e for e in events if e.kind == 'touchdown']
+    assert td[0].time == pytest.approx(0.66, abs=1e-9) and td[0].reason == 'contact'
+
+
+def test_haptic_forced_after_max_extension():
+    plan = make_plan()
+    tracker = StepTracker(plan, min_swing_fraction=0.5, max_extension=0.2)
+    events = run(tracker, lambda k: np.array([True, True, False, True]), round(0.9 / DT))
+    td = [e for e in events if e.kind == 'touchdown']
+    assert td[0].time == pytest.approx(0.8, abs=1e-9) and td[0].reason == 'forced'
+    assert tracker.touchdown_reason[0] == 'forced'
+
+
+def test_replan_touchdown_stops_and_next_liftoff_waits_for_previous_touchdown():
+    # K = 2: the first touchdown does not re-plan; the next step lifts off at
+    # max(planned lift-off, actual touchdown).
+    plan = make_plan(replan=(False, True, False), four_feet=0.048)
+    tracker = StepTracker(plan, min_swing_fraction=0.5, max_extension=0.3)
+    # Leg 2 touches down at 0.7, 0.252 s late; step 1 was planned to lift off at 0.496.
+    late = 0.7
+    flags = lambda k: np.array([tracker.active_step(0) is None or tick(k) >= 1.0,  # noqa: E731
+                                True, tick(k) < 0.1 or tick(k) >= late, True])
+    events = []
+    for k in range(round(1.6 / DT) + 1):
+        events += tracker.update(tick(k), flags(k))
+        if tracker.replan_due:
+            break
+    kinds = [(e.kind, e.step, round(e.time, 6), e.reason) for e in events]
+    assert kinds[:3] == [('liftoff', 0, 0.048, 'planned'), ('touchdown', 0, 0.7, 'contact'),
+                         ('liftoff', 1, 0.7, 'planned')]
+    # The haptic window of step 1 opens at 0.7 + 0.5 * 0.4 = 0.9; forced would be 1.196.
+    assert kinds[3] == ('touchdown', 1, 1.0, 'contact')
+    assert len(kinds) == 4
+    assert tracker.replan_due and events[-1].replan
+    assert tracker.next_step == 2      # a replan touchdown does not start the next step
+
+
+def test_duplicate_and_start_ticks_change_nothing():
+    plan = make_plan(t0=1.0)
+    tracker = StepTracker(plan)
+    assert tracker.update(1.0, np.zeros(4, dtype=bool)) == []
+    assert tracker.update(0.5, np.zeros(4, dtype=bool)) == []
+    events = tracker.update(1.2, np.ones(4, dtype=bool))
+    assert [e.kind for e in events] == ['liftoff']
+    assert tracker.update(1.2, np.ones(4, dtype=bool)) == []
+    assert tracker.in_swing[2]
+
+
+def test_done_after_last_step():
+    plan = make_plan(haptic=False, replan=(False, False, False))
+    tracker = StepTracker(plan)
+    run(tracker, all_down, round(2.0 / DT))
+    assert tracker.done and not tracker.in_swing.any()
+    assert [tracker.touchdown_reason[i] for i in range(3)] == ['planned'] * 3
+
+
+def test_two_trackers_fed_the_same_ticks_decide_the_same():
+    rng = np.random.default_rng(4)
+    plan = make_plan(replan=(False, False, True))
+    flags = rng.random((400, 4)) < 0.3
+    a, b = StepTracker(plan, 0.4, 0.15), StepTracker(plan, 0.4, 0.15)
+    for k in range(400):
+        ea = a.update(tick(k), flags[k])
+        eb = b.update(tick(k), flags[k].copy())
+        assert ea == eb
+        assert a.replan_due == b.replan_due
+
+
+def test_bad_parameters_are_rejected():
+    with pytest.raises(ValueError):
+        StepTracker(make_plan(), min_swing_fraction=1.5)
+    with pytest.raises(ValueError):
+        StepTracker(make_plan(), max_extension=-0.1)
