@@ -503,8 +503,10 @@ class SimWorld:
 
     def contact_state(self) -> ContactState:
         """Feet positions, ground reaction forces, debounced flags and edges of this tick."""
-        feet = np.array([self._p.getLinkState(self._robot, link, computeForwardKinematics=True)[4]
-                         for link in self._feet])
+        # One call, one forward kinematics pass for the four feet (getLinkState ran it per
+        # foot): the same link frames.
+        feet = np.array([state[4] for state in self._p.getLinkStates(
+            self._robot, self._feet, computeForwardKinematics=True)])
         return ContactState(stamp=self.time, foot_position=feet, force=self._force.copy(),
                             contact=self._contact.copy(), touchdown=self._touchdown.copy(),
                             liftoff=self._liftoff.copy())
@@ -574,9 +576,11 @@ class SimWorld:
         inertial frame (what pybullet reports)."""
         com_pos, com_quat = self._p.getBasePositionAndOrientation(self._robot)
         com_pos = np.array(com_pos)
-        quat = rotations.multiply(com_quat, rotations.conjugate(self._local_quat))
+        # The local frame as floats: the same IEEE operations as on its numpy scalars,
+        # without their cost.
+        quat = rotations.multiply(com_quat, rotations.conjugate(self._local_quat_tuple))
         quat /= math.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
-        return com_pos - np.array(rotations.rotate(quat, self._local_pos)), quat, com_pos
+        return com_pos - np.array(rotations.rotate(quat, self._local_pos_tuple)), quat, com_pos
 
     def _set_base_pose(self, pos: np.ndarray, quat: np.ndarray) -> None:
         com_pos = pos + np.array(rotations.rotate(quat, self._local_pos))
