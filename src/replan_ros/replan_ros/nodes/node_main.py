@@ -102,9 +102,9 @@ def run_node(make_node: Callable[[], Node], args=None, *,
     profiler = _profiler(label or getattr(make_node, '__name__', 'node'))
     try:
         node = make_node()
+        if profiler is not None:
+            profiler.enable()
         if drain is None:
-            if profiler is not None:
-                profiler.enable()
             rclpy.spin(node)
         else:
             executor = SingleThreadedExecutor()
