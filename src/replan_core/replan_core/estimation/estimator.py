@@ -178,6 +178,11 @@ class StateEstimator:
         # Momentum observer: the legs' rows of M (12, nv) of the last tick, the integral
         # p(0) + int(...) dt (12) and the residual r ~ J^T f (12, N m); None: start over.
         self._leg_rows = self._model_leg_v.reshape(-1)
+        # The legs' rows of the symmetric M read from crba's upper triangle: entry (i, j) at
+        # (min, max); one fancy index instead of two triu, a transpose and a sum per tick.
+        columns = np.arange(self._pin_model.nv)[None, :]
+        self._m_rows_index = (np.minimum(self._leg_rows[:, None], columns),
+                              np.maximum(self._leg_rows[:, None], columns))
         self._observer: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._foot_rel = np.zeros((N_LEGS, 3))       # m, world axes, foot - base (kinematics)
         self._contact = np.zeros(N_LEGS, dtype=bool)
@@ -456,7 +461,9 @@ class StateEstimator:
             return static
         pin.crba(self._pin_model, self._pin_data, q)       # upper triangle of M
         upper = self._pin_data.M
-        m_rows = (np.triu(upper) + np.triu(upper, 1).T)[rows]     # (12, nv) kg m^2, kg m
+        # (12, nv) kg m^2, kg m. ``+ 0.0`` as the triangles' sum had: the same bits (a -0.0
+        # becomes +0.0 there too).
+        m_rows = upper[self._m_rows_index] + 0.0
         momentum = m_rows @ v                                      # p_leg, N m s
         # One step moves r by gain * dt of its error: from 1 on (a gap of several missed
         # ticks) it would overshoot, so the observer starts over from the static value.

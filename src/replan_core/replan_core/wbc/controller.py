@@ -532,7 +532,7 @@ class WholeBodyController:
         qp_status, qp_iter = 'no_stance', 0
         if stance.any():
             forces, qp_status, qp_iter = self._solve_forces(feet, com, wrench, stance)
-            if qp_status not in ('solved', 'max_iter') or not np.all(np.isfinite(forces)):
+            if qp_status not in ('solved', 'max_iter') or not np.isfinite(forces).all():
                 return self._fallback(joints, contact, stance, f'force QP {qp_status}')
             forces[~stance] = 0.0
 
@@ -561,7 +561,7 @@ class WholeBodyController:
             legs_tau[i] += j_leg.T @ force + m_leg @ qdd
         torque = legs_tau.ravel()           # leg-major: JOINT_NAMES order
 
-        if not np.all(np.isfinite(torque)):
+        if not np.isfinite(torque).all():
             return self._fallback(joints, contact, stance, 'non-finite torque')
         # np.clip's wrapper costs more than the two ufuncs it calls (torque is finite here).
         clipped = np.minimum(np.maximum(torque, self._neg_limit), self._limit)

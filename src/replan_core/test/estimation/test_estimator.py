@@ -494,3 +494,17 @@ def test_prepared_covariance_step_changes_nothing(world, robot):
     assert plain.prepared_used == 0
     # Used on most ticks; not at the two edges, the rejected sample and the missed tick.
     assert 0.9 * prepared_ticks < prepared.prepared_used <= prepared_ticks - 4
+
+
+def test_observer_mass_rows_are_the_symmetric_matrix(robot):
+    """The legs' rows of M read from crba's upper triangle by one index are, bit for bit, the
+    rows of triu(M) + triu(M, 1)^T (the form they replace), -0.0 entries included."""
+    est = StateEstimator(robot, EstimatorParams())
+    nv = robot.model.nv
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        upper = np.triu(rng.normal(size=(nv, nv)))
+        upper[rng.random((nv, nv)) < 0.2] = -0.0
+        upper = np.asfortranarray(upper)          # pinocchio's (Eigen's) layout
+        reference = (np.triu(upper) + np.triu(upper, 1).T)[est._leg_rows]
+        assert (upper[est._m_rows_index] + 0.0).tobytes() == reference.tobytes()

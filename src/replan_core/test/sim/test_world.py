@@ -554,3 +554,33 @@ def test_finish_step_rejects_bad_torques_and_goes_on(world_factory):
         world.finish_step(np.full(12, np.nan))
     world.finish_step(np.zeros(12))              # the begun period ends with safe torques
     assert world.tick == 1
+
+
+def test_pybullet_functions_bound_once(world_factory):
+    """The client binds each pybullet function once (a cut of the per-call partial), never
+    ``disconnect``, which resets the client id."""
+    world = world_factory()
+    client = world._p
+    assert client.getJointStates is client.getJointStates
+    assert 'disconnect' not in vars(client)
+
+
+def test_batched_queries_give_the_per_call_values(world_factory, model):
+    """One getLinkStates call gives the feet the per-foot getLinkState calls gave, and the
+    joint friction on the 12 joints at once the per-joint ``min`` / ``max`` expression,
+    NaN and signed zeros included: the cuts keep runs bit-exact."""
+    world = world_factory()
+    p, robot = world._p, world._robot
+    for _ in range(20):
+        world.step(standing_torques(world, model) + 30.0)
+        single = np.array([p.getLinkState(robot, link, computeForwardKinematics=True)[4]
+                           for link in world._feet])
+        assert world.contact_state().foot_position.tobytes() == single.tobytes()
+    velocity = np.concatenate([np.random.default_rng(0).normal(0.0, 3.0, 200),
+                               [np.nan, np.inf, -np.inf, 0.0, -0.0, 1.0, -1.0]])
+    torque = np.random.default_rng(1).normal(0.0, 50.0, len(velocity))
+    tau_c, inv_v = 2.3, 1.7
+    per_joint = [f - tau_c * max(-1.0, min(1.0, s * inv_v))
+                 for f, s in zip(torque.tolist(), velocity.tolist(), strict=True)]
+    batched = torque - tau_c * np.fmax(-1.0, np.fmin(1.0, velocity * inv_v))
+    assert np.array(per_joint).tobytes() == batched.tobytes()

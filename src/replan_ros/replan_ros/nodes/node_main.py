@@ -118,8 +118,11 @@ def run_node(make_node: Callable[[], Node], args=None, *,
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda signum, _frame: stop.append(signum))
     node = None
+    profiler = _profiler(label or getattr(make_node, '__name__', 'node'))
     try:
         node = make_node()
+        if profiler is not None:
+            profiler.enable()
         if drain is None:
             rclpy.spin(node)
         else:
@@ -139,6 +142,23 @@ def run_node(make_node: Callable[[], Node], args=None, *,
         print(f'[{label}] {err}', file=sys.stderr, flush=True)
         raise SystemExit(1) from None
     finally:
+        if profiler is not None:
+            profiler.disable()
+            profiler.dump_stats(os.path.join(os.environ['REPLAN_CPROFILE_DIR'],
+                                             f'{profiler.replan_name}.{os.getpid()}.prof'))
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _profiler(name: str):
+    """A cProfile profiler of the spin when ``REPLAN_CPROFILE_DIR`` names a directory (the
+    per-stage figures of docs/performance.md); None otherwise, at no cost."""
+    if not os.environ.get('REPLAN_CPROFILE_DIR'):
+        return None
+    import cProfile
+    # CPU time of the spinning thread: wall time would charge whatever runs when the OS
+    # switches to another node to the function that was on the stack.
+    profiler = cProfile.Profile(time.thread_time)
+    profiler.replan_name = name
+    return profiler
