@@ -223,7 +223,8 @@ def test_a_setpoint_change_gives_the_new_pattern_from_the_first_step(old, new):
     same = compute_footholds(old, feet, base, 0.0, None, 2, t0, params, placed_twists=placed,
                              placed_until=np.full(4, np.inf))
     plain = compute_footholds(old, feet, base, 0.0, None, 2, t0, params)
-    assert all(np.array_equal(a.target, b.target) for a, b in zip(same.steps, plain.steps, strict=True))
+    assert all(np.array_equal(a.target, b.target)
+               for a, b in zip(same.steps, plain.steps, strict=True))
 
 
 def test_a_leg_not_yet_stepped_since_a_change_takes_the_old_reference_up_to_the_change():
