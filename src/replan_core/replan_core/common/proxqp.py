@@ -1,6 +1,6 @@
 """proxsuite's ProxQP as the core uses it: a solve that depends on its input values alone.
 
-Two things made the same QP come out differently in two runs of one scenario (issue 28: the
+Two things made the same QP come out differently in two runs of one scenario (the
 controller's first torques 2e-9 N m apart, the runs parting from the first tick):
 
 - **The instruction set.** ``import proxsuite`` loads the build for the widest SIMD the CPU

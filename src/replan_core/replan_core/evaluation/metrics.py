@@ -68,7 +68,7 @@ def achieved_velocity(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray
     is expressed in the body frame of its mid heading and the steps are summed (the body
     velocity integrated), so a walk that turns reads its speed along the arc. The chord of the
     displacement, used before, read a 0.05 m/s walk turning at 0.2 rad/s over 18 s as 0.027
-    m/s (issue 31; test_metrics.py)."""
+    m/s (test_metrics.py)."""
     inside = np.flatnonzero((times >= start) & (times <= end))
     if len(inside) < 2:
         return None

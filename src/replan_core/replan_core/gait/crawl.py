@@ -17,7 +17,7 @@ Foothold correction (section V.B): the first foothold of each leg in the horizon
 the *actual* hip; without it, it is the foot's previous (actual) position plus one stride. The
 later footholds of a leg are its previous foothold plus one stride in both cases.
 
-Idle stance (issue 16): after ``idle_after`` s of zero set-point the crawl stops at a re-plan
+Idle stance: after ``idle_after`` s of zero set-point the crawl stops at a re-plan
 (a touchdown, so all four feet are down) and a *stand plan* follows: no real step, only a
 zero-length, ``replan`` "trigger" step every ``idle_replan_period``. The shared touchdown rule
 (``touchdown.StepTracker``) ends it one tick after its lift-off tick, so both the gait node and
@@ -92,7 +92,7 @@ class GaitParams:
     # HyQ); 'sway_free', the trunk's trend over the last crawl cycle
     # (speed_feedback.trunk_trend; the replanner passes compute_footholds its trend_shift).
     correction_hips: str = 'sway_free'
-    # Idle stance (issue 16): stop stepping after idle_after s of zero set-point (one crawl
+    # Idle stance: stop stepping after idle_after s of zero set-point (one crawl
     # cycle, 4 * 0.75 s); while standing, re-plan every idle_replan_period s so that a new
     # set-point is picked up within idle_replan_period + four_feet_duration (0.75 s, one step).
     idle_stance: bool = True
@@ -263,7 +263,9 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
                       base_yaw: float, hips: np.ndarray | None, next_leg: int,
                       start_time: float, params: GaitParams, n: int | None = None,
                       delay: float = 0.0, stride_correction=None,
-                      stride_time_scale: float = 1.0, trend_shift=None) -> FootholdPlan:
+                      stride_time_scale: float = 1.0, trend_shift=None,
+                      placed_twists=None, placed_until=None,
+                      placed_poses=None) -> FootholdPlan:
     """compFootholds of Algorithm 1: the next ``n`` steps from the actual state at ``start_time``.
 
     velocity_set_point: (vx, vy, wz), body frame, m/s and rad/s; clamped to the limits.
@@ -287,6 +289,14 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         push); a smaller common offset of the feet from the hips (the trunk lagging its feet)
         is the velocity feedback's. None: the actual hips, corrected about beyond the threshold
         only (their sway alone reaches it).
+    placed_twists: (4, 3) per leg, the (vx, vy, wz) set-point its foot was placed for (zeros
+        for a foot placed standing); None: the set-point of this plan. placed_until (4,) s and
+        placed_poses (4, 3) (x m, y m, yaw rad, world): per leg, the re-plan that first planned
+        another set-point and the actual base then. A leg whose twist is not this plan's takes
+        its first stride from its foot back along the old twist's reference from that base to
+        its last mid-stance, and along the new one from this base to its next (feed-forward of
+        a set-point change, docs/gait.md, "Response to a set-point change"): the pattern takes
+        the new set-point's shape at once, about where the trunk has actually got to since.
     Footholds keep each foot's actual height (flat terrain).
     """
     params.validate()
@@ -333,7 +343,9 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         timing.append((order[(k0 + j) % len(order)], next_liftoff, touchdown,
                        touchdown + half_stance))
         next_liftoff = touchdown + params.four_feet_duration
-    first_targets = _first_footholds(timing, feet, hips_xy, placed, params,
+    previous = _previous_references(placed_twists, placed_until, placed_poses, twist, placed,
+                                    stride_time_scale, params)
+    first_targets = _first_footholds(timing, feet, hips_xy, placed, previous, params,
                                      sway_free=trend_shift is not None)
     for j, (leg, liftoff, touchdown, mid) in enumerate(timing):
         offset = hip_offsets[leg] + stance[leg]
@@ -356,12 +368,49 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
     return plan
 
 
+def _previous_references(placed_twists, placed_until, placed_poses, twist: np.ndarray,
+                         placed: ReferenceTrajectory, stride_time_scale: float,
+                         params: GaitParams) -> list[ReferenceTrajectory]:
+    """Per leg, the reference its foot was placed along: the plan's own (``placed``) when the
+    leg's twist is this plan's, else the old twist's from the base of the re-plan that
+    replaced it (zero twist: the trunk stood there)."""
+    if placed_twists is None:
+        return [placed] * 4
+    old = np.asarray(placed_twists, dtype=float).reshape(4, 3)
+    until = np.full(4, np.inf) if placed_until is None else np.asarray(
+        placed_until, dtype=float).reshape(4)
+    poses = np.full((4, 3), np.nan) if placed_poses is None else np.asarray(
+        placed_poses, dtype=float).reshape(4, 3)
+    refs = []
+    for leg in range(4):
+        if np.array_equal(old[leg], twist):
+            refs.append(placed)
+            continue
+        if not (math.isfinite(until[leg]) and np.all(np.isfinite(poses[leg]))):
+            raise ValueError(f'leg {leg}: placed for another set-point, but no re-plan and base '
+                             'where it changed')
+        if not np.any(old[leg]):
+            # Placed standing: the trunk stood at the base of that re-plan.
+            refs.append(ReferenceTrajectory(float(until[leg]), poses[leg, :2].copy(),
+                                            float(poses[leg, 2]), np.zeros(3)))
+            continue
+        # Placed walking: the old reference, continued from where the new one, run back from
+        # this base, puts the trunk at the change (a trunk lagging its reference does not
+        # shift the pattern back).
+        position, yaw = placed.pose(float(until[leg]))
+        stretched = clamp_velocity(old[leg] * float(stride_time_scale), params)
+        refs.append(ReferenceTrajectory(float(until[leg]), position, yaw, stretched))
+    return refs
+
+
 def _first_footholds(timing: list[tuple[int, float, float, float]], feet: np.ndarray,
-                     hips_xy: np.ndarray, placed: ReferenceTrajectory, params: GaitParams,
+                     hips_xy: np.ndarray, placed: ReferenceTrajectory,
+                     previous: list[ReferenceTrajectory], params: GaitParams,
                      sway_free: bool) -> dict[int, np.ndarray]:
     """The first foothold (xy, world) of each leg in ``timing`` ((leg, lift-off, touchdown,
     mid-stance) per step), before the velocity feedback's shift: the foot's actual position
-    plus one stride of the reference, and the foothold correction (V.B) about the hips."""
+    plus one stride (along ``previous[leg]`` back to its last mid-stance, along ``placed`` on
+    to its next), and the foothold correction (V.B) about the hips."""
     hip_offsets = np.asarray(params.hip_offsets, dtype=float)
     stance = np.asarray(params.stance_offsets, dtype=float)
     targets: dict[int, np.ndarray] = {}
@@ -371,7 +420,8 @@ def _first_footholds(timing: list[tuple[int, float, float, float]], feet: np.nda
             continue
         offset = hip_offsets[leg] + stance[leg]
         prev_mid = mid - params.cycle_duration
-        targets[leg] = feet[leg, :2] + placed.foot(mid, offset) - placed.foot(prev_mid, offset)
+        targets[leg] = (feet[leg, :2] + placed.foot(mid, offset)
+                        - previous[leg].foot(prev_mid, offset))
         if not params.foothold_correction:
             continue
         # About the hip, moved as the reference hip moves (V.B).

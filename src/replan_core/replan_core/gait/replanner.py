@@ -104,6 +104,15 @@ class GaitReplanner:
         # The base at the walking re-plans of the last cycle and a bit (speed_feedback.
         # trunk_trend): the sway-free trunk the foothold correction places the feet about.
         self.trend_samples: deque[ReplanSample] = deque(maxlen=2 * len(self.params.sequence) + 1)
+        # The (vx, vy, wz) each leg's foot was placed for, and the plan's in force (zeros:
+        # standing): a leg's first stride after a change starts along its old reference.
+        # placed_until, placed_poses: the first re-plan that planned another twist (inf: none
+        # yet) and its base (x, y, yaw).
+        self.placed_twists = np.zeros((4, 3))
+        self.placed_until = np.full(4, np.inf)
+        self.placed_poses = np.full((4, 3), np.nan)
+        self.plan_twist = np.zeros(3)
+        self._planned_twist = np.zeros(3)
 
     @property
     def standing(self) -> bool:
@@ -138,6 +147,8 @@ class GaitReplanner:
                 continue                    # a stand plan's trigger moves no leg
             self.schedule.touched_down(event.leg)
             self.timing.touchdown(event.time)
+            self.placed_twists[event.leg] = self.plan_twist
+            self.placed_until[event.leg] = np.inf
             if event.reason == 'forced':
                 self.forced += 1
                 self.log('warning', f'{LEGS[event.leg]} touchdown forced at t={event.time:.3f} '
@@ -174,11 +185,15 @@ class GaitReplanner:
                 self.timing.restart()
                 self.trend_samples.clear()
                 plan = stand_plan(feet, yaw, t, self.schedule.next_leg, self._trigger_time(t))
+                self._planned_twist = np.zeros(3)
             else:
                 if was_standing:
                     self.speed.reset()
                     self.trend_samples.clear()
                 twist = clamp_velocity(setpoint, self.params)
+                changed = np.isinf(self.placed_until) & np.any(self.placed_twists != twist, axis=1)
+                self.placed_until[changed] = t
+                self.placed_poses[changed] = (base.position[0], base.position[1], yaw)
                 correction = self.speed.update(t, base.position, yaw, twist)
                 trend_shift = self._trend_shift(t, base, yaw, twist)
                 # Walking off from a stand, as at the start: the reference trunk stands
@@ -189,8 +204,12 @@ class GaitReplanner:
                                          self.schedule.next_leg, t, self.params, delay=delay,
                                          stride_correction=correction,
                                          stride_time_scale=self.stride_time_scale,
-                                         trend_shift=trend_shift)
+                                         trend_shift=trend_shift,
+                                         placed_twists=self.placed_twists,
+                                         placed_until=self.placed_until,
+                                         placed_poses=self.placed_poses)
                 self._end_before_standing(plan)
+                self._planned_twist = twist
         except ValueError as err:
             self.log('error', f'footholds at t={t:.3f} s failed ({err}); keeping the previous '
                               'plan')
@@ -244,6 +263,7 @@ class GaitReplanner:
     def adopt(self, plan: FootholdPlan) -> None:
         """Track ``plan`` from now on: as the controller decodes it from the message."""
         self.plan = plan
+        self.plan_twist = self._planned_twist
         self.tracker = StepTracker(plan)
         self.replans += 1
 

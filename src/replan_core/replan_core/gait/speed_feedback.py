@@ -1,5 +1,5 @@
 """Velocity feedback in foot placement: the stride correction that makes the crawl walk at the
-commanded speed (issue 31; docs/gait.md, "Velocity feedback").
+commanded speed (docs/gait.md, "Velocity feedback").
 
 Why. Each first foothold of a plan is the leg's actual foot plus one reference stride
 (``crawl.compute_footholds``). A foot that lands short (a haptic touchdown ends the swing at
@@ -25,7 +25,8 @@ So only a window the set-point held through counts, beginning one cycle after th
 changed (the trunk's acceleration to a new speed is not wound in: it would overshoot), and a
 window whose error exceeds ``max_error`` (m/s: a push, a slip, a stumble; the systematic
 losses measured are below 0.015 m/s) leaves the correction as it is. A stand plan, a new run
-or a zero set-point clears ``c``.
+or a zero set-point clears ``c``; a new set-point keeps each axis of ``c`` scaled with it
+where the set-point keeps its sign, and clears it elsewhere (``carried_correction``).
 
 Step timing (``StepTiming``). The larger share of the loss is not short landings but late
 ones: a swing's touchdown is sensed a few ticks after its planned time (the foot meets the
@@ -118,6 +119,19 @@ def trunk_trend(samples: list[ReplanSample], cycle: float) -> np.ndarray | None:
     return np.mean(moved, axis=0)
 
 
+def carried_correction(correction: np.ndarray, old_setpoint, new_setpoint) -> np.ndarray:
+    """The stride correction (m, body frame) carried over a set-point change: per axis, scaled
+    with the set-point when it keeps its sign (a loss grows with the stride), else zero (a
+    forward walk's correction has no meaning for a sideways one: carried, it walks the robot
+    on along the old direction until the feedback unwinds it)."""
+    old = np.asarray(old_setpoint, dtype=float)[:2]
+    new = np.asarray(new_setpoint, dtype=float)[:2]
+    carried = np.zeros(2)
+    same_sign = old * new > 0.0
+    carried[same_sign] = correction[same_sign] * new[same_sign] / old[same_sign]
+    return carried
+
+
 class SpeedFeedback:
     """The stride correction of one run (module docstring)."""
 
@@ -154,9 +168,12 @@ class SpeedFeedback:
         if self.gain == 0.0 or not np.any(sample.setpoint):
             self.reset()
             return self.correction
-        if self._samples and (sample.t <= self._samples[-1].t or not np.array_equal(
-                self._samples[-1].setpoint, sample.setpoint)):
-            self._samples.clear()                # a new set-point (c kept), or a new run
+        if self._samples and sample.t <= self._samples[-1].t:
+            self._samples.clear()                # a new run
+        elif self._samples and not np.array_equal(self._samples[-1].setpoint, sample.setpoint):
+            self.correction = self._limited(carried_correction(
+                self.correction, self._samples[-1].setpoint, sample.setpoint))
+            self._samples.clear()
         if not self._samples:
             # The trunk accelerates to a new set-point over about one cycle: a window counts
             # only from then on, or the acceleration would be wound into c (overshoot).
@@ -177,12 +194,13 @@ class SpeedFeedback:
         if float(np.hypot(*error)) > self.max_error:
             return self.correction               # a disturbance: not integrated
         dt = sample.t - self._samples[-2].t
-        c = self.correction + self.gain * error * dt
-        norm = float(np.hypot(*c))
-        if norm > self.limit:
-            c *= self.limit / norm
-        self.correction = c
+        self.correction = self._limited(self.correction + self.gain * error * dt)
         return self.correction
+
+    def _limited(self, c: np.ndarray) -> np.ndarray:
+        """``c`` scaled down to the norm ``limit`` if longer."""
+        norm = float(np.hypot(*c))
+        return c * (self.limit / norm) if norm > self.limit else c
 
 
 class StepTiming:

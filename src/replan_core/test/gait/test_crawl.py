@@ -194,6 +194,65 @@ def test_walking_off_from_standing(correction):
             assert step.target[0] - feet[leg, 0] == pytest.approx(v * t_move, abs=1e-9)
 
 
+@pytest.mark.parametrize('old, new', [((0.15, 0.0, 0.0), (0.0, 0.1, 0.0)),
+                                      ((0.0, 0.1, 0.0), (0.0, 0.0, 0.2)),
+                                      ((0.0, 0.0, 0.0), (0.15, 0.0, 0.0))])
+def test_a_setpoint_change_gives_the_new_pattern_from_the_first_step(old, new):
+    """Feet in the steady pattern of ``old``: with the twist each was placed for, every first
+    foothold is where the new reference puts it (its hip at mid-stance), with no foothold
+    correction at all; without, it keeps the old pattern's stagger."""
+    params = GaitParams(foothold_correction=False)
+    t0, base = 10.0, np.array([0.0, 0.0, HEIGHT])
+    feet = steady_feet(params, old, t0, next_leg=2)
+    ref = ReferenceTrajectory(t0, np.zeros(2), 0.0, np.asarray(new))
+    placed = np.tile(np.asarray(old, dtype=float), (4, 1))
+    until = np.full(4, t0)                             # the set-point changes now
+    plan = compute_footholds(new, feet, base, 0.0, None, 2, t0, params, placed_twists=placed,
+                             placed_until=until, placed_poses=np.zeros((4, 3)))
+    stale = compute_footholds(new, feet, base, 0.0, None, 2, t0, params)
+    first, _ = legs_first_last(plan)
+    first_stale, _ = legs_first_last(stale)
+    half_stance = 0.5 * params.stance_duration
+    worst_stale = 0.0
+    for leg, step in first.items():
+        hip_at_mid = ref.foot(step.touchdown_time + half_stance, nominal(params, leg))
+        np.testing.assert_allclose(step.target[:2], hip_at_mid, atol=1e-9)
+        worst_stale = max(worst_stale, np.linalg.norm(first_stale[leg].target[:2] - hip_at_mid))
+    assert worst_stale > 0.05     # m: the old stagger, which the feed-forward removes
+    # The same twist as placed: the plan of today, bit for bit.
+    same = compute_footholds(old, feet, base, 0.0, None, 2, t0, params, placed_twists=placed,
+                             placed_until=np.full(4, np.inf))
+    plain = compute_footholds(old, feet, base, 0.0, None, 2, t0, params)
+    assert all(np.array_equal(a.target, b.target)
+               for a, b in zip(same.steps, plain.steps, strict=True))
+
+
+def test_a_leg_not_yet_stepped_since_a_change_takes_the_old_reference_up_to_the_change():
+    """The set-point changed one step ago and the trunk has followed the new reference since:
+    the legs that have not stepped yet are placed from the old reference up to the change and
+    the new one after it, so they land where the new reference puts their hips."""
+    params = GaitParams(foothold_correction=False)
+    old, new = np.array([0.15, 0.0, 0.0]), np.array([0.0, 0.1, 0.0])
+    t_change = 10.0
+    feet = steady_feet(params, old, t_change, next_leg=2)
+    ref = ReferenceTrajectory(t_change, np.zeros(2), 0.0, new)
+    t1 = t_change + params.step_period                 # the next re-plan
+    base_xy, _ = ref.pose(t1)
+    placed = np.tile(old, (4, 1))
+    placed[2] = new                                    # lh stepped with the new set-point
+    feet[2, :2] = ref.foot(t_change + params.four_feet_duration + params.swing_duration
+                           + 0.5 * params.stance_duration, nominal(params, 2))
+    until = np.array([t_change, t_change, np.inf, t_change])
+    poses = np.zeros((4, 3))                           # the base at the change
+    plan = compute_footholds(new, feet, np.array([*base_xy, HEIGHT]), 0.0, None, 0, t1, params,
+                             placed_twists=placed, placed_until=until, placed_poses=poses)
+    first, _ = legs_first_last(plan)
+    for leg, step in first.items():
+        hip_at_mid = ref.foot(step.touchdown_time + 0.5 * params.stance_duration,
+                              nominal(params, leg))
+        np.testing.assert_allclose(step.target[:2], hip_at_mid, atol=1e-9)
+
+
 def test_yaw_set_point_rotates_footholds_about_the_com():
     params = GaitParams(correction_threshold=0.0)      # every first foothold about the hips
     wz, yaw0, base_xy = 0.2, 0.4, np.array([0.5, 0.3])

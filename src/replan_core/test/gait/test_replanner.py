@@ -261,3 +261,24 @@ def test_the_trend_shift_is_known_once_a_cycle_is_walked_at_the_set_point():
     assert replanner._trend_shift(t + step, base, 0.0, np.array([0.05, 0.0, 0.0])) is None
     actual = make(correction_hips='actual')[0]
     assert actual._trend_shift(t, base, 0.0, WALK) is None
+
+
+def test_each_leg_remembers_the_setpoint_it_was_placed_for_and_when_it_changed():
+    """The feed-forward of a set-point change (gait.compute_footholds, placed_twists): a leg's
+    touchdown records the twist of the plan in force; a plan with another twist marks, for the
+    legs placed before, the re-plan it came at."""
+    replanner, _, _ = make()
+    replanner.tick(contacts(0.0))
+    plan_now(replanner, WALK)
+    assert not np.any(replanner.placed_twists) and np.all(replanner.placed_until == 0.0)
+    lift = replanner.plan.steps[0]
+    swinging = tuple(0 if leg == lift.leg else 1 for leg in range(4))
+    t = run_until_pending(replanner, TICK, lambda t: swinging
+                          if lift.liftoff_time < t < lift.touchdown_time else (1, 1, 1, 1))
+    assert np.array_equal(replanner.placed_twists[lift.leg], WALK)
+    assert replanner.placed_until[lift.leg] == np.inf
+    side = np.array([0.0, 0.05, 0.0])
+    plan_now(replanner, side)
+    assert replanner.placed_until[lift.leg] == t      # placed for WALK, changed now
+    others = [leg for leg in range(4) if leg != lift.leg]
+    assert np.all(replanner.placed_until[others] == 0.0)   # placed standing: since the start

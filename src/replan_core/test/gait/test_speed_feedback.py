@@ -12,6 +12,7 @@ from replan_core.gait.speed_feedback import (
     ReplanSample,
     SpeedFeedback,
     StepTiming,
+    carried_correction,
     mean_body_velocity,
     trunk_trend,
 )
@@ -72,11 +73,26 @@ def test_the_correction_is_limited_and_a_setpoint_change_restarts_the_window():
     fb = SpeedFeedback(1.0, 0.03, CYCLE, 1.0)
     corrections = _walk(fb, 0.2, cycles=6)
     assert max(np.hypot(*c) for c in corrections) == pytest.approx(0.03)
-    kept = fb.correction.copy()
-    # A new set-point: no full window yet, so the correction stays as it is for one cycle.
+    # A new set-point a third of the old, same direction: the correction carried over scaled
+    # with it, then held for a cycle (no full window yet).
+    kept = fb.correction * 0.05 / 0.15
     t0 = 100.0
     for k in range(4):
         assert np.array_equal(fb.update(t0 + k * STEP, (k * 0.05, 0.0), 0.0, (0.05, 0, 0)), kept)
+
+
+def test_a_correction_is_carried_only_along_axes_that_keep_their_direction():
+    c = np.array([0.02, -0.01])
+    assert np.array_equal(carried_correction(c, (0.15, 0.05, 0.0), (0.30, 0.05, 0.2)),
+                          [0.04, -0.01])
+    # Forward to sideways: the forward loss is not the sideways one; carried, it would walk
+    # the robot on forward.
+    assert not np.any(carried_correction(c, (0.15, 0.0, 0.0), (0.0, 0.1, 0.0)))
+    assert not np.any(carried_correction(c, (0.15, 0.05, 0.0), (-0.15, -0.05, 0.0)))
+    fb = SpeedFeedback(1.0, 0.03, CYCLE, 1.0)
+    _walk(fb, 0.2, cycles=6)
+    assert fb.correction[0] > 0
+    assert not np.any(fb.update(100.0, (5.0, 0.0), 0.0, (0.0, 0.1, 0.0)))
 
 
 def test_a_push_is_not_integrated():

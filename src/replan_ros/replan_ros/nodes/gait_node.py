@@ -1,4 +1,4 @@
-"""Gait node: crawl schedule, the shared touchdown rule and foothold re-planning (issue 4); the
+"""Gait node: crawl schedule, the shared touchdown rule and foothold re-planning; the
 decisions are ``replan_core.gait.replanner``'s, this node reads the messages and publishes.
 
 - Every tick of ``contacts`` goes through ``touchdown.StepTracker`` (the rule the controller runs

@@ -1,4 +1,4 @@
-"""MPC node: re-plans the CoM from the actual state at every ``footholds`` (issue 3).
+"""MPC node: re-plans the CoM from the actual state at every ``footholds``.
 
 - ``footholds`` stamped ``t_k`` (reliable, transient local) is a re-plan request. The node takes
   the actual CoM state at ``t_k``: position and velocity from pinocchio
@@ -18,7 +18,7 @@
   an earlier plan, answered with that plan shifted to ``t_k``.
 - No ``contact_events`` subscription: the footholds carry what a re-plan needs; waking at every
   touchdown only to log it took 13 % of the node's busy time in a walk, twice what publishing
-  its plans took (py-spy, stop 27).
+  its plans took (py-spy).
 """
 
 from __future__ import annotations

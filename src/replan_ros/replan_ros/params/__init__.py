@@ -1,4 +1,4 @@
-"""Every node parameter in one place (issue 15): each node declares its parameters from its
+"""Every node parameter in one place: each node declares its parameters from its
 table (``declare``), the launcher and the scenario runner check every parameter file of a run
 against the same tables before anything starts (``files.check_run``), and each node repeats the
 check on its own command line, so a bad value stops the start with one line naming the file,

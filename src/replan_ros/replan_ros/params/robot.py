@@ -1,4 +1,4 @@
-"""The robot of a run (issue 30, docs/robot_files.md): what a node loads for the ``robot_file``
+"""The robot of a run (docs/robot_files.md): what a node loads for the ``robot_file``
 parameter (``node_robot``: the model and its names in the project's order) and the parameters
 a launcher gives the nodes for a robot (``robot_layer``: the robot file itself, its standing
 pose, the parameters derived by ``config/robots/scaling.yaml`` and the file's own
