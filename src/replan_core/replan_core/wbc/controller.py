@@ -84,7 +84,7 @@ class WbcParams:
     fall_tilt: float = 1.0          # rad (57 deg)
     # N m s/rad, joint damping of a fallen robot. Low on purpose: applied at the control rate
     # through the actuator delay, 5 made the light lower legs chatter at +-100 N m (realistic
-    # profile, stop 25); 1 and 2.5 did not.
+    # profile); 1 and 2.5 did not.
     fall_damping: float = 2.0
     qp_max_iter: int = 200
     qp_eps_abs: float = 1e-6
