@@ -107,20 +107,28 @@ def page_verdicts(results: dict, meta: dict) -> list[dict]:
 README_BEGIN, README_END = '<!-- results:begin -->', '<!-- results:end -->'
 
 
+def replace_block(readme: Path, begin: str, end: str, block: str) -> bool:
+    """Put ``block`` between the markers ``begin`` and ``end`` of ``readme`` (a generated part
+    of a hand-written file); False (nothing written) without both markers."""
+    text = readme.read_text() if readme.is_file() else ''
+    if begin not in text or end not in text:
+        return False
+    head, rest = text.split(begin, 1)
+    tail = rest.split(end, 1)[1]
+    readme.write_text(head + begin + '\n' + block + end + tail)
+    return True
+
+
 def fill_readme(readme: Path, results: dict, meta: dict) -> bool:
     """Write the verdict table (``findings.readme_table``) between the results markers of
     ``readme``, with the page's date and plan hash; False (nothing written) without the
     markers or without verdicts."""
     verdicts = page_verdicts(results, meta)
-    text = readme.read_text() if readme.is_file() else ''
-    if not verdicts or README_BEGIN not in text or README_END not in text:
+    if not verdicts:
         return False
-    head, rest = text.split(README_BEGIN, 1)
-    tail = rest.split(README_END, 1)[1]
-    block = (f'\nThe pre-registered verdicts of docs/results.md ({meta["date"]}, plan hash '
+    block = (f'The pre-registered verdicts of docs/results.md ({meta["date"]}, plan hash '
              f'{meta["preregistration"]["hash"]}; generated):\n\n' + readme_table(verdicts))
-    readme.write_text(head + README_BEGIN + block + README_END + tail)
-    return True
+    return replace_block(readme, README_BEGIN, README_END, block)
 
 
 def write_page(path: Path, results: dict, meta: dict) -> None:

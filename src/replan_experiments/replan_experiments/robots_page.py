@@ -298,6 +298,9 @@ def _arguments(argv) -> argparse.Namespace:
                         help='ROS_DOMAIN_ID of the first job (the others follow; default '
                              f'{DEFAULT_DOMAIN_BASE})')
     parser.add_argument('--fresh', action='store_true', help='make every run again')
+    parser.add_argument('--render', action='store_true',
+                        help='no run: the page and the README\'s table again from '
+                             'the robots.json of --out')
     parser.add_argument('--lock', type=Path, metavar='FILE',
                         help='hold this file lock (flock) during each run')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
@@ -315,6 +318,34 @@ def _shown(path: Path, root: Path) -> str:
     resolved = Path(path).resolve()
     return (str(resolved.relative_to(root)) if resolved.is_relative_to(root)
             else str(path))
+
+
+README_BEGIN, README_END = '<!-- robots:begin -->', '<!-- robots:end -->'
+
+
+def _fill_readme(root: Path, page: Path, data: dict) -> None:
+    """The README's short table of the page (``robots_render.readme_block``), for the full
+    page of the repository only (a quick or elsewhere-written page is not the project's)."""
+    from replan_experiments.page import replace_block
+    from replan_experiments.robots_render import readme_block
+    if data['meta'].get('quick') or page.resolve() != (root / 'docs' / 'robots.md').resolve():
+        return
+    if replace_block(root / 'README.md', README_BEGIN, README_END, readme_block(data)):
+        print(f'[robots_page] README.md: its table between {README_BEGIN} and {README_END}')
+
+
+def render_saved(root: Path, out: Path, page: Path) -> int:
+    """``--render``: the page and the README's table again from ``out``/robots.json, no run."""
+    from replan_experiments.robots_render import render_page
+    saved = out / 'robots.json'
+    if not saved.is_file():
+        print(f'robots_page: --render: no {saved} (run the page first)', file=sys.stderr)
+        return 2
+    data = json.loads(saved.read_text())
+    page.write_text(render_page(data))
+    _fill_readme(root, page, data)
+    print(f'[robots_page] page {page} rendered again from {saved}')
+    return 0
 
 
 def main(argv=None) -> int:
@@ -335,6 +366,8 @@ def main(argv=None) -> int:
         return 2
     out = args.out or root / 'runs' / ('robots_page-quick' if args.quick else 'robots_page')
     page = args.page or (out / 'robots.md' if args.quick else root / 'docs' / 'robots.md')
+    if args.render:
+        return render_saved(root, out, page)
     out.mkdir(parents=True, exist_ok=True)
     progress = Progress(planned_runs(plan), quiet=args.quiet)
     runner = Runner(out, config_dir, jobs=args.jobs, domain_base=args.domain_base,
@@ -364,6 +397,7 @@ def main(argv=None) -> int:
     (out / 'robots.json').write_text(json.dumps(data, indent=1, default=str))
     page.parent.mkdir(parents=True, exist_ok=True)
     page.write_text(render_page(data))
+    _fill_readme(root, page, data)
     print(f'[robots_page] {meta["runs"]} runs ({progress.reused} reused) in '
           f'{meta["wall_time_min"]} min; page {page}, data {out / "robots.json"}')
     for failure in runner.failures:

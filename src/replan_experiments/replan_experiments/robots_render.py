@@ -232,6 +232,57 @@ def how_section(meta: dict) -> list[str]:
     ]
 
 
+def _short_walk(row: dict | None) -> str:
+    """Achieved minus commanded in per cent of it, or what the run says instead."""
+    if (said := _not_measured(row)) is not None:
+        return said
+    if row.get('achieved') is None:
+        return 'no figure'
+    return f'{100.0 * (row["achieved"] - row["commanded"]) / row["commanded"]:+.1f}'
+
+
+def _short_response(row: dict | None) -> str:
+    """'met' or the axes whose cycles after a change miss the bounds of ``response_cell``."""
+    if (said := _not_measured(row)) is not None:
+        return said
+    missed = [label for axis, (label, _) in _AXES.items()
+              if (cell := row['axes'].get(axis)) is None or not cell['shares']
+              or cell['first_error'] > 0.10
+              or (cell['later_error'] is not None and cell['later_error'] > 0.05)]
+    return 'met' if not missed else 'off: ' + ', '.join(missed)
+
+
+def readme_block(data: dict) -> str:
+    """A short table of docs/robots.md for the README (between its robots markers): per robot
+    the steady walks, standing, the largest push and step down, and whether the response to
+    set-point changes meets its bounds."""
+    meta, robots = data['meta'], data['robots']
+    rows = []
+    for name, robot in robots.items():
+        walks = ' / '.join(_short_walk(robot['walks'].get(axis)) for axis in _AXES)
+        stand = robot['stand']
+        standing = (stand_cell(stand) if _not_measured(stand) is not None
+                    or stand.get('travel_m') is None
+                    else f'{100.0 * stand["travel_m"]:.2f} cm, {stand["touchdowns"]} steps')
+        push = robot['push']
+        pushed = (f'{push["survived_dv"]:g} m/s' if push and push['survived_dv'] is not None
+                  else push_cell(push, robot['skipped']))
+        steps = robot['step_down']
+        crossed = 0                      # the leading run of crossed shares, as step_cell
+        while crossed < len(steps) and steps[crossed]['crossed']:
+            crossed += 1
+        stepped = (f'{steps[crossed - 1]["share"]:g} of the leg' if crossed
+                   else step_cell(steps, robot['skipped']))
+        rows.append([name, walks, standing, pushed, stepped,
+                     _short_response(robot.get('response'))])
+    header = ['robot', 'walk: forward / lateral / yaw, % off the set-point',
+              f'standing {meta["tests"]["stand"]["duration"]:g} s from launch',
+              'lateral push survived at every phase (dv)', 'blind step down crossed',
+              'response to set-point changes']
+    return '\n'.join([f'From docs/robots.md ({meta["date"]}, revision {meta["revision"]}; '
+                      'generated, realistic profile):', '', *_table(header, rows)]) + '\n'
+
+
 def render_page(data: dict) -> str:
     """The page's markdown from ``robots.json``'s ``meta``, ``facts`` and ``robots``."""
     meta, facts, robots = data['meta'], data['facts'], data['robots']

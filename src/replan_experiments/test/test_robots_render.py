@@ -3,10 +3,13 @@ names revision, code fingerprint and command; falls read as falls, failures as f
 
 from __future__ import annotations
 
+import json
+
 from test_robots_plan import PLAN
 
+from replan_experiments.robots_page import README_BEGIN, README_END, render_saved
 from replan_experiments.robots_plan import load_robots_plan
-from replan_experiments.robots_render import push_cell, render_page, step_cell
+from replan_experiments.robots_render import push_cell, readme_block, render_page, step_cell
 
 META = {'command': 'scripts/robots_page.sh --robot go1 --robot anymal_c', 'machine': '2 cores',
         'revision': 'abc1234', 'code': 'feedc0ffee12', 'date': '2026-11-26 02:00 UTC',
@@ -115,3 +118,26 @@ def test_a_parameters_unit_is_its_declarations():
     assert _unit('wbc.fz_max') == 'N' and _unit('mpc.zmp_margin') == 'm'
     assert _unit('wbc.estimator.contact_force_threshold') == 'N'
     assert _unit('nosuch.node') == '' and _unit('wbc.nosuch') == ''
+
+
+def test_the_readme_table_and_a_render_from_saved_data(tmp_path):
+    data = {'meta': META, 'facts': {'go1': _facts(13.1), 'anymal_c': _facts(52.13)},
+            'robots': {'go1': GO1, 'anymal_c': ANYMAL}}
+    block = readme_block(data)
+    assert block.startswith('From docs/robots.md (2026-11-26 02:00 UTC, revision abc1234;')
+    assert '| go1 | +1.0 / -9.1 / run failed | 0.61 cm, 0 steps | 0.3 m/s | 0.1 of the leg | ' \
+        'off: lateral, yaw |' in block
+    assert '| anymal_c | **fell** at 2.9 s / **fell** at 2.9 s / **fell** at 2.9 s | ' \
+        '**fell** at 3.4 s | not run: falls walking forward on flat ground |' in block
+    # --render: the page and the README's table from robots.json, nothing run; the README's
+    # hand-written text around the markers is kept.
+    out, docs = tmp_path / 'runs', tmp_path / 'docs'
+    out.mkdir()
+    docs.mkdir()
+    (out / 'robots.json').write_text(json.dumps(data))
+    readme = tmp_path / 'README.md'
+    readme.write_text(f'# X\n\nbefore\n{README_BEGIN}\nOLD\n{README_END}\nafter\n')
+    assert render_saved(tmp_path, out, docs / 'robots.md') == 0
+    assert (docs / 'robots.md').read_text() == render_page(data)
+    assert readme.read_text() == f'# X\n\nbefore\n{README_BEGIN}\n{block}{README_END}\nafter\n'
+    assert render_saved(tmp_path, tmp_path / 'none', docs / 'robots.md') == 2
