@@ -390,6 +390,12 @@ def compare_repeats(name: str, outs: list[Path], log=print) -> bool:
     return identical
 
 
+def _shown(value, spec: str) -> str:
+    """``value`` in format ``spec``; '-' for a figure the run did not give (None or missing:
+    a node died, the bag lacks the topic)."""
+    return '-' if value is None else format(value, spec)
+
+
 def summary(metrics: dict, out: Path) -> str:
     if metrics.get('fell') is None and metrics.get('error'):
         # Nothing ran to measure (a node refused its configuration, ...): say so, not "no fall".
@@ -399,9 +405,11 @@ def summary(metrics: dict, out: Path) -> str:
                 + (f'; nodes that died: {dead}' if dead else '') + f'); logs: {out / "logs"}')
     fall = f'FELL ({metrics.get("fall_reason", "")})' if metrics.get('fell') else 'no fall'
     lines = [f'[scenario] {metrics.get("scenario")}: {fall}'
-             f', {metrics.get("sim_time_s", 0):.1f} s sim in {metrics.get("wall_time_s", 0):.1f} s '
-             f'wall (real-time factor {metrics.get("real_time_factor", 0):.2f})',
-             f'  distance {metrics.get("distance_m", 0):.2f} m, re-plans {metrics.get("replans")}, '
+             f', {_shown(metrics.get("sim_time_s"), ".1f")} s sim in '
+             f'{_shown(metrics.get("wall_time_s"), ".1f")} s wall (real-time factor '
+             f'{_shown(metrics.get("real_time_factor"), ".2f")})',
+             f'  distance {_shown(metrics.get("distance_m"), ".2f")} m, re-plans '
+             f'{metrics.get("replans")}, '
              f'MPC solve median {metrics.get("mpc_solve_ms_median")} ms, '
              f'p99 {metrics.get("mpc_solve_ms_p99")} ms, re-plan path (estimate out to '
              f'plan out, wall) median {(metrics.get("replan_wall_ms") or {}).get("median")} ms, '
@@ -410,8 +418,9 @@ def summary(metrics: dict, out: Path) -> str:
              f'  profile {metrics.get("profile")}: measured CoP margin min '
              f'{metrics.get("cop_margin_min_m")} m, 5th percentile '
              f'{metrics.get("cop_margin_p5_m")} m'
-             + (f'; estimator: xy error at the end {estimate["xy_error_end_m"]:.3f} m, '
-                f'velocity RMSE {estimate["velocity_rmse_mps"]:.3f} m/s'
+             + (f'; estimator: xy error at the end '
+                f'{_shown(estimate.get("xy_error_end_m"), ".3f")} m, velocity RMSE '
+                f'{_shown(estimate.get("velocity_rmse_mps"), ".3f")} m/s'
                 if (estimate := metrics.get('estimator')) else '')]
     for seg in metrics.get('velocity_tracking', []):
         if seg.get('achieved') is None:

@@ -74,6 +74,20 @@ def test_the_summary_of_a_run_that_did_not_run_says_it_failed():
                     'runs/x/logs')
 
 
+def test_the_summary_of_a_run_whose_node_died_shows_the_missing_figures_as_dashes():
+    """A node killed mid-run: the run measured what its bag holds, and the figures it could
+    not give are None; the summary shows them as '-' and names the dead node."""
+    metrics = {'scenario': 'forward', 'fell': False, 'sim_time_s': None, 'wall_time_s': 12.0,
+               'real_time_factor': None, 'distance_m': None, 'replans': 3,
+               'estimator': {'xy_error_end_m': None, 'velocity_rmse_mps': 0.01},
+               'dead_nodes': ['mpc']}
+    text = summary(metrics, Path('runs/x'))
+    assert text.startswith('[scenario] forward: no fall, - s sim in 12.0 s wall (real-time '
+                           'factor -)\n  distance - m, re-plans 3,')
+    assert 'xy error at the end - m, velocity RMSE 0.010 m/s' in text
+    assert "  nodes that died: ['mpc']" in text
+
+
 # ------------------------------------------------------------------ against the parameter tables
 def _scenario_error(text: str, extra=()) -> str:
     scenario = parse_scenario(text, 'sc.yaml')
