@@ -9,7 +9,13 @@ from test_robots_plan import PLAN
 
 from replan_experiments.robots_page import README_BEGIN, README_END, render_saved
 from replan_experiments.robots_plan import load_robots_plan
-from replan_experiments.robots_render import push_cell, readme_block, render_page, step_cell
+from replan_experiments.robots_render import (
+    push_cell,
+    readme_block,
+    render_page,
+    response_cell,
+    step_cell,
+)
 
 META = {'command': 'scripts/robots_page.sh --robot go1 --robot anymal_c', 'machine': '2 cores',
         'revision': 'abc1234', 'code': 'feedc0ffee12', 'date': '2026-11-26 02:00 UTC',
@@ -101,6 +107,10 @@ def test_push_and_step_cells_at_the_edges():
     first_falls = {**GO1['push'], 'levels': GO1['push']['levels'][:1], 'survived_dv': None,
                    'fell_dv': 0.2}
     first_falls['levels'] = [{**first_falls['levels'][0], 'phases': _phases([0])}]
+    overshoot = {'shares': [1.07, 0.99, 1.0], 'first_error': 0.07, 'later_error': 0.01,
+                 'overshoot': 0.07}
+    row = {'ok': True, 'fell': False, 'axes': {'forward': overshoot}}
+    assert response_cell(row, 'forward') == '107 99 100 % (**overshoot off**)'
     assert push_cell(first_falls, None) == ('none of the levels tried (< 0.2 m/s); 0.2 m/s '
                                             'fell at phase 0 of 4')
     all_survived = {**GO1['push'], 'fell_dv': None}
