@@ -289,8 +289,9 @@ def readme_block(data: dict) -> str:
               f'standing {meta["tests"]["stand"]["duration"]:g} s from launch',
               'lateral push survived at every phase (dv)', 'blind step down crossed',
               'response to set-point changes']
-    return '\n'.join([f'From docs/robots.md ({meta["date"]}, revision {meta["revision"]}; '
-                      'generated, realistic profile):', '', *_table(header, rows)]) + '\n'
+    return '\n'.join([f'From [docs/robots.md](docs/robots.md) ({meta["date"]}, '
+                      f'{meta["profile"]} profile; generated, the page names the revision of '
+                      'its runs):', '', *_table(header, rows)]) + '\n'
 
 
 def render_page(data: dict) -> str:

@@ -134,7 +134,9 @@ def test_the_readme_table_and_a_render_from_saved_data(tmp_path):
     data = {'meta': META, 'facts': {'go1': _facts(13.1), 'anymal_c': _facts(52.13)},
             'robots': {'go1': GO1, 'anymal_c': ANYMAL}}
     block = readme_block(data)
-    assert block.startswith('From docs/robots.md (2026-11-26 02:00 UTC, revision abc1234;')
+    assert block.startswith('From [docs/robots.md](docs/robots.md) (2026-11-26 02:00 UTC, '
+                            'realistic profile; generated')
+    assert 'abc1234' not in block          # the README names no commit: the page does
     assert '| go1 | +1.0 / -9.1 / run failed | 0.61 cm, 0 steps | 0.3 m/s | 0.1 of the leg | ' \
         'off: lateral, yaw |' in block
     assert '| anymal_c | **fell** at 2.9 s / **fell** at 2.9 s / **fell** at 2.9 s | ' \
