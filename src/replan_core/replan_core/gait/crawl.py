@@ -3,7 +3,10 @@
 A crawl moves one leg at a time, in a fixed sequence (default LH, LF, RH, RF), with a
 four-feet phase of ``four_feet_duration`` before every swing of ``swing_duration``. A re-plan
 at time ``t0`` (a touchdown) asks for the next ``n`` steps starting with the leg after the one
-that just touched down.
+that just touched down. Other gaits swing groups of legs together (``GaitParams.groups``: a
+trot's diagonal pairs, with a short four-feet phase between them or none; gait files,
+gait_file.py): a step is then a group, every leg of it with the group's times and its own
+foothold, placed as in the crawl.
 
 Footholds come from a reference trunk trajectory: the actual base pose at ``t0`` moved with the
 velocity set-point (vx, vy in the body frame, wz), i.e. along an arc. The reference foot of a
@@ -34,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from replan_core.common.types import LEGS, FootholdPlan, Step
+from replan_core.gait.touchdown import step_groups
 
 # HyQ hips (haa joints) in the base frame, m, leg order LF, RF, LH, RH.
 HYQ_HIP_OFFSETS: tuple[tuple[float, float], ...] = (
@@ -69,6 +73,10 @@ class GaitParams:
     four_feet_duration: float = 0.25       # s, all four feet down before each swing
     step_height: float = 0.10              # m, apex above the higher of lift-off and target
     sequence: tuple[int, ...] = DEFAULT_SEQUENCE   # swing order, leg indices
+    # Legs that lift off and touch down together, in swing order (a trot: the diagonal pairs);
+    # empty: one leg at a time in ``sequence`` order (the crawl). When given, ``sequence`` must
+    # list the same legs in the same order (gait_file.py writes both).
+    groups: tuple[tuple[int, ...], ...] = ()
     hip_offsets: tuple[tuple[float, float], ...] = HYQ_HIP_OFFSETS   # m, base frame xy
     # m, nominal foot about its hip, base frame xy: the simulator's standing pose (config/sim.yaml,
     # haa -0.2 rad) puts the feet 0.117 m outside the hips, a wider base for the support triangles.
@@ -114,9 +122,19 @@ class GaitParams:
         return self.swing_duration + self.four_feet_duration
 
     @property
+    def swing_groups(self) -> tuple[tuple[int, ...], ...]:
+        """The steps of one cycle: the legs of each, in swing order."""
+        return self.groups if self.groups else tuple((leg,) for leg in self.sequence)
+
+    @property
+    def steps_per_cycle(self) -> int:
+        """Steps (groups of legs) in one cycle: 4 for the crawl, 2 for a trot."""
+        return len(self.swing_groups)
+
+    @property
     def cycle_duration(self) -> float:
         """s, time between two lift-offs of the same leg."""
-        return len(self.sequence) * self.step_period
+        return self.steps_per_cycle * self.step_period
 
     @property
     def stance_duration(self) -> float:
@@ -127,6 +145,11 @@ class GaitParams:
         """ValueError on inconsistent parameters."""
         if sorted(self.sequence) != [0, 1, 2, 3]:
             raise ValueError(f'sequence must hold each leg once, got {self.sequence}')
+        if self.groups:
+            flat = tuple(leg for group in self.groups for leg in group)
+            if flat != tuple(self.sequence) or not all(self.groups):
+                raise ValueError(f'groups {self.groups} must be non-empty and list the legs '
+                                 f'of sequence {self.sequence} in its order')
         if self.swing_duration <= 0 or self.four_feet_duration < 0:
             raise ValueError('swing_duration must be > 0 and four_feet_duration >= 0')
         if self.n_footholds < 1 or self.replan_window < 1:
@@ -150,23 +173,36 @@ class GaitParams:
 
 @dataclass
 class CrawlSchedule:
-    """gaitSchedule of Algorithm 1: which leg swings next; survives re-plans."""
+    """gaitSchedule of Algorithm 1: which leg (or group of legs) swings next; survives
+    re-plans. ``next_leg`` names a group by its first leg."""
 
     sequence: tuple[int, ...] = DEFAULT_SEQUENCE
     next_leg: int = field(default=-1)
+    groups: tuple[tuple[int, ...], ...] = ()      # as GaitParams.groups; empty: one leg each
 
     def __post_init__(self) -> None:
+        if not self.groups:
+            self.groups = tuple((leg,) for leg in self.sequence)
         if self.next_leg < 0:
-            self.next_leg = self.sequence[0]
+            self.next_leg = self.groups[0][0]
 
     def successor(self, leg: int) -> int:
-        """The leg that swings after ``leg``."""
-        return self.sequence[(self.sequence.index(leg) + 1) % len(self.sequence)]
+        """The first leg of the group that swings after the group of ``leg``."""
+        k = group_index(self.groups, leg)
+        return self.groups[(k + 1) % len(self.groups)][0]
 
     def touched_down(self, leg: int) -> int:
         """Record that ``leg`` ended its swing; returns the next leg to swing."""
         self.next_leg = self.successor(leg)
         return self.next_leg
+
+
+def group_index(groups: tuple[tuple[int, ...], ...], leg: int) -> int:
+    """Index of the group that holds ``leg``; ValueError if none does."""
+    for k, group in enumerate(groups):
+        if leg in group:
+            return k
+    raise ValueError(f'leg {leg} is in none of the swing groups {groups}')
 
 
 def _cycle_displacements(twist: np.ndarray, params: GaitParams) -> np.ndarray:
@@ -273,7 +309,8 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
     base_position, base_yaw: actual base (3,) world and yaw (rad) at ``start_time``.
     hips: (4, 3) actual hip positions, world (used by foothold correction); None: from the base
         pose and ``params.hip_offsets``.
-    next_leg: the leg that swings first (its lift-off comes after a four-feet phase).
+    next_leg: the leg that swings first, with the rest of its group (``params.swing_groups``;
+        their lift-off comes after a four-feet phase).
     delay: s of standing before the first lift-off and before the reference starts to move
         (the start of a run); 0 for a re-plan at a touchdown.
     stride_correction: (2,) m, body frame, added to every stride (velocity feedback,
@@ -330,24 +367,27 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
                         initial_yaw=float(base_yaw))
     last_xy = {leg: feet[leg, :2].copy() for leg in range(4)}   # previous foothold per leg
     last_mid: dict[int, float] = {}                             # its mid-stance time
-    order = params.sequence
-    if next_leg not in order:
-        raise ValueError(f'next_leg {next_leg} is not in the sequence {order}')
-    k0 = order.index(next_leg)
+    groups = params.swing_groups
+    if next_leg not in params.sequence:
+        raise ValueError(f'next_leg {next_leg} is not in the sequence {params.sequence}')
+    k0 = group_index(groups, next_leg)
     # The steps' times: the first lift-off comes after a four-feet phase (or the standing delay
-    # at the start); mid: the middle of the coming stance.
+    # at the start); mid: the middle of the coming stance. A step of a group is one entry per
+    # leg, all with the group's times; step_of: the index of each entry's step (its group).
     timing = []
+    step_of = []
     next_liftoff = start_time + max(float(delay), params.four_feet_duration)
     for j in range(n):
         touchdown = next_liftoff + params.swing_duration
-        timing.append((order[(k0 + j) % len(order)], next_liftoff, touchdown,
-                       touchdown + half_stance))
+        for leg in groups[(k0 + j) % len(groups)]:
+            timing.append((leg, next_liftoff, touchdown, touchdown + half_stance))
+            step_of.append(j)
         next_liftoff = touchdown + params.four_feet_duration
     previous = _previous_references(placed_twists, placed_until, placed_poses, twist, placed,
                                     stride_time_scale, params)
     first_targets = _first_footholds(timing, feet, hips_xy, placed, previous, params,
                                      sway_free=trend_shift is not None)
-    for j, (leg, liftoff, touchdown, mid) in enumerate(timing):
+    for j, (leg, liftoff, touchdown, mid) in zip(step_of, timing, strict=True):
         offset = hip_offsets[leg] + stance[leg]
         _, yaw_td = ref.pose(touchdown)
         shift = _rot(yaw_td) @ correction             # velocity feedback, world frame
@@ -450,24 +490,30 @@ def _first_footholds(timing: list[tuple[int, float, float, float]], feet: np.nda
 def stance_phases(plan: FootholdPlan) -> list[tuple[float, float, np.ndarray, np.ndarray]]:
     """Support phases of a plan: (t_start, t_end, feet (4, 3), in_stance (4,) bool) each.
 
-    Phases follow the planned times: four feet, then three during each swing, ...; the last
-    four-feet phase has ``t_end = inf`` (the final stance holds). Idle triggers (zero-length
-    steps of a stand plan) move no foot and add no phase.
+    Phases follow the planned times: four feet, then three during each swing of a crawl (two
+    during each swing of a trot's pair, ``step_groups``), ...; the last four-feet phase has
+    ``t_end = inf`` (the final stance holds). With no four-feet phase between two groups (a
+    trot) one two-feet phase follows the other. Idle triggers (zero-length steps of a stand
+    plan) move no foot and add no phase.
     """
     feet = plan.initial_feet.copy()
     phases = []
     t = plan.start_time
-    for step in plan.steps:
-        if is_idle_trigger(step):
+    for group in step_groups(plan.steps):
+        steps = [plan.steps[i] for i in group]
+        if is_idle_trigger(steps[0]):
             continue                 # moves no foot: the four-feet phase goes on
+        first = steps[0]
         all_down = np.ones(4, dtype=bool)
-        if step.liftoff_time > t + _EPS:
-            phases.append((t, step.liftoff_time, feet.copy(), all_down))
+        if first.liftoff_time > t + _EPS:
+            phases.append((t, first.liftoff_time, feet.copy(), all_down))
         swing = all_down.copy()
-        swing[step.leg] = False
-        phases.append((step.liftoff_time, step.touchdown_time, feet.copy(), swing))
-        feet[step.leg] = step.target
-        t = step.touchdown_time
+        for step in steps:
+            swing[step.leg] = False
+        phases.append((first.liftoff_time, first.touchdown_time, feet.copy(), swing))
+        for step in steps:
+            feet[step.leg] = step.target
+        t = first.touchdown_time
     phases.append((t, math.inf, feet.copy(), np.ones(4, dtype=bool)))
     return phases
 

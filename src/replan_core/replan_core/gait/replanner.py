@@ -28,7 +28,7 @@ from replan_core.gait.crawl import (
     stand_plan,
 )
 from replan_core.gait.speed_feedback import ReplanSample, SpeedFeedback, StepTiming, trunk_trend
-from replan_core.gait.touchdown import StepTracker
+from replan_core.gait.touchdown import StepTracker, step_groups
 
 DEFAULT_TICK_NS = 4_000_000     # control period until the stamps have shown it (250 Hz)
 # log(level, text): level 'info', 'warning' or 'error'; warn(key, text): a warning that may
@@ -83,7 +83,7 @@ class GaitReplanner:
         """Forget the run (start, or sim time went backwards: a new run)."""
         if why != 'start':
             self.log('warning', f'gait: {why}; starting over with a new initial plan')
-        self.schedule = CrawlSchedule(self.params.sequence)
+        self.schedule = CrawlSchedule(self.params.sequence, groups=self.params.groups)
         self.plan: FootholdPlan | None = None
         self.tracker: StepTracker | None = None
         self.last_tick_ns: int | None = None
@@ -100,10 +100,10 @@ class GaitReplanner:
                                    self.params.cycle_duration,
                                    self.params.velocity_feedback_max_error)
         # The step period actually walked, for the strides (speed_feedback.StepTiming).
-        self.timing = StepTiming(self.params.step_period, len(self.params.sequence))
+        self.timing = StepTiming(self.params.step_period, self.params.steps_per_cycle)
         # The base at the walking re-plans of the last cycle and a bit (speed_feedback.
         # trunk_trend): the sway-free trunk the foothold correction places the feet about.
-        self.trend_samples: deque[ReplanSample] = deque(maxlen=2 * len(self.params.sequence) + 1)
+        self.trend_samples: deque[ReplanSample] = deque(maxlen=2 * self.params.steps_per_cycle + 1)
         # The (vx, vy, wz) each leg's foot was placed for, and the plan's in force (zeros:
         # standing): a leg's first stride after a change starts along its old reference.
         # placed_until, placed_poses: the first re-plan that planned another twist (inf: none
@@ -146,7 +146,8 @@ class GaitReplanner:
             if event.kind != 'touchdown' or is_idle_trigger(self.plan.steps[event.step]):
                 continue                    # a stand plan's trigger moves no leg
             self.schedule.touched_down(event.leg)
-            self.timing.touchdown(event.time)
+            if event.completes_group:           # one step of the gait: a trot's pair, both down
+                self.timing.touchdown(event.time)
             self.placed_twists[event.leg] = self.plan_twist
             self.placed_until[event.leg] = np.inf
             if event.reason == 'forced':
@@ -252,7 +253,10 @@ class GaitReplanner:
         turning back after it (docs/gait.md, "Idle stance")."""
         trigger = next((j for j, st in enumerate(plan.steps) if st.replan), None)
         if trigger is not None and self.idle.stands_at(plan.steps[trigger].touchdown_time):
-            del plan.steps[trigger + 1:]
+            # The trigger's whole group lands (a trot's pair: both legs); in a crawl the group
+            # is the trigger alone.
+            last = next(g for g in step_groups(plan.steps) if trigger in g)[-1]
+            del plan.steps[last + 1:]
 
     @property
     def stride_time_scale(self) -> float:

@@ -5,14 +5,20 @@ the rule is plain float logic on those inputs, so both reach the same decisions 
 however slow either process is.
 
 Rule (docs/gait.md):
-- Steps run one after the other in plan order. A step's swing starts (lift-off) at the first tick
-  t >= max(its planned lift-off, the previous step's actual touchdown tick).
+- Steps run one after the other in plan order; consecutive steps of different legs with the
+  same planned times form a group that swings together (a trot's diagonal pair,
+  ``step_groups``; in a crawl every group is one step). A group's swing starts (lift-off, all
+  its legs on one tick) at the first tick t >= max(its planned lift-off, the previous group's
+  actual touchdown tick, i.e. that of its last foot down).
 - A haptic step ends (touchdown) at the first tick t >= liftoff + min_swing_fraction *
   (touchdown_time - liftoff_time) whose contact flag is set (reason ``contact``), where
   ``liftoff`` is the actual lift-off tick and the duration the planned one; if no contact came,
   it is forced at the first tick t >= touchdown_time + max_extension (reason ``forced``).
 - A non-haptic step ends at the first tick t >= touchdown_time (reason ``planned``).
-- A step never ends at its own lift-off tick.
+- A step never ends at its own lift-off tick. Each foot of a group touches down by itself.
+- Re-plan trigger: the touchdown that completes a group (its last foot down) whose steps carry
+  ``replan``; all four feet are then in stance, as ``crawl.compute_footholds`` requires. The
+  earlier touchdowns of the group are events without ``replan``.
 - Ticks at or before the last processed one (duplicates, and ``plan.start_time`` itself, whose
   tick triggered this plan) change nothing.
 All comparisons use a 1e-9 s tolerance.
@@ -29,6 +35,23 @@ from replan_core.common.types import FootholdPlan, Step
 TIME_TOLERANCE = 1e-9   # s, float comparisons of stamps
 
 
+def step_groups(steps: list[Step]) -> list[list[int]]:
+    """Indices of ``steps`` grouped into the gait's steps: consecutive steps of different legs
+    with the same lift-off and touchdown times (within 1e-9 s) swing together (a trot's
+    pair); every other step is a group of its own (the crawl)."""
+    groups: list[list[int]] = []
+    for i, st in enumerate(steps):
+        if groups:
+            first = steps[groups[-1][0]]
+            if (abs(st.liftoff_time - first.liftoff_time) <= TIME_TOLERANCE
+                    and abs(st.touchdown_time - first.touchdown_time) <= TIME_TOLERANCE
+                    and all(steps[j].leg != st.leg for j in groups[-1])):
+                groups[-1].append(i)
+                continue
+        groups.append([i])
+    return groups
+
+
 @dataclass(frozen=True)
 class StepEvent:
     """A lift-off or touchdown decided at tick ``time``."""
@@ -38,7 +61,9 @@ class StepEvent:
     leg: int           # 0..3
     time: float        # s, the tick
     reason: str        # liftoff: 'planned'; touchdown: 'contact' | 'planned' | 'forced'
-    replan: bool       # touchdown of a step with replan=True
+    replan: bool       # the touchdown completing a group whose steps have replan=True
+    # touchdown: the last foot of its group down (always so in a crawl); lift-off: True
+    completes_group: bool = True
 
 
 class StepTracker:
@@ -58,8 +83,13 @@ class StepTracker:
         self.plan = plan
         self.min_swing_fraction = float(min_swing_fraction)
         self.max_extension = float(max_extension)
-        self.next_step = 0                      # index of the next step to lift off
-        self.active: int | None = None          # index of the step in swing
+        self.groups = step_groups(plan.steps)   # the steps that swing together
+        self.group_of = [0] * len(plan.steps)   # per step, the index of its group
+        for g, group in enumerate(self.groups):
+            for i in group:
+                self.group_of[i] = g
+        self.next_group = 0                     # index of the next group to lift off
+        self.active_steps: list[int] = []       # indices of the steps in swing
         self.liftoff_tick: list[float | None] = [None] * len(plan.steps)
         self.touchdown_tick: list[float | None] = [None] * len(plan.steps)
         self.touchdown_reason: list[str | None] = [None] * len(plan.steps)
@@ -70,17 +100,30 @@ class StepTracker:
     # -- queries ------------------------------------------------------------------------------
 
     @property
+    def next_step(self) -> int:
+        """Index of the next step to lift off (the first of the next group)."""
+        if self.next_group >= len(self.groups):
+            return len(self.plan.steps)
+        return self.groups[self.next_group][0]
+
+    @property
+    def active(self) -> int | None:
+        """Index of the first step in swing, or None (in a crawl: the one step in swing)."""
+        return self.active_steps[0] if self.active_steps else None
+
+    @property
     def in_swing(self) -> np.ndarray:
         """(4,) bool: legs in swing after the last processed tick."""
         swing = np.zeros(4, dtype=bool)
-        if self.active is not None:
-            swing[self.plan.steps[self.active].leg] = True
+        for index in self.active_steps:
+            swing[self.plan.steps[index].leg] = True
         return swing
 
     def active_step(self, leg: int) -> int | None:
         """Index of the step ``leg`` is swinging, or None if it is in stance."""
-        if self.active is not None and self.plan.steps[self.active].leg == leg:
-            return self.active
+        for index in self.active_steps:
+            if self.plan.steps[index].leg == leg:
+                return index
         return None
 
     def step(self, index: int) -> Step:
@@ -89,20 +132,22 @@ class StepTracker:
     @property
     def done(self) -> bool:
         """All steps of the plan have touched down (the final stance holds)."""
-        return self.active is None and self.next_step >= len(self.plan.steps)
+        return not self.active_steps and self.next_group >= len(self.groups)
 
     def swing_start(self, index: int) -> float:
-        """Time the swing of step ``index`` starts: max(planned lift-off, previous touchdown).
+        """Time the swing of step ``index`` starts: max(its group's planned lift-off, the
+        previous group's touchdown, i.e. its last foot's).
 
-        Before the previous step has touched down, its planned touchdown stands in for it.
+        Before a foot of the previous group has touched down, its planned touchdown stands in.
         """
-        step = self.plan.steps[index]
-        if index == 0:
-            return step.liftoff_time
-        prev = self.touchdown_tick[index - 1]
-        if prev is None:
-            prev = self.plan.steps[index - 1].touchdown_time
-        return max(step.liftoff_time, prev)
+        g = self.group_of[index]
+        start = self.plan.steps[self.groups[g][0]].liftoff_time
+        if g == 0:
+            return start
+        for i in self.groups[g - 1]:
+            prev = self.touchdown_tick[i]
+            start = max(start, self.plan.steps[i].touchdown_time if prev is None else prev)
+        return start
 
     # -- the rule -----------------------------------------------------------------------------
 
@@ -135,29 +180,38 @@ class StepTracker:
         events: list[StepEvent] = []
         self.replan_due = False
         while True:
-            if self.active is not None:
-                index = self.active
-                step = self.plan.steps[index]
-                reason = self._touchdown_reason(index, t, bool(flags[step.leg]))
-                if reason is None:
-                    break
-                self.touchdown_tick[index] = t
-                self.touchdown_reason[index] = reason
-                self.active = None
-                self.replan_due = self.replan_due or step.replan
-                events.append(StepEvent('touchdown', index, step.leg, t, reason, step.replan))
-                if step.replan:
+            if self.active_steps:
+                landed = []
+                for index in self.active_steps:
+                    step = self.plan.steps[index]
+                    reason = self._touchdown_reason(index, t, bool(flags[step.leg]))
+                    if reason is not None:
+                        landed.append((index, reason))
+                for index, reason in landed:
+                    self.active_steps.remove(index)
+                    self.touchdown_tick[index] = t
+                    self.touchdown_reason[index] = reason
+                    step = self.plan.steps[index]
+                    # The group's last foot down triggers its re-plan: all feet in stance.
+                    replan = step.replan and not self.active_steps
+                    self.replan_due = self.replan_due or replan
+                    events.append(StepEvent('touchdown', index, step.leg, t, reason, replan,
+                                            not self.active_steps))
+                if self.active_steps:
+                    break                        # a foot of the group still swings
+                if self.replan_due:
                     # The caller re-plans now: the rest of this plan is superseded.
                     break
-            if self.next_step >= len(self.plan.steps):
+            if self.next_group >= len(self.groups):
                 break
-            index = self.next_step
-            if t < self.swing_start(index) - TIME_TOLERANCE:
+            group = self.groups[self.next_group]
+            if t < self.swing_start(group[0]) - TIME_TOLERANCE:
                 break
-            step = self.plan.steps[index]
-            self.liftoff_tick[index] = t
-            self.active = index
-            self.next_step += 1
-            events.append(StepEvent('liftoff', index, step.leg, t, 'planned', False))
+            for index in group:
+                self.liftoff_tick[index] = t
+                self.active_steps.append(index)
+                events.append(StepEvent('liftoff', index, self.plan.steps[index].leg, t,
+                                        'planned', False))
+            self.next_group += 1
         self.events = events
         return events

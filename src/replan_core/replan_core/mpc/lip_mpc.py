@@ -90,6 +90,9 @@ class MpcSettings:
     # (docs/mpc.md, "Position term").
     com_offset: tuple[float, float] = (0.0, 0.0)
     zmp_margin: float = 0.0           # m, inward safety margin of every polygon
+    # m, width of the strip about the segment of two stance feet (a trot's diagonal, the line
+    # support of support.py; docs/mpc.md); 0: two feet are a degenerate polygon (the crawl)
+    line_support_width: float = 0.0
     terminal_capture_point: bool = True   # capture point at N inside the last polygon
     formulation: str = 'working_set'  # 'working_set' (default), 'sparse' or 'dense', see above
     eps_abs: float = 1e-6             # proxsuite absolute tolerance
@@ -180,6 +183,9 @@ class LipMpc(WorkingSetDual, FullQp):
         self.settings = s = settings or MpcSettings()
         if s.formulation not in ('working_set', 'sparse', 'dense'):
             raise ValueError(f'unknown formulation {s.formulation!r}')
+        if not (math.isfinite(s.line_support_width) and s.line_support_width >= 0.0):
+            raise ValueError(f'line_support_width must be finite, >= 0, got '
+                             f'{s.line_support_width}')
         self.n = n = s.n
         self.lifted = lift(n, s.dt, s.com_height, s.gravity)
         self._A, self._B, _ = lip_matrices(s.dt, s.com_height, s.gravity)
@@ -287,7 +293,8 @@ class LipMpc(WorkingSetDual, FullQp):
             if len(self._poly_cache) > 512:         # footholds keep moving: stay bounded
                 self._poly_cache.clear()
             sched = support_schedule(support, start_time, s.dt, n, s.zmp_margin,
-                                     self._poly_cache, centres=s.position_weight > 0.0)
+                                     self._poly_cache, centres=s.position_weight > 0.0,
+                                     line_width=s.line_support_width)
             if com_z is None:
                 com_z = float(np.mean(np.asarray(support.initial_feet)[:, 2])) + s.com_height
         else:

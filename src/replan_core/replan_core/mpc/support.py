@@ -8,6 +8,12 @@ by these rows (paper, footnote 1).
 In a crawl a sample has 3 (one leg swinging) or 4 (all feet down) stance feet, so every sample
 gets ``MAX_ROWS = 4`` rows; unused rows are flagged inactive (the QP keeps its sparsity pattern
 and only relaxes them).
+
+Two feet (a trot's diagonal pair) support the ZMP only on the segment between them. With a
+``line_width`` > 0 such a sample gets a *line support*: a strip of that width centred on the
+segment, two rows across it (no margin: a segment has no interior to shrink) and two along it
+(shrunk by the margin at each end), the same 4 rows as a polygon (docs/mpc.md, "Two feet: the
+line support"). With ``line_width`` 0 two feet are degenerate, as the crawl expects.
 """
 
 from __future__ import annotations
@@ -124,22 +130,48 @@ def _segment_rows(p0: np.ndarray, p1: np.ndarray, margin: float
     return normals, offsets
 
 
-def polygon(points: np.ndarray, margin: float = 0.0) -> SupportPolygon:
+def _line_support(p0: np.ndarray, p1: np.ndarray, margin: float,
+                  line_width: float) -> SupportPolygon:
+    """The line support of two feet p0, p1 (2,): a strip ``line_width`` wide about the segment,
+    rows ``|n . (z - p0)| <= line_width / 2`` across (n the segment's unit normal) and
+    ``margin <= e . (z - p0) <= |p1 - p0| - margin`` along (e its unit direction).
+
+    Degenerate when the margin leaves nothing along it (feet closer than twice the margin).
+    """
+    e = p1 - p0
+    length = float(np.linalg.norm(e))
+    e = e / length
+    nrm = np.array([-e[1], e[0]])
+    half = 0.5 * line_width
+    normals = np.array([nrm, -nrm, e, -e])
+    offsets = np.array([half - nrm @ p0, half + nrm @ p0, -e @ p0 - margin, e @ p1 - margin])
+    hull = np.array([p0, p1])
+    if length <= 2.0 * margin:
+        return SupportPolygon(normals, offsets, hull, 0.0, -np.inf, True,
+                              f'2 feet {length:.3f} m apart, empty after the {margin:.3f} m '
+                              'margin')
+    return SupportPolygon(normals, offsets, hull, 0.0, min(half, 0.5 * length - margin), False)
+
+
+def polygon(points: np.ndarray, margin: float = 0.0, line_width: float = 0.0) -> SupportPolygon:
     """Half-spaces of the convex hull of ``points`` (k, 2 or 3), shrunk inwards by ``margin``.
 
-    Degenerate (flagged, never raised): fewer than 3 distinct feet, collinear feet (area below
-    ``MIN_AREA``), or nothing left inside once the margin is applied.
+    Degenerate (flagged, never raised): fewer than 3 distinct feet (2 feet are a line support
+    if ``line_width`` > 0, m), collinear feet (area below ``MIN_AREA``), or nothing left inside
+    once the margin is applied.
     """
-    return _polygon(_xy_list(points), margin)
+    return _polygon(_xy_list(points), margin, line_width)
 
 
-def _polygon(pl: list, margin: float) -> SupportPolygon:
+def _polygon(pl: list, margin: float, line_width: float = 0.0) -> SupportPolygon:
     """``polygon`` of a list of (x, y) float pairs."""
     hl = _hull_list(pl)
     hull = np.array(hl, dtype=float).reshape(-1, 2)
     if len(hull) == 0:
         return SupportPolygon(np.zeros((0, 2)), np.zeros(0), hull, 0.0, -np.inf, True,
                               'no stance foot')
+    if len(hull) == 2 and line_width > 0.0 and len(set(pl)) == 2:
+        return _line_support(hull[0], hull[1], margin, line_width)
     if len(hull) < 3:
         normals, offsets = _segment_rows(hull[0], hull[-1], margin)
         n_pts = len(set(pl))
@@ -237,7 +269,7 @@ class SupportSchedule:
 
 def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
                      margin: float = 0.0, cache: dict | None = None,
-                     centres: bool = False) -> SupportSchedule:
+                     centres: bool = False, line_width: float = 0.0) -> SupportSchedule:
     """Support polygons at the samples ``start_time + k dt``, k = 1..N, from a foothold plan.
 
     After the last planned step the final stance is kept to the end of the horizon. The stance
@@ -249,6 +281,11 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     ``centres``: also the position term's references (``SupportSchedule.centres``,
     ``stance_centres`` and ``yaws``; left None otherwise, so a re-plan without the term does not
     pay for them).
+    ``line_width``: m, > 0 makes two stance feet a line support (``polygon``). Then a sample
+    that the closed swing intervals leave with fewer than two feet (a trot's switch, where one
+    pair touches down as the other lifts off) counts the legs touching down at it (within
+    1e-9 s) as down: the ZMP, continuous, passes there through the crossing of the two
+    diagonals, which lies on the landing pair's segment.
     """
     times = start_time + dt * np.arange(1, n + 1)
     nleg = len(LEGS)
@@ -262,6 +299,8 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
         for j, st in enumerate(plan.steps):
             swing[i_lo[j]:i_td[j], st.leg] = True      # liftoff <= t <= touchdown
             src[i_td[j]:, st.leg] = j                    # t > touchdown
+        if line_width > 0.0:
+            _land_at_switches(plan, times, i_td, swing, src)
     code = np.where(swing, -2, src)                      # what defines each leg's contribution
     # Runs of samples with the same stance: [bounds[i], bounds[i + 1]).
     bounds = np.flatnonzero((code[1:] != code[:-1]).any(axis=1)) + 1
@@ -280,10 +319,10 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
     for (k0, k1), row in zip(pairwise(bounds), code[bounds[:-1]].tolist(), strict=True):
         pts = tuple((feet_xy[leg][0], feet_xy[leg][1]) if c == -1 else targets_xy[c]
                     for leg, c in enumerate(row) if c != -2)
-        key = (pts, margin)
+        key = (pts, margin, line_width)
         poly = cache.get(key)
         if poly is None:
-            poly = _polygon(list(pts), margin)
+            poly = _polygon(list(pts), margin, line_width)
             cache[key] = poly
         polys.extend([poly] * (k1 - k0))
         m = min(len(poly.offsets), MAX_ROWS)
@@ -303,6 +342,22 @@ def support_schedule(plan: FootholdPlan, start_time: float, dt: float, n: int,
         yaws = np.array([plan.initial_yaw, *(st.yaw for st in plan.steps)], dtype=float)
         sched.yaws = yaws[last + 1]
     return sched
+
+
+def _land_at_switches(plan: FootholdPlan, times: np.ndarray, i_td: list[int],
+                      swing: np.ndarray, src: np.ndarray) -> None:
+    """In place: at samples with fewer than two feet down under the closed swing intervals,
+    the legs whose touchdown is at the sample (within 1e-9 s) stand on their targets."""
+    few = (~swing).sum(axis=1) < 2
+    if not few.any():
+        return
+    i_land = np.searchsorted(times, [st.touchdown_time - 1e-9 for st in plan.steps],
+                             'left').tolist()
+    for j, st in enumerate(plan.steps):
+        rows = np.arange(i_land[j], i_td[j])
+        rows = rows[few[rows]]
+        swing[rows, st.leg] = False
+        src[rows, st.leg] = j
 
 
 def _feet_centres(plan: FootholdPlan, feet0: np.ndarray, src: np.ndarray,

@@ -2,11 +2,14 @@
 initial plan, re-plan triggers, forced touchdowns, republished and lost ticks, a new run,
 idle stance and walking off, a foot still in the air, and set-point checks."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from replan_core.common.types import BaseState, ContactState
 from replan_core.gait.crawl import GaitParams, is_stand_plan
+from replan_core.gait.gait_file import load_gait
 from replan_core.gait.replanner import GaitReplanner, Replan, check_setpoint
 
 TICK = 0.004          # s
@@ -282,3 +285,28 @@ def test_each_leg_remembers_the_setpoint_it_was_placed_for_and_when_it_changed()
     assert replanner.placed_until[lift.leg] == t      # placed for WALK, changed now
     others = [leg for leg in range(4) if leg != lift.leg]
     assert np.all(replanner.placed_until[others] == 0.0)   # placed standing: since the start
+
+
+def test_a_trot_replans_at_the_second_touchdown_of_each_pair():
+    params = load_gait('trot', Path(__file__).resolve().parents[4] / 'config').params()
+    replanner = GaitReplanner(params, 0.5, 0.3, start_delay=1.0)
+    replanner.tick(contacts(0.0))
+    plan = plan_now(replanner)
+    assert len(plan.steps) == 2 * params.n_footholds
+    a, b = plan.steps[:2]
+    assert {a.leg, b.leg} == {0, 3} and a.liftoff_time == b.liftoff_time
+
+    def contact_of(t):                # LF lands at its planned touchdown, RH 20 ms later
+        flags = [1, 1, 1, 1]
+        if a.liftoff_time < t < a.touchdown_time:
+            flags[0] = 0
+        if a.liftoff_time < t < a.touchdown_time + 0.02:
+            flags[3] = 0
+        return flags
+
+    t = run_until_pending(replanner, TICK, contact_of)
+    assert t == pytest.approx(a.touchdown_time + 0.02, abs=TICK)
+    assert replanner.schedule.next_leg == 1          # the other pair: RF (with LH)
+    plan = plan_now(replanner)
+    assert {plan.steps[0].leg, plan.steps[1].leg} == {1, 2}
+    assert plan.steps[0].liftoff_time == pytest.approx(t)   # no four-feet phase

@@ -168,3 +168,108 @@ def test_bad_parameters_are_rejected():
         StepTracker(make_plan(), min_swing_fraction=1.5)
     with pytest.raises(ValueError):
         StepTracker(make_plan(), max_extension=-0.1)
+
+
+# -- groups of legs (a trot's diagonal pairs) ---------------------------------------------------
+def make_pair_plan(haptic=True, replan=True, four_feet=0.0, swing=0.3, t0=0.0):
+    """Two steps of a trot: LF + RH, then RF + LH (leg indices 0, 3 then 1, 2)."""
+    feet = np.array([[0.37, 0.2, 0.0], [0.37, -0.2, 0.0], [-0.37, 0.2, 0.0], [-0.37, -0.2, 0.0]])
+    steps = []
+    t = t0
+    for pair in ((0, 3), (1, 2)):
+        lo = t + four_feet
+        td = lo + swing
+        for leg in pair:
+            steps.append(Step(leg=leg, liftoff_time=lo, touchdown_time=td,
+                              target=feet[leg] + [0.1, 0.0, 0.0], step_height=0.08,
+                              haptic=haptic, replan=replan, yaw=0.0))
+        t = td
+    return FootholdPlan(start_time=t0, initial_feet=feet, initial_yaw=0.0, steps=steps)
+
+
+def test_pair_lifts_off_together():
+    tr = StepTracker(make_pair_plan(four_feet=0.1), 0.5, 0.3)
+    events = run(tr, all_down, 25)               # lift-off planned at 0.1 s = tick 25
+    assert [(e.kind, e.leg, e.time) for e in events] == [('liftoff', 0, tick(25)),
+                                                         ('liftoff', 3, tick(25))]
+    assert tr.in_swing.tolist() == [True, False, False, True]
+    assert tr.active_step(0) == 0 and tr.active_step(3) == 1 and tr.active_step(1) is None
+    assert tr.active == 0
+
+
+def test_each_foot_lands_by_itself_and_the_second_touchdown_replans():
+    tr = StepTracker(make_pair_plan(), 0.5, 0.3)
+    # LF (leg 0) touches at tick 60 (0.24 s), RH (leg 3) at tick 80 (0.32 s).
+    def flags(k):
+        f = np.zeros(4, dtype=bool)
+        f[1] = f[2] = True
+        f[0] = k >= 60
+        f[3] = k >= 80
+        return f
+
+    events = run(tr, flags, 79)
+    first = [e for e in events if e.kind == 'touchdown']
+    assert [(e.leg, e.time, e.reason, e.replan, e.completes_group) for e in first] == [
+        (0, tick(60), 'contact', False, False)]
+    assert not tr.replan_due
+    assert tr.in_swing.tolist() == [False, False, False, True]
+    assert tr.swing_start(2) == pytest.approx(0.3)     # the other pair waits for RH's plan
+    events = tr.update(tick(80), flags(80))
+    assert [(e.kind, e.leg, e.replan, e.completes_group) for e in events] == [
+        ('touchdown', 3, True, True)]
+    assert tr.replan_due                          # the pair's second touchdown
+    assert tr.liftoff_tick[2] is None             # the rest is superseded
+
+
+def test_both_feet_on_one_tick_give_one_replan_on_the_last_event():
+    tr = StepTracker(make_pair_plan(), 0.5, 0.3)
+    # Contact all along: lift-off at the first tick after the start, touchdown at the first
+    # tick half a swing later (0.004 + 0.15 s: tick 39).
+    events = run(tr, all_down, 39)
+    downs = [e for e in events if e.kind == 'touchdown']
+    assert [(e.leg, e.time) for e in downs] == [(0, tick(39)), (3, tick(39))]
+    assert [(e.replan, e.completes_group) for e in downs] == [(False, False), (True, True)]
+    assert tr.replan_due
+
+
+def test_next_pair_waits_for_the_late_foot_of_the_previous_one():
+    tr = StepTracker(make_pair_plan(replan=False), 0.5, 0.3)
+
+    def flags(k):                                 # RH late: 0.36 s (tick 90)
+        f = np.ones(4, dtype=bool)
+        f[0] = k >= 70
+        f[3] = k >= 90
+        f[1] = f[2] = k < 91 or k >= 130
+        return f
+
+    events = run(tr, flags, 140)
+    lifts = [(e.leg, e.time) for e in events if e.kind == 'liftoff']
+    assert lifts[2:] == [(1, tick(90)), (2, tick(90))]     # on the tick RH landed, as a crawl
+    assert tr.swing_start(2) == pytest.approx(tick(90))
+    downs = [(e.leg, e.time, e.replan) for e in events if e.kind == 'touchdown']
+    assert downs == [(0, tick(70), False), (3, tick(90), False), (1, tick(130), False),
+                     (2, tick(130), False)]
+    assert tr.done
+
+
+def test_forced_foot_of_a_pair_completes_it():
+    tr = StepTracker(make_pair_plan(), 0.5, 0.3)
+
+    def flags(k):                                 # RH never senses contact
+        f = np.ones(4, dtype=bool)
+        f[3] = False
+        return f
+
+    events = run(tr, flags, 150)                  # forced at 0.3 + 0.3 = 0.6 s = tick 150
+    downs = [(e.leg, e.time, e.reason, e.replan) for e in events if e.kind == 'touchdown']
+    assert downs == [(0, tick(39), 'contact', False), (3, tick(150), 'forced', True)]
+    assert tr.replan_due
+
+
+def test_crawl_steps_with_equal_times_of_one_leg_are_not_a_group():
+    from replan_core.gait.touchdown import step_groups
+    plan = make_plan()
+    assert step_groups(plan.steps) == [[0], [1], [2]]
+    assert step_groups(make_pair_plan().steps) == [[0, 1], [2, 3]]
+    same = [plan.steps[0], plan.steps[0]]          # the same leg twice: two steps
+    assert step_groups(same) == [[0], [1]]

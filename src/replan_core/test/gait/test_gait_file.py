@@ -1,0 +1,103 @@
+"""Gait files (gait/gait_file.py, config/gaits/)."""
+
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+
+from replan_core.common.types import LEGS
+from replan_core.gait.crawl import GaitParams
+from replan_core.gait.gait_file import (
+    GaitFileError,
+    gait_names,
+    load_gait,
+    load_gait_file,
+    parse_gait,
+)
+
+CONFIG = Path(__file__).resolve().parents[4] / 'config'
+LF, RF, LH, RH = (LEGS.index(n) for n in ('lf', 'rf', 'lh', 'rh'))
+
+
+def test_the_three_gaits_ship():
+    assert {'crawl', 'walking_trot', 'trot'} <= set(gait_names(CONFIG))
+
+
+def test_crawl_file_is_exactly_the_default_crawl():
+    params = load_gait('crawl', CONFIG).params()
+    default = GaitParams()
+    for f in fields(GaitParams):
+        assert getattr(params, f.name) == getattr(default, f.name), f.name
+    assert params.swing_groups == ((LH,), (LF,), (RH,), (RF,))
+    assert load_gait('crawl', CONFIG).line_support_width() == 0.0
+
+
+@pytest.mark.parametrize('name, four_feet', [('walking_trot', True), ('trot', False)])
+def test_trots_swing_the_diagonal_pairs(name, four_feet):
+    spec = load_gait(name, CONFIG)
+    params = spec.params()
+    assert params.swing_groups == ((LF, RH), (RF, LH))
+    assert params.steps_per_cycle == 2
+    assert (params.four_feet_duration > 0) == four_feet
+    assert params.cycle_duration == pytest.approx(2 * params.step_period)
+    # At the speed limit a cycle's stride stays within the step limit.
+    assert params.max_linear_x * params.cycle_duration <= params.max_step_length_x
+    assert params.max_linear_y * params.cycle_duration <= params.max_step_length_y
+    assert spec.line_support_width() > 0.0
+
+
+def test_values_scale_by_their_rule():
+    spec = load_gait('trot', CONFIG)
+    scales = {'time': 0.8, 'length': 0.6, 'speed': 0.7, 'rate': 1.2}
+    params = spec.params(scales=scales)
+    ref = spec.params()
+    assert params.swing_duration == pytest.approx(0.8 * ref.swing_duration)
+    assert params.idle_after == pytest.approx(0.8 * ref.idle_after)
+    assert params.step_height == pytest.approx(0.6 * ref.step_height)
+    assert params.max_step_length_x == pytest.approx(0.6 * ref.max_step_length_x)
+    assert params.max_linear_x == pytest.approx(0.7 * ref.max_linear_x)
+    assert params.max_angular_z == pytest.approx(1.2 * ref.max_angular_z)
+    assert spec.line_support_width(scales) == pytest.approx(0.6 * spec.line_support_width())
+    # What the file does not set stays the base's.
+    assert params.stance_offsets == GaitParams().stance_offsets
+    with pytest.raises(ValueError, match='unknown scaling rules'):
+        spec.params(scales={'mass': 2.0})
+
+
+def _doc(**changes):
+    doc = {'name': 'g', 'groups': [['lf', 'rh'], ['rf', 'lh']], 'swing_duration': 0.3,
+           'four_feet_duration': 0.0}
+    doc.update(changes)
+    return {k: v for k, v in doc.items() if v is not None}
+
+
+@pytest.mark.parametrize('changes, message', [
+    ({'groups': [['lf', 'xx'], ['rf', 'lh', 'rh']]}, "unknown leg 'xx'"),
+    ({'groups': [['lf', 'rh'], ['rf']]}, 'each leg once'),
+    ({'groups': [['lf', 'rh'], ['rf', 'lh', 'lf']]}, 'each leg once'),
+    ({'groups': []}, 'non-empty list'),
+    ({'swing_duration': None}, 'missing swing_duration'),
+    ({'swing_duration': 0.0}, 'swing_duration must be > 0'),
+    ({'four_feet_duration': -0.1}, 'four_feet_duration must be a finite number >= 0'),
+    ({'max_linear_x': float('nan')}, 'max_linear_x must be a finite number'),
+    ({'n_footholds': 0}, 'n_footholds must be an integer >= 1'),
+    ({'sequence': ['lf']}, 'unknown key sequence'),
+])
+def test_bad_gait_files_name_the_key(changes, message):
+    with pytest.raises(GaitFileError, match=message):
+        parse_gait(_doc(**changes), 'x.yaml')
+
+
+def test_unknown_gait_names_the_gaits_there():
+    with pytest.raises(GaitFileError, match=r"unknown gait 'gallop'.*crawl.*trot"):
+        load_gait('gallop', CONFIG)
+
+
+def test_name_must_be_the_file_name(tmp_path):
+    path = tmp_path / 'pace.yaml'
+    path.write_text('name: trot\ngroups: [[lf, lh], [rf, rh]]\nswing_duration: 0.3\n'
+                    'four_feet_duration: 0.0\n')
+    with pytest.raises(GaitFileError, match='is not the file name'):
+        load_gait_file(path)
+    path.write_text(path.read_text().replace('name: trot', 'name: pace'))
+    assert load_gait_file(path).params().swing_groups == ((LF, LH), (RF, RH))
