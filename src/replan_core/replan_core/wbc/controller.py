@@ -204,8 +204,8 @@ class PlanFollower:
         com_ref = self.com_plan.sample(t)
         stance = np.ones(N_LEGS, dtype=bool)
         swing: tuple[SwingReference, ...] = ()
-        index = self.tracker.active
-        if index is not None:
+        # Every leg in swing: one in a crawl, a trot's pair together.
+        for index in self.tracker.active_steps:
             step = self.footholds.steps[index]
             liftoff = self.tracker.liftoff_tick[index]
             start = self._liftoff_position.get(index, step.target)
@@ -224,7 +224,7 @@ class PlanFollower:
             timed = Step(step.leg, liftoff, touchdown, target, step.step_height,
                          step.haptic, step.replan, step.yaw)
             stance[step.leg] = False
-            swing = (swing_reference(timed, start, t, swing_trajectory, self.haptic_velocity),)
+            swing += (swing_reference(timed, start, t, swing_trajectory, self.haptic_velocity),)
         yaw = float(np.interp(t, self._yaw_times, self._yaw_values))
         return com_ref, yaw, stance, swing
 

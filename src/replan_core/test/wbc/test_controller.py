@@ -503,3 +503,24 @@ def test_the_wbc_bench_crawls_another_robot(name):
     assert figures['fallbacks'] == 0
     assert figures['com_error_max_m'] < 0.01
     assert figures['advance_m'] > 0.5 * robot.crawl['step_length']
+
+
+def test_plan_follower_swings_both_legs_of_a_pair():
+    """A trot's pair: both legs swing from their own lift-off points, the others stand."""
+    from replan_core.common.types import ComPlan, ContactState, FootholdPlan
+    from replan_core.wbc.controller import PlanFollower
+
+    feet = np.array([[0.37, 0.32, 0.02], [0.37, -0.32, 0.02], [-0.37, 0.32, 0.02],
+                     [-0.37, -0.32, 0.02]])
+    steps = [Step(leg, 5.1, 5.4, feet[leg] + [0.1, 0.0, 0.0], 0.08, True, True, 0.0)
+             for leg in (0, 3)]
+    plan = FootholdPlan(5.0, feet, 0.0, steps)
+    com = ComPlan(5.0, 0.04, np.zeros((201, 3)), np.zeros((201, 3)), np.zeros((201, 3)))
+    follower = PlanFollower(plan, com)
+    down = ContactState(5.1, feet.copy(), np.zeros((4, 3)), np.ones(4, bool),
+                        np.zeros(4, bool), np.zeros(4, bool))
+    events = follower.update(5.1, down)
+    assert [(e.kind, e.leg) for e in events] == [('liftoff', 0), ('liftoff', 3)]
+    _, _, stance, swing = follower.references(5.25)
+    assert stance.tolist() == [False, True, True, False]
+    assert sorted(s.leg for s in swing) == [0, 3]
