@@ -1,6 +1,7 @@
 """Run a scripted scenario headless and write the bag, metrics.json and plots.
 
     scripts/scenario.sh FILE.yaml [--out DIR] [--gui] [--quiet] [--repeat N] [--robot NAME|FILE]
+                        [--gait NAME]
 
 A scenario file (see config/scenarios/ and docs/usage.md, "Scenarios"):
 
@@ -9,6 +10,7 @@ A scenario file (see config/scenarios/ and docs/usage.md, "Scenarios"):
     profile: realistic                  # optional: realistic (default) | ideal | a YAML file
     robot: hyq                          # optional: a name of config/robots/ (default hyq) or
                                         #   a robot file (docs/robot_files.md)
+    gait: crawl                         # optional: a name of config/gaits/ (default crawl)
     terrain: flat                       # flat | step_up | step_down | rough, or a mapping
                                         #   {type: step_up, <sim terrain parameters>};
                                         #   the only place for the terrain (a terrain key
@@ -47,15 +49,18 @@ from geometry_msgs.msg import TwistStamped
 from replan_core.evaluation.metrics import FallLimits
 from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
 from replan_ros.launch.launch_graph import (
+    add_gait_option,
     add_live_option,
     add_robot_option,
     check_live_port,
     live_argv,
 )
 from replan_ros.launch.param_files import (
+    DEFAULT_GAIT,
     DEFAULT_PROFILE,
     DEFAULT_ROBOT,
     check_run_files,
+    gait_parameters,
     profile_file,
     robot_parameters,
 )
@@ -73,7 +78,7 @@ from replan_ros.tools.rerun import (
 )
 
 NODE_NAMES = ('sim', 'gait', 'mpc', 'wbc', 'recorder')
-TOP_KEYS = {'name', 'description', 'duration', 'profile', 'robot', 'terrain', 'params',
+TOP_KEYS = {'name', 'description', 'duration', 'profile', 'robot', 'gait', 'terrain', 'params',
             'events', 'fall_limits'}
 
 
@@ -93,6 +98,7 @@ class Scenario:
     fall_limits: dict = field(default_factory=dict)
     profile: str = DEFAULT_PROFILE
     robot: str = DEFAULT_ROBOT        # a name of config/robots/ or a robot file
+    gait: str = DEFAULT_GAIT          # a name of config/gaits/
     source_text: str = ''
     source: str = '<scenario>'
     terrain_given: bool = False       # the file has a top-level terrain (else: flat)
@@ -140,9 +146,12 @@ def parse_scenario(text: str, source: str = '<scenario>') -> Scenario:
     robot = doc.get('robot', DEFAULT_ROBOT)
     if not isinstance(robot, str) or not robot:
         raise ScenarioError(f'{source}: robot must be a robot name or a robot file')
+    gait = doc.get('gait', DEFAULT_GAIT)
+    if not isinstance(gait, str) or not gait:
+        raise ScenarioError(f'{source}: gait must be a name of config/gaits/')
     scenario = Scenario(name=str(doc.get('name', Path(source).stem)), duration=float(duration),
                         terrain=terrain, params=params, fall_limits=doc.get('fall_limits') or {},
-                        profile=profile, robot=robot, source_text=text, source=source,
+                        profile=profile, robot=robot, gait=gait, source_text=text, source=source,
                         terrain_given='terrain' in doc)
     for i, event in enumerate(doc.get('events') or []):
         where = f'{source}: events[{i}]'
@@ -218,8 +227,9 @@ def check_scenario(scenario: Scenario, config_dir: Path, extra_param_files=()) -
     doc = params_document(scenario)
     terrain = {k: v for k, v in doc['sim']['ros__parameters'].items() if k.startswith('terrain')}
     profile = profile_file(config_dir, scenario.profile)
-    robot = robot_parameters(config_dir, scenario.robot, profile)
-    sources = [profile, robot.derived, robot.overrides,
+    gait = gait_parameters(config_dir, scenario.gait)
+    robot = robot_parameters(config_dir, scenario.robot, profile, gait)
+    sources = [gait, profile, robot.derived, robot.overrides,
                Source(f'{scenario.source} (params)', scenario.params),
                Source(f'{scenario.source} (terrain)', {'sim': terrain}),
                *extra_param_files]
@@ -264,7 +274,7 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
                   gui=gui, respawn=False,
                   extra_params={'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}},
                   log=log, live_port=live_port, stop_time=scenario.duration,
-                  robot=scenario.robot)
+                  robot=scenario.robot, gait=scenario.gait)
     inputs = scenario_inputs(scenario)
 
     def publish_events(node) -> list:
@@ -321,6 +331,7 @@ def main(argv=None) -> int:
                              'and decisions, byte for byte (rerun.EXACT_TOPICS); exit 0 only if '
                              'all are bit-identical')
     add_robot_option(parser, default=None)
+    add_gait_option(parser, default=None)
     add_live_option(parser)
     args = parser.parse_args(live_argv(argv))
     check_live_port(parser, args.live)
@@ -338,6 +349,8 @@ def main(argv=None) -> int:
             scenario.profile = args.profile
         if args.robot:
             scenario.robot = args.robot
+        if args.gait:
+            scenario.gait = args.gait
         profile_file(config_dir, scenario.profile)
         check_scenario(scenario, config_dir, args.params)
     except ConfigError as err:
@@ -349,7 +362,7 @@ def main(argv=None) -> int:
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'{scenario.name}-{time.strftime("%Y%m%d-%H%M%S")}'
     print(f'[scenario] {scenario.name}: {scenario.duration} s of sim time, profile '
-          f'{scenario.profile}, robot {scenario.robot}, output in {out}')
+          f'{scenario.profile}, robot {scenario.robot}, gait {scenario.gait}, output in {out}')
     outs = [out] if args.repeat == 1 else [out / f'run-{k}' for k in range(1, args.repeat + 1)]
     completed = True
     for run_out in outs:

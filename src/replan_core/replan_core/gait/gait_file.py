@@ -4,11 +4,10 @@ A gait file says which legs swing together and in what order (``groups``: the cr
 time, a trot the diagonal pairs), the swing and all-feet-down durations, the step height, the
 step and set-point limits, the steps per plan, and the width of the MPC's line support for two
 feet. Its times, lengths and speeds are the reference robot's (``config/robots/scaling.yaml``,
-``reference``: HyQ), in s, m, m/s and rad/s, and scale to another robot by the existing rules
-(docs/robot_files.md, "Scaling rules"): times with sqrt(l / g), lengths with l, speeds with
-sqrt(g l), turn rates with sqrt(g / l). The caller (which knows the robot) passes the ratios;
-for the reference robot they are 1.0 and the values come out unchanged, bit for bit (so
-``crawl.yaml`` gives exactly ``GaitParams()``'s crawl).
+``reference``: HyQ), in s, m, m/s and rad/s. The launcher gives them to the nodes as a parameter
+layer (``node_parameters``) before the profile and the robot's, so another robot's values
+follow by the scaling rules of ``scaling.yaml``, as every other parameter's (docs/robot_files.md,
+"Scaling rules"). ``crawl.yaml`` gives exactly ``GaitParams()``'s crawl.
 """
 
 from __future__ import annotations
@@ -23,24 +22,16 @@ import yaml
 from replan_core.common.types import LEGS
 from replan_core.gait.crawl import GaitParams
 
-# Each numeric key of a gait file, the scaling rule it follows (scaling.yaml's rule names).
-SCALED_KEYS: dict[str, str] = {
-    'swing_duration': 'time',            # s
-    'four_feet_duration': 'time',        # s
-    'idle_after': 'time',                # s
-    'idle_replan_period': 'time',        # s
-    'step_height': 'length',             # m
-    'max_step_length_x': 'length',       # m
-    'max_step_length_y': 'length',       # m
-    'line_support_width': 'length',      # m, the MPC's (MpcSettings.line_support_width)
-    'max_linear_x': 'speed',             # m/s
-    'max_linear_y': 'speed',             # m/s
-    'max_angular_z': 'rate',             # rad/s
-}
+# The numeric keys of a gait file: the gait node's parameters of the same names, and the mpc
+# node's line_support_width (m); scaling.yaml scales each for a robot.
+GAIT_NODE_KEYS = ('swing_duration', 'four_feet_duration', 'idle_after', 'idle_replan_period',
+                  'step_height', 'max_step_length_x', 'max_step_length_y', 'max_linear_x',
+                  'max_linear_y', 'max_angular_z')
+MPC_NODE_KEYS = ('line_support_width',)
+NUMERIC_KEYS = GAIT_NODE_KEYS + MPC_NODE_KEYS
 REQUIRED_KEYS = ('name', 'groups', 'swing_duration', 'four_feet_duration')
-OPTIONAL_KEYS = ('description', 'n_footholds', *(k for k in SCALED_KEYS
+OPTIONAL_KEYS = ('description', 'n_footholds', *(k for k in NUMERIC_KEYS
                                                    if k not in REQUIRED_KEYS))
-RULES = ('time', 'length', 'speed', 'rate')
 
 
 class GaitFileError(ValueError):
@@ -53,7 +44,7 @@ class GaitSpec:
 
     name: str
     groups: tuple[tuple[int, ...], ...]      # leg indices (LEGS) per step, in swing order
-    values: Mapping[str, float]              # the SCALED_KEYS given in the file
+    values: Mapping[str, float]              # the NUMERIC_KEYS given in the file
     n_footholds: int | None = None           # steps (groups) per plan; None: the base's
     description: str = ''
 
@@ -62,31 +53,38 @@ class GaitSpec:
         """The legs in swing order (GaitParams.sequence)."""
         return tuple(leg for group in self.groups for leg in group)
 
-    def scaled(self, scales: Mapping[str, float] | None = None) -> dict[str, float]:
-        """The file's values for a robot: each times its rule's ratio (robot / reference)."""
-        scales = scales or {}
-        unknown = set(scales) - set(RULES)
-        if unknown:
-            raise ValueError(f'unknown scaling rules {sorted(unknown)}; known: {RULES}')
-        return {key: value * float(scales.get(SCALED_KEYS[key], 1.0))
-                for key, value in self.values.items()}
+    @property
+    def group_size(self) -> int:
+        """Legs per step (1: the crawl, 2: a trot's diagonal pair)."""
+        return len(self.groups[0])
 
-    def params(self, base: GaitParams | None = None,
-               scales: Mapping[str, float] | None = None) -> GaitParams:
-        """``base`` (default ``GaitParams()``) with this gait's groups, times and limits."""
+    def params(self, base: GaitParams | None = None) -> GaitParams:
+        """``base`` (default ``GaitParams()``) with this gait's groups, times and limits, in
+        the reference robot's units."""
         base = GaitParams() if base is None else base
-        values = self.scaled(scales)
-        values.pop('line_support_width', None)       # the MPC's, not the gait's
-        groups = self.groups if any(len(g) > 1 for g in self.groups) else ()
+        values = {k: v for k, v in self.values.items() if k in GAIT_NODE_KEYS}
+        groups = self.groups if self.group_size > 1 else ()
         params = replace(base, sequence=self.sequence, groups=groups, **values)
         if self.n_footholds is not None:
             params = replace(params, n_footholds=self.n_footholds)
         params.validate()
         return params
 
-    def line_support_width(self, scales: Mapping[str, float] | None = None) -> float:
+    @property
+    def line_support_width(self) -> float:
         """m, the MPC's line support width for this gait (0: no two-feet support)."""
-        return self.scaled(scales).get('line_support_width', 0.0)
+        return self.values.get('line_support_width', 0.0)
+
+    def node_parameters(self) -> dict[str, dict]:
+        """The gait as the nodes' parameters (reference robot's units): the gait node's
+        ``gait``, ``sequence``, ``group_size``, its times and limits, and the mpc node's
+        ``line_support_width``."""
+        gait = {'gait': self.name, 'sequence': [LEGS[leg] for leg in self.sequence],
+                'group_size': self.group_size}
+        gait.update({k: v for k, v in self.values.items() if k in GAIT_NODE_KEYS})
+        if self.n_footholds is not None:
+            gait['n_footholds'] = self.n_footholds
+        return {'gait': gait, 'mpc': {'line_support_width': self.line_support_width}}
 
 
 def gait_file_path(name: str, config_dir: str | Path) -> Path:
@@ -131,8 +129,11 @@ def parse_gait(doc: Mapping, label: str) -> GaitSpec:
     flat = [leg for g in groups for leg in g]
     if sorted(flat) != list(range(len(LEGS))):
         raise GaitFileError(f'{label}: groups must hold each leg once, got {groups_doc}')
+    if len({len(g) for g in groups}) != 1:
+        raise GaitFileError(f'{label}: groups must be of one size (legs per step), got '
+                            f'{groups_doc}')
     values = {}
-    for key in SCALED_KEYS:
+    for key in NUMERIC_KEYS:
         if key not in doc:
             continue
         value = doc[key]

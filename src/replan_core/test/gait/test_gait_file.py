@@ -29,7 +29,7 @@ def test_crawl_file_is_exactly_the_default_crawl():
     for f in fields(GaitParams):
         assert getattr(params, f.name) == getattr(default, f.name), f.name
     assert params.swing_groups == ((LH,), (LF,), (RH,), (RF,))
-    assert load_gait('crawl', CONFIG).line_support_width() == 0.0
+    assert load_gait('crawl', CONFIG).line_support_width == 0.0
 
 
 @pytest.mark.parametrize('name, four_feet', [('walking_trot', True), ('trot', False)])
@@ -43,25 +43,23 @@ def test_trots_swing_the_diagonal_pairs(name, four_feet):
     # At the speed limit a cycle's stride stays within the step limit.
     assert params.max_linear_x * params.cycle_duration <= params.max_step_length_x
     assert params.max_linear_y * params.cycle_duration <= params.max_step_length_y
-    assert spec.line_support_width() > 0.0
+    assert spec.line_support_width > 0.0
 
 
-def test_values_scale_by_their_rule():
+def test_node_parameters_are_the_files_values():
     spec = load_gait('trot', CONFIG)
-    scales = {'time': 0.8, 'length': 0.6, 'speed': 0.7, 'rate': 1.2}
-    params = spec.params(scales=scales)
-    ref = spec.params()
-    assert params.swing_duration == pytest.approx(0.8 * ref.swing_duration)
-    assert params.idle_after == pytest.approx(0.8 * ref.idle_after)
-    assert params.step_height == pytest.approx(0.6 * ref.step_height)
-    assert params.max_step_length_x == pytest.approx(0.6 * ref.max_step_length_x)
-    assert params.max_linear_x == pytest.approx(0.7 * ref.max_linear_x)
-    assert params.max_angular_z == pytest.approx(1.2 * ref.max_angular_z)
-    assert spec.line_support_width(scales) == pytest.approx(0.6 * spec.line_support_width())
-    # What the file does not set stays the base's.
-    assert params.stance_offsets == GaitParams().stance_offsets
-    with pytest.raises(ValueError, match='unknown scaling rules'):
-        spec.params(scales={'mass': 2.0})
+    params = spec.node_parameters()
+    assert params['gait']['gait'] == 'trot'
+    assert params['gait']['sequence'] == ['lf', 'rh', 'rf', 'lh']
+    assert params['gait']['group_size'] == 2
+    assert params['gait']['swing_duration'] == spec.values['swing_duration']
+    assert params['mpc'] == {'line_support_width': spec.line_support_width}
+    assert load_gait('crawl', CONFIG).node_parameters()['gait']['group_size'] == 1
+
+
+def test_groups_of_different_sizes_are_refused():
+    with pytest.raises(GaitFileError, match='one size'):
+        parse_gait(_doc(groups=[['lf', 'rh', 'rf'], ['lh']]), 'g.yaml')
 
 
 def _doc(**changes):

@@ -19,10 +19,13 @@ from ament_index_python.packages import get_package_prefix
 from rclpy.duration import Duration as RclpyDuration
 
 from replan_ros.launch.param_files import (
+    DEFAULT_GAIT,
     DEFAULT_PROFILE,
     check_run_files,
+    gait_parameters,
     profile_file,
     robot_parameters,
+    write_source,
 )
 from replan_ros.launch.progress import ProgressLine, RunProgress
 from replan_ros.launch.watch import ClockWatch
@@ -132,13 +135,15 @@ class Graph:
                  extra_params: dict[str, dict[str, str]] | None = None,
                  env: dict[str, str] | None = None, log=print,
                  live_port: int | None = None, stop_time: float | None = None,
-                 robot: str | None = None) -> None:
+                 robot: str | None = None, gait: str | None = DEFAULT_GAIT) -> None:
         """ConfigError (nothing started, nothing written) when a parameter file of the run
         does not pass ``params.check_run``, or the ``robot`` (a name of config/robots/ or a
         robot file; None: the files hold one already, or the nodes' HyQ defaults) cannot be
-        used. The robot's parameters (``run_dir/robot.yaml``) come after the profile and
-        before the user's files. With ``live_port`` the live view
-        (``replan_ros.view.live_view``, a Foxglove WebSocket on that port) runs with the graph.
+        used, or the ``gait`` (a name of config/gaits/; None: the files hold one already, as in
+        a re-run) is unknown. The gait's parameters (``run_dir/gait.yaml``) come first, then
+        the profile, the robot's parameters (``run_dir/robot.yaml``) and the user's files.
+        With ``live_port`` the live view (``replan_ros.view.live_view``, a Foxglove WebSocket
+        on that port) runs with the graph.
         ``stop_time`` (sim s, a run's duration): the sim steps no further than the first tick
         at or after it, so the run ends at the same tick every time."""
         extra_params = extra_params or {}
@@ -146,17 +151,25 @@ class Graph:
             sim = {**extra_params.get('sim', {}), 'stop_time': repr(float(stop_time))}
             extra_params = {**extra_params, 'sim': sim}
         profile_path = profile_file(config_dir, profile) if profile is not None else None
-        layer = (robot_parameters(config_dir, robot, profile_path) if robot is not None
-                 else None)
+        gait_source = gait_parameters(config_dir, gait) if gait is not None else None
+        layer = (robot_parameters(config_dir, robot, profile_path, gait_source)
+                 if robot is not None else None)
         self.robot = layer.name if layer is not None else None
         self.robot_layer = layer
         first = [profile_path] if profile_path is not None else []
+        gait_sources = [gait_source] if gait_source is not None else []
         robot_sources = [layer.derived, layer.overrides] if layer is not None else []
-        self.resolved = check_run_files(config_dir, [*first, *robot_sources, *param_files],
-                                        extra_params)
+        self.resolved = check_run_files(
+            config_dir, [*gait_sources, *first, *robot_sources, *param_files], extra_params)
+        self.gait = self.resolved.values['gait']['gait']
         self.run_dir = run_dir
         self.log_dir = run_dir / 'logs'
         self.log_dir.mkdir(parents=True, exist_ok=True)
+        if gait_source is not None:
+            first.insert(0, write_source(gait_source, run_dir / 'gait.yaml', (
+                f'# The gait of this run: {gait} (config/gaits/{gait}.yaml) in the reference '
+                'robot\'s units, written by the launcher; the profile and the robot\'s '
+                'parameters come after it.\n')))
         if layer is not None:
             first.append(layer.write(run_dir / 'robot.yaml'))
         param_files = [*first, *param_files]

@@ -37,9 +37,16 @@ import socket
 import sys
 from pathlib import Path
 
+from replan_core.gait.gait_file import gait_names
 from replan_core.robot.robot_file import robot_names
 from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
-from replan_ros.launch.param_files import DEFAULT_PROFILE, DEFAULT_ROBOT, PROFILES, profile_file
+from replan_ros.launch.param_files import (
+    DEFAULT_GAIT,
+    DEFAULT_PROFILE,
+    DEFAULT_ROBOT,
+    PROFILES,
+    profile_file,
+)
 from replan_ros.launch.progress import ProgressLine
 from replan_ros.params import ConfigError
 from replan_ros.params.robot import config_dir
@@ -56,6 +63,15 @@ def add_robot_option(parser: argparse.ArgumentParser, default: str | None = DEFA
                              f'{", ".join(robot_names(config_dir()))}) or a robot file '
                              '(docs/robot_files.md); its parameters are derived '
                              f'from the reference robot\'s (default {DEFAULT_ROBOT})')
+
+
+def add_gait_option(parser: argparse.ArgumentParser, default: str | None = DEFAULT_GAIT,
+                    ) -> None:
+    """``--gait NAME``, shared by launch.sh and scenario.sh."""
+    parser.add_argument('--gait', default=default, metavar='NAME',
+                        help='the gait: a name of config/gaits/ ('
+                             f'{", ".join(gait_names(config_dir()))}; docs/gait.md, "Gait '
+                             f'files"; default {DEFAULT_GAIT})')
 
 
 def add_live_option(parser: argparse.ArgumentParser) -> None:
@@ -123,6 +139,7 @@ def main(argv=None) -> int:
                         help='no progress line (sim time, real-time factor, distance, '
                              're-plans) while the graph runs')
     add_robot_option(parser)
+    add_gait_option(parser)
     add_live_option(parser)
     args = parser.parse_args(live_argv(argv))
     for path in args.params:
@@ -139,12 +156,12 @@ def main(argv=None) -> int:
         graph = Graph(run_dir, config_dir=args.config_dir, param_files=args.params,
                       profile=args.profile, record_dir=args.record, gui=args.gui,
                       respawn=not args.no_respawn, live_port=args.live,
-                      stop_time=args.duration, robot=args.robot)
+                      stop_time=args.duration, robot=args.robot, gait=args.gait)
     except ConfigError as err:
         print(f'config error: {err}', file=sys.stderr)
         return EXIT_CONFIG
     print(f'[launch] run folder {run_dir} (domain {os.environ.get("ROS_DOMAIN_ID", "0")}), '
-          f'profile {args.profile}, robot {graph.robot}')
+          f'profile {args.profile}, robot {graph.robot}, gait {graph.gait}')
     if args.live is not None:
         print(f'[launch] live view: open ws://localhost:{args.live} in Foxglove or Lichtblick '
               '(layout config/foxglove/replan.json)')

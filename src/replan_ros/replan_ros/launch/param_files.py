@@ -1,17 +1,42 @@
-"""The parameter files of a run: the world profile's file (``profile_file``), the robot's
-parameters (``robot_parameters``) and the check of every file of the run against the nodes'
-parameter tables before anything starts (``check_run_files``)."""
+"""The parameter files of a run: the gait's parameters (``gait_parameters``), the world
+profile's file (``profile_file``), the robot's parameters (``robot_parameters``) and the check of
+every file of the run against the nodes' parameter tables before anything starts
+(``check_run_files``)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import yaml
+
+from replan_core.gait.gait_file import GaitFileError, load_gait
 from replan_ros.params import TABLES, Source, check_run, load_param_file, load_yaml
 from replan_ros.params.robot import RobotLayer, project_root, robot_layer
+from replan_ros.params.spec import ConfigError
 
 PROFILES = ('realistic', 'ideal')
 DEFAULT_PROFILE = 'realistic'
 DEFAULT_ROBOT = 'hyq'
+DEFAULT_GAIT = 'crawl'
+
+
+def gait_parameters(config_dir: Path, gait: str) -> Source:
+    """The gait ``gait`` (a name of ``config/gaits/``) as the gait and mpc nodes' parameters,
+    in the reference robot's units: the first layer after the node files, so the profile, the
+    robot's scaling and the user's files come on top (docs/gait.md, "Gait files"). ConfigError
+    (one line naming the file and key) for an unknown gait or a file that cannot be used."""
+    try:
+        spec = load_gait(gait, config_dir)
+    except GaitFileError as err:
+        raise ConfigError(str(err)) from None
+    return Source(f'gait {spec.name} (config/gaits/{spec.name}.yaml)', spec.node_parameters())
+
+
+def write_source(source: Source, path: Path, header: str) -> Path:
+    """A parameter source as a ROS parameter file (``node: {ros__parameters: ...}``)."""
+    doc = {node: {'ros__parameters': dict(values)} for node, values in source.sections.items()}
+    path.write_text(header + yaml.safe_dump(doc, sort_keys=False))
+    return path
 
 
 def profile_file(config_dir: Path, profile: str) -> Path:
@@ -47,10 +72,13 @@ def check_run_files(config_dir: Path, param_files, extra_params=None):
     return check_run(sources, TABLES)
 
 
-def robot_parameters(config_dir: Path, robot: str, profile: Path | None) -> RobotLayer:
+def robot_parameters(config_dir: Path, robot: str, profile: Path | None,
+                     gait: Source | None = None) -> RobotLayer:
     """The parameters of ``robot`` (a name of ``config/robots/`` or a robot file) for a run in
-    ``profile``: derived from the reference robot's values of the node files and the profile
-    (docs/robot_files.md, "Scaling rules"). ConfigError (one line) for an unknown robot or a
-    robot file whose names do not match its model."""
-    reference = check_run_files(config_dir, [profile] if profile is not None else [])
+    ``profile`` and ``gait`` (``gait_parameters``): derived from the reference robot's values of
+    the node files, the gait and the profile (docs/robot_files.md, "Scaling rules").
+    ConfigError (one line) for an unknown robot or a robot file whose names do not match its
+    model."""
+    reference = check_run_files(config_dir, [item for item in (gait, profile)
+                                             if item is not None])
     return robot_layer(robot, config_dir, project_root(), reference.values)

@@ -114,8 +114,10 @@ class GaitNode(Node):
             float(p['start_delay']), log=self._log, warn=self._warn)
         self.unprocessed: deque[ContactState] = deque()
         self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
+        self.gait_name = str(p['gait'])
+        steps = ' '.join('+'.join(LEGS[i] for i in group) for group in self.params.swing_groups)
         self.get_logger().info(
-            f'gait: crawl {"-".join(LEGS[i] for i in self.params.sequence)}, swing '
+            f'gait: {self.gait_name} {steps}, swing '
             f'{self.params.swing_duration} s + four feet {self.params.four_feet_duration} s, '
             f'{self.params.n_footholds} footholds, K={self.params.replan_window}, '
             f'haptic={self.params.haptic}, correction={self.params.foothold_correction}')
@@ -314,7 +316,7 @@ class GaitNode(Node):
     def _publish_diagnostics(self, t: float, source: str) -> None:
         replanner = self.replanner
         level = diagnostics.WARN if replanner.forced else diagnostics.OK
-        values = {'replans': replanner.replans, 'last_replan_time': t,
+        values = {'gait': self.gait_name, 'replans': replanner.replans, 'last_replan_time': t,
                   'setpoint_source': source, 'idle_stance': replanner.standing,
                   'rejected_cmd_vel': self.rejected, 'forced_touchdowns': replanner.forced,
                   'next_leg': LEGS[replanner.schedule.next_leg],

@@ -69,12 +69,18 @@ def _stance_offsets(values) -> tuple:
 
 
 def gait_params(values: Mapping[str, Any]):
-    """``GaitParams`` of the gait node (leg names to indices, offsets to pairs; the hip
-    offsets are the core's)."""
+    """``GaitParams`` of the gait node (leg names to indices, offsets to pairs, the sequence
+    cut into steps of ``group_size`` legs; the hip offsets are the core's)."""
     from replan_core.gait.crawl import GaitParams
-    return dataclass_from_params(GaitParams, values, fixed=('hip_offsets',), convert={
+    params = dataclass_from_params(GaitParams, values, fixed=('hip_offsets', 'groups'), convert={
         'sequence': lambda names: tuple(LEGS.index(str(n).lower()) for n in names),
         'stance_offsets': _stance_offsets})
+    size = int(values['group_size'])
+    if size == 1:
+        return params
+    order = params.sequence
+    groups = tuple(tuple(order[i:i + size]) for i in range(0, len(order), size))
+    return dataclasses.replace(params, groups=groups)
 
 
 def mpc_settings(values: Mapping[str, Any]):

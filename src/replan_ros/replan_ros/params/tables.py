@@ -55,8 +55,13 @@ def _gait_table() -> tuple[ParamSpec, ...]:
            's', min=0.0, max=5.0),
         _p('step_height', _G.step_height, 'swing apex above the higher of lift-off and foothold',
            'm', min=0.0, max=0.4),
+        _p('gait', 'crawl', 'the gait in force, a name of config/gaits/ (the launcher sets it '
+           'with the gait file\'s values: --gait, a scenario\'s gait:)'),
         _p('sequence', [LEGS[i] for i in _G.sequence],
-           'crawl order, one swing leg at a time, each leg once', choices=tuple(LEGS), length=4),
+           'swing order, each leg once; group_size legs in a row swing together',
+           choices=tuple(LEGS), length=4),
+        _p('group_size', 1, 'legs per step: 1 = one at a time (the crawl), 2 = pairs of the '
+           'sequence (a trot\'s diagonals)', choices=(1, 2)),
         _p('stance_offsets', [float(v) for xy in _G.stance_offsets for v in xy],
            'nominal foot about its hip, base frame x, y per leg (lf rf lh rh)', 'm',
            min=-0.5, max=0.5, length=8),
@@ -73,7 +78,7 @@ def _gait_table() -> tuple[ParamSpec, ...]:
            read_only=False),
         _p('cmd_vel_timeout', 0.5, 'no cmd_vel for this long: stand still (cmd_vel_stamped does '
            'not time out)', 'sim s', min=0.0, max=3600.0, read_only=False),
-        _p('n_footholds', _G.n_footholds, 'steps per plan (paper: 8 over 8 s)', min=1, max=16),
+        _p('n_footholds', _G.n_footholds, 'steps per plan (paper: 8 over 8 s)', min=1, max=40),
         _p('replan_window', _G.replan_window, 're-plan at every K-th touchdown (paper: 1)', min=1,
            max=8),
         _p('haptic', _G.haptic, 'swings end at sensed contact (paper section V.A)'),
@@ -153,6 +158,9 @@ def _mpc_table() -> tuple[ParamSpec, ...]:
         _p('com_offset', [0.0393, 0.0151], "the CoM about the centre of the feet in the "
            "standing pose, body frame x, y: added to the position term's reference, turned "
            'with the yaw reference', 'm', min=-0.5, max=0.5, length=2),
+        _p('line_support_width', _M.line_support_width, 'width of the strip about the '
+           'segment of two stance feet (a trot\'s diagonal) the ZMP stays in; 0: two feet are a '
+           'degenerate polygon (docs/mpc.md, "Line support")', 'm', min=0.0, max=0.2),
         _p('zmp_margin', 0.02, 'inward safety margin of the support polygons', 'm', min=0.0,
            max=0.2),
         _p('terminal_capture_point', _M.terminal_capture_point,
