@@ -20,6 +20,7 @@ A scenario file (see config/scenarios/ and docs/usage.md, "Scenarios"):
     events:                             # timed inputs, sim time
       - {t: 0.5, cmd_vel: [0.15, 0.0, 0.0]}            # vx, vy (m/s), wz (rad/s)
       - {t: 8.0, push: {force: [0.0, 150.0, 0.0], duration: 0.2}}   # N, s
+      - {t: 12.0, gait: trot}                          # switch at the next step boundary
 
 Every parameter of the run is checked before anything starts (replan_ros/params/): a bad
 one ends the run with one ``config error:`` line and exit code 2. Events are sent before the
@@ -45,6 +46,7 @@ from pathlib import Path
 
 import yaml
 from geometry_msgs.msg import TwistStamped
+from std_msgs.msg import Header
 
 from replan_core.evaluation.metrics import FallLimits
 from replan_ros.launch.graph import EXIT_CONFIG, Graph, run_graph
@@ -95,6 +97,7 @@ class Scenario:
     cmd_vel_events: list[tuple[float, tuple[float, float, float]]] = field(default_factory=list)
     push_events: list[tuple[float, tuple[float, float, float], float]] = field(
         default_factory=list)
+    gait_events: list[tuple[float, str]] = field(default_factory=list)
     fall_limits: dict = field(default_factory=dict)
     profile: str = DEFAULT_PROFILE
     robot: str = DEFAULT_ROBOT        # a name of config/robots/ or a robot file
@@ -164,6 +167,10 @@ def parse_scenario(text: str, source: str = '<scenario>') -> Scenario:
         if kinds == {'cmd_vel'}:
             scenario.cmd_vel_events.append((float(t), _finite_numbers(
                 event['cmd_vel'], 3, f'{where}.cmd_vel')))
+        elif kinds == {'gait'}:
+            if not isinstance(event['gait'], str) or not event['gait']:
+                raise ScenarioError(f'{where}.gait: a name of config/gaits/')
+            scenario.gait_events.append((float(t), event['gait']))
         elif kinds == {'push'}:
             push = event['push']
             if not isinstance(push, dict) or set(push) != {'force', 'duration'}:
@@ -174,7 +181,8 @@ def parse_scenario(text: str, source: str = '<scenario>') -> Scenario:
                 raise ScenarioError(f'{where}.push.duration must be positive')
             scenario.push_events.append((float(t), force, length))
         else:
-            raise ScenarioError(f'{where}: an event is either cmd_vel or push, got {sorted(kinds)}')
+            raise ScenarioError(f'{where}: an event is one of cmd_vel, push or gait, got '
+                                f'{sorted(kinds)}')
     return scenario
 
 
@@ -228,6 +236,8 @@ def check_scenario(scenario: Scenario, config_dir: Path, extra_param_files=()) -
     terrain = {k: v for k, v in doc['sim']['ros__parameters'].items() if k.startswith('terrain')}
     profile = profile_file(config_dir, scenario.profile)
     gait = gait_parameters(config_dir, scenario.gait)
+    for _, name in scenario.gait_events:
+        gait_parameters(config_dir, name)           # an unknown gait: one line, nothing started
     robot = robot_parameters(config_dir, scenario.robot, profile, gait)
     sources = [gait, profile, robot.derived, robot.overrides,
                Source(f'{scenario.source} (params)', scenario.params),
@@ -249,7 +259,12 @@ def scenario_inputs(scenario: Scenario) -> ScheduledInputs:
     for t, force, length in sorted(scenario.push_events):
         for stamp, f in ((t, force), (t + length, (0.0, 0.0, 0.0))):
             wrenches.append(wrench_to_msg(sec_to_ns(stamp), f))
-    return ScheduledInputs(setpoints, wrenches)
+    gaits = []
+    for t, name in sorted(scenario.gait_events):
+        msg = Header(frame_id=name)
+        msg.stamp = sec_to_stamp(t)
+        gaits.append(msg)
+    return ScheduledInputs(setpoints, wrenches, gaits)
 
 
 def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
@@ -279,11 +294,12 @@ def run_scenario(scenario: Scenario, out_dir: Path, *, gui: bool = False,
 
     def publish_events(node) -> list:
         deliveries = inputs.publish(node)
-        log(f'[scenario] sent {len(inputs.setpoints) + len(inputs.wrenches)} timed inputs')
+        log(f'[scenario] sent {inputs.count} timed inputs')
         return deliveries
 
     wall_start = time.monotonic()
     event_times = [stamp_to_sec(m.header.stamp) for m in [*inputs.setpoints, *inputs.wrenches]]
+    event_times += [stamp_to_sec(m.stamp) for m in inputs.gaits]
     code = run_graph(graph, scenario.duration,
                      wall_timeout=max(300.0, 20.0 * scenario.duration), on_start=publish_events,
                      progress=progress, event_times=event_times)

@@ -2,10 +2,10 @@
 
 A gait file says which legs swing together and in what order (``groups``: the crawl one leg at a
 time, a trot the diagonal pairs), the swing and all-feet-down durations, the step height, the
-step and set-point limits, the steps per plan, and the width of the MPC's line support for two
-feet. Its times, lengths and speeds are the reference robot's (``config/robots/scaling.yaml``,
-``reference``: HyQ), in s, m, m/s and rad/s. The launcher gives them to the nodes as a parameter
-layer (``node_parameters``) before the profile and the robot's, so another robot's values
+step and set-point limits and the steps per plan. Its times, lengths and speeds are the
+reference robot's (``config/robots/scaling.yaml``, ``reference``: HyQ), in s, m, m/s and rad/s.
+The launcher gives them to the gait node as a parameter layer (``node_parameters``) before the
+profile and the robot's, so another robot's values
 follow by the scaling rules of ``scaling.yaml``, as every other parameter's (docs/robot_files.md,
 "Scaling rules"). ``crawl.yaml`` gives exactly ``GaitParams()``'s crawl.
 """
@@ -16,19 +16,18 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import yaml
 
 from replan_core.common.types import LEGS
 from replan_core.gait.crawl import GaitParams
 
-# The numeric keys of a gait file: the gait node's parameters of the same names, and the mpc
-# node's line_support_width (m); scaling.yaml scales each for a robot.
-GAIT_NODE_KEYS = ('swing_duration', 'four_feet_duration', 'idle_after', 'idle_replan_period',
-                  'step_height', 'max_step_length_x', 'max_step_length_y', 'max_linear_x',
-                  'max_linear_y', 'max_angular_z')
-MPC_NODE_KEYS = ('line_support_width',)
-NUMERIC_KEYS = GAIT_NODE_KEYS + MPC_NODE_KEYS
+# The numeric keys of a gait file: the gait node's parameters of the same names, which
+# scaling.yaml scales for a robot.
+NUMERIC_KEYS = ('swing_duration', 'four_feet_duration', 'idle_after', 'idle_replan_period',
+                'step_height', 'max_step_length_x', 'max_step_length_y', 'max_linear_x',
+                'max_linear_y', 'max_angular_z')
 REQUIRED_KEYS = ('name', 'groups', 'swing_duration', 'four_feet_duration')
 OPTIONAL_KEYS = ('description', 'n_footholds', *(k for k in NUMERIC_KEYS
                                                    if k not in REQUIRED_KEYS))
@@ -62,7 +61,7 @@ class GaitSpec:
         """``base`` (default ``GaitParams()``) with this gait's groups, times and limits, in
         the reference robot's units."""
         base = GaitParams() if base is None else base
-        values = {k: v for k, v in self.values.items() if k in GAIT_NODE_KEYS}
+        values = dict(self.values)
         groups = self.groups if self.group_size > 1 else ()
         params = replace(base, sequence=self.sequence, groups=groups, **values)
         if self.n_footholds is not None:
@@ -70,21 +69,16 @@ class GaitSpec:
         params.validate()
         return params
 
-    @property
-    def line_support_width(self) -> float:
-        """m, the MPC's line support width for this gait (0: no two-feet support)."""
-        return self.values.get('line_support_width', 0.0)
-
-    def node_parameters(self) -> dict[str, dict]:
-        """The gait as the nodes' parameters (reference robot's units): the gait node's
-        ``gait``, ``sequence``, ``group_size``, its times and limits, and the mpc node's
-        ``line_support_width``."""
-        gait = {'gait': self.name, 'sequence': [LEGS[leg] for leg in self.sequence],
-                'group_size': self.group_size}
-        gait.update({k: v for k, v in self.values.items() if k in GAIT_NODE_KEYS})
+    def node_parameters(self) -> dict[str, Any]:
+        """The gait as the gait node's parameters (reference robot's units): ``gait``,
+        ``sequence``, ``group_size``, its times and limits."""
+        gait: dict[str, Any] = {'gait': self.name,
+                                'sequence': [LEGS[leg] for leg in self.sequence],
+                                'group_size': self.group_size}
+        gait.update(self.values)
         if self.n_footholds is not None:
             gait['n_footholds'] = self.n_footholds
-        return {'gait': gait, 'mpc': {'line_support_width': self.line_support_width}}
+        return gait
 
 
 def gait_file_path(name: str, config_dir: str | Path) -> Path:

@@ -10,7 +10,7 @@ decode it (``adopt``), so that both trackers compare bit-identical times.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,16 +49,18 @@ class Replan:
     initial: bool
 
 
-def check_setpoint(values, reject_above: float, params: GaitParams
+def check_setpoint(values, reject_above: float, gaits: Sequence[GaitParams]
                    ) -> tuple[np.ndarray | None, str]:
     """A commanded (vx, vy, wz): (None, why) if non-finite or any component above
-    ``reject_above`` in magnitude; else (the value clamped to what the gait can step,
-    '' or how it was clamped)."""
+    ``reject_above`` in magnitude; else (the value clamped to what the widest of ``gaits``
+    (the run's) can step, '' or how it was clamped). Each re-plan clamps it again to its own
+    gait's limits."""
     v = np.array(values, dtype=float)
     if not np.all(np.isfinite(v)) or np.any(np.abs(v) > reject_above):
         return None, (f'rejected (vx, vy, wz) = {v.tolist()}: non-finite or above '
                       f'{reject_above}; keeping the last good set-point')
-    clamped = clamp_velocity(v, params)
+    clamped = max((clamp_velocity(v, gait) for gait in gaits),
+                  key=lambda c: float(np.linalg.norm(c)))
     if np.array_equal(clamped, v):
         return clamped, ''
     return clamped, f'(vx, vy, wz) = {v.tolist()} clamped to {clamped.tolist()}'
@@ -77,6 +79,10 @@ class GaitReplanner:
         self.log = log
         self.warn = warn
         self.forced = 0                                  # forced touchdowns, over all runs
+        # A gait to switch to at the next re-plan (a step boundary: every foot down), and the
+        # leg that touched down last (the new gait's first step is the group after it).
+        self.next_params: GaitParams | None = None
+        self.last_touchdown_leg: int | None = None
         self.reset('start')
 
     def reset(self, why: str) -> None:
@@ -84,6 +90,7 @@ class GaitReplanner:
         if why != 'start':
             self.log('warning', f'gait: {why}; starting over with a new initial plan')
         self.schedule = CrawlSchedule(self.params.sequence, groups=self.params.groups)
+        self.last_touchdown_leg = None
         self.plan: FootholdPlan | None = None
         self.tracker: StepTracker | None = None
         self.last_tick_ns: int | None = None
@@ -94,16 +101,7 @@ class GaitReplanner:
         # jitter by a few ms (crawl.IdleMonitor).
         self.idle = IdleMonitor(self.params.idle_after, self.params.idle_stance,
                                 0.5 * self.params.step_period)
-        # Velocity feedback in foot placement, over one crawl cycle (speed_feedback.py).
-        self.speed = SpeedFeedback(self.params.velocity_feedback_gain,
-                                   self.params.velocity_feedback_limit,
-                                   self.params.cycle_duration,
-                                   self.params.velocity_feedback_max_error)
-        # The step period actually walked, for the strides (speed_feedback.StepTiming).
-        self.timing = StepTiming(self.params.step_period, self.params.steps_per_cycle)
-        # The base at the walking re-plans of the last cycle and a bit (speed_feedback.
-        # trunk_trend): the sway-free trunk the foothold correction places the feet about.
-        self.trend_samples: deque[ReplanSample] = deque(maxlen=2 * self.params.steps_per_cycle + 1)
+        self._cycle_measures()
         # The (vx, vy, wz) each leg's foot was placed for, and the plan's in force (zeros:
         # standing): a leg's first stride after a change starts along its old reference.
         # placed_until, placed_poses: the first re-plan that planned another twist (inf: none
@@ -113,6 +111,40 @@ class GaitReplanner:
         self.placed_poses = np.full((4, 3), np.nan)
         self.plan_twist = np.zeros(3)
         self._planned_twist = np.zeros(3)
+
+    def _cycle_measures(self) -> None:
+        """What is measured over the gait's cycle, from nothing (a new run, a new gait)."""
+        # Velocity feedback in foot placement, over one cycle (speed_feedback.py).
+        self.speed = SpeedFeedback(self.params.velocity_feedback_gain,
+                                   self.params.velocity_feedback_limit,
+                                   self.params.cycle_duration,
+                                   self.params.velocity_feedback_max_error)
+        # The step period actually walked, for the strides (speed_feedback.StepTiming).
+        self.timing = StepTiming(self.params.step_period, self.params.steps_per_cycle)
+        # The base at the walking re-plans of the last cycle and a bit (speed_feedback.
+        # trunk_trend): the sway-free trunk the foothold correction places the feet about.
+        self.trend_samples: deque[ReplanSample] = deque(maxlen=2 * self.params.steps_per_cycle + 1)
+
+    def switch_gait(self, params: GaitParams) -> None:
+        """Walk ``params`` from the next re-plan on: at a touchdown that ends a step (or a
+        standing re-plan), every foot down, never mid-swing. Its first step is the group
+        after the leg that touched down last."""
+        params.validate()
+        self.next_params = None if params == self.params else params
+
+    def _apply_gait(self, t: float) -> None:
+        old, self.params, self.next_params = self.params, self.next_params, None
+        self.schedule = CrawlSchedule(self.params.sequence, groups=self.params.groups)
+        if self.last_touchdown_leg is not None:
+            self.schedule.touched_down(self.last_touchdown_leg)
+        self.idle.idle_after = self.params.idle_after
+        self.idle.tolerance = 0.5 * self.params.step_period
+        # The stride correction, the step period and the trunk's trend were measured over the
+        # old gait's cycle, with its strides: measured again over the new one.
+        self._cycle_measures()
+        self.log('info', f'gait switched at t={t:.3f} s: {len(old.swing_groups[0])} to '
+                         f'{len(self.params.swing_groups[0])} legs a step, '
+                         f'{LEGS[self.schedule.next_leg]} first')
 
     @property
     def standing(self) -> bool:
@@ -146,6 +178,7 @@ class GaitReplanner:
             if event.kind != 'touchdown' or is_idle_trigger(self.plan.steps[event.step]):
                 continue                    # a stand plan's trigger moves no leg
             self.schedule.touched_down(event.leg)
+            self.last_touchdown_leg = event.leg
             if event.completes_group:           # one step of the gait: a trot's pair, both down
                 self.timing.touchdown(event.time)
             self.placed_twists[event.leg] = self.plan_twist
@@ -169,6 +202,8 @@ class GaitReplanner:
         request, self.pending = self.pending, None
         cs, initial = request.contacts, request.initial
         t = cs.stamp                       # the very float the controller gets from the stamp
+        if self.next_params is not None:
+            self._apply_gait(t)
         feet = cs.foot_position.copy()
         if self.plan is not None:
             # A foot whose touchdown was forced is still in the air: plan it at ground height.

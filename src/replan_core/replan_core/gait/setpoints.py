@@ -4,7 +4,7 @@ messages and calls this.
 Set-points come stamped (``cmd_vel_stamped``: from their stamp on, as a scenario or a re-run
 sends them) or live (``cmd_vel``: from the sim time of their arrival, and only for ``timeout``
 s of sim time after it). A re-plan at ``t`` takes the newer of the stamped one in force at
-``t`` and the live one; with neither, zero.
+``t`` and the live one; with neither, zero. The gait works the same way (``GaitArbiter``).
 """
 
 from __future__ import annotations
@@ -53,3 +53,26 @@ class SetpointArbiter:
         if stamped is not None:
             return stamped[1].copy(), 'cmd_vel_stamped'
         return np.zeros(3), 'none'
+
+
+class GaitArbiter:
+    """The gait a re-plan walks, from stamped requests (in force from their stamp) and live
+    ones (stamped by the caller with the sim time they arrived at)."""
+
+    def __init__(self, start: str) -> None:
+        self._requests: list[tuple[int, int, str]] = [(-1, 0, start)]   # (stamp ns, order, name)
+        self._count = 0
+
+    def add(self, stamp_ns: int, name: str) -> None:
+        """A request for gait ``name`` from ``stamp_ns`` on (after any with the same stamp
+        that came before it)."""
+        self._count += 1
+        bisect.insort(self._requests, (stamp_ns, self._count, name))
+
+    def at(self, t_ns: int) -> str:
+        """The gait requested last at or before ``t_ns``; older requests are dropped:
+        re-plans come in time order."""
+        index = bisect.bisect_right(self._requests, (t_ns, math.inf, ''))
+        if index > 1:
+            del self._requests[:index - 1]
+        return self._requests[0][2]

@@ -235,7 +235,7 @@ def test_a_plan_that_cannot_be_computed_keeps_the_previous_one():
     ((11.0, 0.0, 0.0), None, 'non-finite or above 10.0'),
 ])
 def test_setpoints_are_rejected_or_clamped(value, expected, problem):
-    v, text = check_setpoint(value, 10.0, GaitParams())
+    v, text = check_setpoint(value, 10.0, [GaitParams()])
     assert (v is None) == (expected is None)
     if expected is not None:
         assert np.allclose(v, expected)
@@ -310,3 +310,59 @@ def test_a_trot_replans_at_the_second_touchdown_of_each_pair():
     plan = plan_now(replanner)
     assert {plan.steps[0].leg, plan.steps[1].leg} == {1, 2}
     assert plan.steps[0].liftoff_time == pytest.approx(t)   # no four-feet phase
+
+
+def swing_contacts(plan):
+    """Each swing's contact away from lift-off to the planned touchdown (haptic)."""
+    def contact_of(t):
+        flags = [1, 1, 1, 1]
+        for step in plan.steps:
+            if step.liftoff_time < t < step.touchdown_time:
+                flags[step.leg] = 0
+        return flags
+    return contact_of
+
+
+def test_a_gait_switch_waits_for_the_next_replan_and_starts_after_the_last_leg_down():
+    config = Path(__file__).resolve().parents[4] / 'config'
+    crawl, trot = load_gait('crawl', config).params(), load_gait('trot', config).params()
+    replanner, logs, _ = make()
+    replanner.tick(contacts(0.0))
+    plan = plan_now(replanner)
+    replanner.switch_gait(trot)
+    assert replanner.params == crawl          # not before the next re-plan: mid-step
+    t = run_until_pending(replanner, TICK, swing_contacts(plan))
+    first = plan.steps[0]
+    assert t == pytest.approx(first.touchdown_time, abs=TICK)
+    plan = plan_now(replanner)
+    assert replanner.params == trot and replanner.next_params is None
+    # The crawl's first leg (lh) touched down last: the trot's next pair is the one after
+    # lh's, (lf, rh); both lift off together, every foot down at the switch.
+    pair = plan.steps[:2]
+    assert {s.leg for s in pair} == {0, 3}
+    assert pair[0].liftoff_time == pair[1].liftoff_time >= t
+    assert pair[0].touchdown_time - pair[0].liftoff_time == pytest.approx(trot.swing_duration)
+    assert any('gait switched' in text for _, text in logs)
+    # The measures over a cycle restart with the new gait's.
+    assert replanner.timing.measured_period is None
+    # And back: the crawl after the trot's pair, one leg at a time.
+    replanner.switch_gait(crawl)
+    t = run_until_pending(replanner, t + TICK, swing_contacts(plan))
+    plan = plan_now(replanner)
+    assert replanner.params == crawl
+    assert plan.steps[0].liftoff_time != plan.steps[1].liftoff_time
+
+
+def test_switching_to_the_gait_in_force_changes_nothing():
+    replanner, _, _ = make()
+    replanner.switch_gait(GaitParams())
+    assert replanner.next_params is None
+
+
+def test_a_setpoint_is_clamped_to_the_widest_gait_of_the_run():
+    config = Path(__file__).resolve().parents[4] / 'config'
+    crawl, trot = load_gait('crawl', config).params(), load_gait('trot', config).params()
+    v, text = check_setpoint([0.37, 0.0, 0.0], 10.0, [crawl])
+    assert v[0] < 0.37 and 'clamped' in text
+    v, text = check_setpoint([0.37, 0.0, 0.0], 10.0, [crawl, trot])
+    assert v[0] == 0.37 and text == ''

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from replan_core.gait.setpoints import SetpointArbiter
+from replan_core.gait.setpoints import GaitArbiter, SetpointArbiter
 
 MS = 1_000_000  # ns
 
@@ -46,3 +46,15 @@ def test_a_returned_setpoint_is_a_copy():
     arbiter.add_stamped(0, [0.1, 0.0, 0.0])
     arbiter.at(0)[0][0] = 9.0
     assert arbiter.at(0)[0][0] == 0.1
+
+
+def test_the_gait_in_force_is_the_last_requested_at_or_before_the_replan():
+    arbiter = GaitArbiter('crawl')
+    assert arbiter.at(0) == 'crawl'
+    arbiter.add(2_000_000_000, 'trot')
+    arbiter.add(5_000_000_000, 'crawl')
+    arbiter.add(2_000_000_000, 'walking_trot')       # same stamp, came later: wins
+    assert arbiter.at(1_999_999_999) == 'crawl'
+    assert arbiter.at(2_000_000_000) == 'walking_trot'
+    assert arbiter.at(4_000_000_000) == 'walking_trot'
+    assert arbiter.at(6_000_000_000) == 'crawl'

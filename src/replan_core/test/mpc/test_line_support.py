@@ -72,7 +72,7 @@ def _trot_run(name, speed, replans):
     there, feet on their targets. Yields (plan, result, settings)."""
     spec = load_gait(name, CONFIG)
     params = spec.params()
-    settings = replace(HYQ, line_support_width=spec.line_support_width)
+    settings = replace(HYQ, line_support_width=0.02)   # m, config/mpc.yaml
     mpc = LipMpc(settings)
     sched = CrawlSchedule(params.sequence, groups=params.groups)
     feet = np.column_stack([np.asarray(params.hip_offsets) + np.asarray(params.stance_offsets),

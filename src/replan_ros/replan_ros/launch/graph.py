@@ -22,6 +22,7 @@ from replan_ros.launch.param_files import (
     DEFAULT_GAIT,
     DEFAULT_PROFILE,
     check_run_files,
+    gait_library,
     gait_parameters,
     profile_file,
     robot_parameters,
@@ -156,6 +157,9 @@ class Graph:
                  if robot is not None else None)
         self.robot = layer.name if layer is not None else None
         self.robot_layer = layer
+        if gait_source is not None:
+            gait_source.sections['gait']['gait_library'] = gait_library(config_dir, profile_path,
+                                                                        layer)
         first = [profile_path] if profile_path is not None else []
         gait_sources = [gait_source] if gait_source is not None else []
         robot_sources = [layer.derived, layer.overrides] if layer is not None else []

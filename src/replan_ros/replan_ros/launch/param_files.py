@@ -5,11 +5,12 @@ every file of the run against the nodes' parameter tables before anything starts
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import yaml
 
-from replan_core.gait.gait_file import GaitFileError, load_gait
+from replan_core.gait.gait_file import GaitFileError, gait_names, load_gait
 from replan_ros.params import TABLES, Source, check_run, load_param_file, load_yaml
 from replan_ros.params.robot import RobotLayer, project_root, robot_layer
 from replan_ros.params.spec import ConfigError
@@ -21,7 +22,7 @@ DEFAULT_GAIT = 'crawl'
 
 
 def gait_parameters(config_dir: Path, gait: str) -> Source:
-    """The gait ``gait`` (a name of ``config/gaits/``) as the gait and mpc nodes' parameters,
+    """The gait ``gait`` (a name of ``config/gaits/``) as the gait node's parameters,
     in the reference robot's units: the first layer after the node files, so the profile, the
     robot's scaling and the user's files come on top (docs/gait.md, "Gait files"). ConfigError
     (one line naming the file and key) for an unknown gait or a file that cannot be used."""
@@ -29,7 +30,22 @@ def gait_parameters(config_dir: Path, gait: str) -> Source:
         spec = load_gait(gait, config_dir)
     except GaitFileError as err:
         raise ConfigError(str(err)) from None
-    return Source(f'gait {spec.name} (config/gaits/{spec.name}.yaml)', spec.node_parameters())
+    return Source(f'gait {spec.name} (config/gaits/{spec.name}.yaml)',
+                  {'gait': spec.node_parameters()})
+
+
+def gait_library(config_dir: Path, profile: Path | None, layer: RobotLayer | None) -> str:
+    """Every gait of ``config/gaits/`` as the gait node's values for the run's robot (each
+    gait's layer on the node files and the profile, scaled as the start gait's), as the gait
+    node's ``gait_library`` parameter (JSON): what a run-time switch (gait_command) walks."""
+    library = {}
+    for name in gait_names(config_dir):
+        source = gait_parameters(config_dir, name)
+        keys = list(source.sections['gait'])
+        reference = check_run_files(config_dir, [source, *([profile] if profile else [])])
+        library[name] = (layer.gait_values(reference.values, keys) if layer is not None
+                         else {key: reference.values['gait'][key] for key in keys})
+    return json.dumps(library, sort_keys=True)
 
 
 def write_source(source: Source, path: Path, header: str) -> Path:

@@ -16,6 +16,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
+from std_msgs.msg import Header
 
 from replan_ros.transport import qos
 from replan_ros.transport.on_demand import OnDemandSubscriptions
@@ -23,12 +24,19 @@ from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
 
 class ScheduledInputs:
-    """Timed inputs sent before sim time moves: stamped set-points for the gait node and
-    external wrenches for the sim, on the transient-local schedule topics (qos.SCHEDULE)."""
+    """Timed inputs sent before sim time moves: stamped set-points and gait requests for the
+    gait node and external wrenches for the sim, on the transient-local schedule topics
+    (qos.SCHEDULE)."""
 
-    def __init__(self, setpoints: list[TwistStamped], wrenches: list[WrenchStamped]) -> None:
+    def __init__(self, setpoints: list[TwistStamped], wrenches: list[WrenchStamped],
+                 gaits: list[Header] = ()) -> None:
         self.setpoints = list(setpoints)
         self.wrenches = list(wrenches)
+        self.gaits = list(gaits)
+
+    @property
+    def count(self) -> int:
+        return len(self.setpoints) + len(self.wrenches) + len(self.gaits)
 
     def publish(self, node: Node) -> list:
         """Publish them all from ``node``; returns the (publisher, topic, consumer node)
@@ -36,6 +44,7 @@ class ScheduledInputs:
         deliveries = []
         for msg_type, topic, consumer, messages in (
                 (TwistStamped, '/cmd_vel_stamped', 'gait', self.setpoints),
+                (Header, '/gait_command_stamped', 'gait', self.gaits),
                 (WrenchStamped, '/external_wrench', 'sim', self.wrenches)):
             if not messages:
                 continue

@@ -13,6 +13,12 @@ decisions are ``replan_core.gait.replanner``'s, this node reads the messages and
   (TwistStamped, effective from ``header.stamp``, never times out). A re-plan at ``t`` uses the
   most recent of the two: the latest stamped one with stamp <= t, the last good ``cmd_vel`` by
   the sim time it was received at.
+- Gait (docs/gait.md, "Gait files"): the start gait's parameters come from the launcher
+  (``gait``); ``gait_library`` holds every gait of the run scaled for the robot. A request on
+  ``gait_command`` (String: a gait's name, from the sim time it arrived at) or
+  ``gait_command_stamped`` (Header: the name in ``frame_id``, effective from ``stamp``) switches
+  at the next re-plan (a step boundary). The gait of each re-plan goes out on ``gait_in_force``
+  (Header stamped with the re-plan) and on diagnostics.
 - Idle stance (``idle_stance``): a re-plan that finds the set-point zero for ``idle_after`` s
   publishes a stand plan (all four feet down; one zero-length ``replan`` trigger step after
   ``idle_replan_period``), so the re-plans go on, at ticks both trackers agree on, and the one
@@ -21,6 +27,7 @@ decisions are ``replan_core.gait.replanner``'s, this node reads the messages and
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from collections import deque
@@ -32,12 +39,13 @@ from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Header, String
 from visualization_msgs.msg import MarkerArray
 
 from replan_core.common.types import LEGS, ContactState
 from replan_core.gait.crawl import GaitParams
 from replan_core.gait.replanner import GaitReplanner, check_setpoint
-from replan_core.gait.setpoints import SetpointArbiter
+from replan_core.gait.setpoints import GaitArbiter, SetpointArbiter
 from replan_core.robot.model import RobotModel
 from replan_ros.messages.contacts import contacts_from_cdr
 from replan_ros.messages.footholds import footholds_from_msg, footholds_to_msg
@@ -73,6 +81,9 @@ class GaitNode(Node):
         super().__init__('gait')
         p = declare_node_parameters(self, 'gait', on_change=self._on_parameter_change)
         self.params = self._gait_params(p)
+        self.gait_name = str(p['gait'])
+        self.gaits = self._gait_library(p)
+        self.gait_requests = GaitArbiter(self.gait_name)
         # Set-points, stamped and live (cmd_vel: from the sim time it arrived at).
         self.setpoints = SetpointArbiter(float(p['cmd_vel_timeout']))
         self.reject_above = float(p['cmd_vel_reject_above'])
@@ -89,6 +100,11 @@ class GaitNode(Node):
                                                  event_callbacks=INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
                                               event_callbacks=INTERNAL_PUB_EVENTS)
+        self.gait_pub = self.create_publisher(Header, 'gait_in_force', SCHEDULE,
+                                              event_callbacks=INTERNAL_PUB_EVENTS)
+        self.create_subscription(String, 'gait_command', self._on_gait_command, COMMAND)
+        self.create_subscription(Header, 'gait_command_stamped', self._on_gait_command_stamped,
+                                 SCHEDULE)
         self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, COMMAND)
         self.create_subscription(TwistStamped, 'cmd_vel_stamped', self._on_cmd_vel_stamped,
                                  SCHEDULE)
@@ -114,7 +130,6 @@ class GaitNode(Node):
             float(p['start_delay']), log=self._log, warn=self._warn)
         self.unprocessed: deque[ContactState] = deque()
         self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
-        self.gait_name = str(p['gait'])
         steps = ' '.join('+'.join(LEGS[i] for i in group) for group in self.params.swing_groups)
         self.get_logger().info(
             f'gait: {self.gait_name} {steps}, swing '
@@ -143,6 +158,37 @@ class GaitNode(Node):
             self.get_logger().fatal(f'config error: gait: {err}')
             raise SystemExit(2) from None
 
+    def _gait_library(self, p) -> dict[str, GaitParams]:
+        """The run's gaits (``gait_library``: name -> the gait node's values for this robot),
+        each on top of this node's other parameters; the start gait as the run set it."""
+        gaits = {self.gait_name: self.params}
+        try:
+            library = json.loads(p['gait_library']) if p['gait_library'] else {}
+            for name, values in library.items():
+                if name != self.gait_name:
+                    gaits[name] = gait_params({**p, **values})
+                    gaits[name].validate()
+        except (ValueError, TypeError, KeyError, AttributeError) as err:
+            self.get_logger().fatal(f'config error: gait: gait_library: {err}')
+            raise SystemExit(2) from None
+        return gaits
+
+    def _on_gait_command(self, msg: String) -> None:
+        if self._known_gait(msg.data, 'gait_command'):
+            self.state_input.drain()        # from the sim time it arrived at, as cmd_vel
+            self.gait_requests.add(round(self.latest_stamp * 1e9), msg.data)
+
+    def _on_gait_command_stamped(self, msg: Header) -> None:
+        if self._known_gait(msg.frame_id, 'gait_command_stamped'):
+            self.gait_requests.add(stamp_to_ns(msg.stamp), msg.frame_id)
+
+    def _known_gait(self, name: str, source: str) -> bool:
+        if name in self.gaits:
+            return True
+        self._warn(f'{source} unknown', f'{source}: unknown gait {name!r} ignored; gaits of '
+                   f'this run: {", ".join(sorted(self.gaits))}')
+        return False
+
     def _robot_model(self, p):
         robot = load_node_robot(self, p, os.environ.get('REPLAN_URDF', ''))
         path = robot.urdf
@@ -167,7 +213,7 @@ class GaitNode(Node):
     # ----------------------------------------------------------------------------- set-point
 
     def _validate(self, values, source: str) -> np.ndarray | None:
-        v, problem = check_setpoint(values, self.reject_above, self.params)
+        v, problem = check_setpoint(values, self.reject_above, list(self.gaits.values()))
         if v is None:
             self.rejected += 1
         if problem:
@@ -252,6 +298,10 @@ class GaitNode(Node):
             return False
         hips = self.model.hip_positions(base) if self.model is not None else None
         setpoint, source = self.setpoints.at(ns)
+        gait = self.gait_requests.at(ns)
+        if gait != self.gait_name:
+            self.replanner.switch_gait(self.gaits[gait])     # applied by this very re-plan
+            self.gait_name = gait
         plan = self.replanner.plan_pending(base, hips, setpoint, source)
         if plan is None:
             return True
@@ -268,6 +318,7 @@ class GaitNode(Node):
         sp.twist.angular = Vector3(x=0.0, y=0.0, z=float(setpoint[2]))
         self.setpoint_pub.publish(sp)
         self.markers_pub.publish(gait_markers(plan))
+        self.gait_pub.publish(Header(stamp=stamp, frame_id=self.gait_name))
         self._publish_diagnostics(t, source)
         return True
 

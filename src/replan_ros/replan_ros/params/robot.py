@@ -93,6 +93,16 @@ class RobotLayer:
     # Its standing height over the reference robot's (1.0 for the reference): what scales
     # the run's fall height (metrics.FallLimits).
     height_ratio: float = 1.0
+    # Derives the robot's parameters from other reference values (a gait's): scaling.derived_
+    # parameters with this robot's facts and rules.
+    derive: Any = None
+
+    def gait_values(self, reference_values: Mapping[str, Mapping[str, Any]],
+                    keys) -> dict[str, Any]:
+        """The gait node's ``keys`` for this robot from the reference robot's values of
+        another gait (its layer on the node files and profile): scaled as the run's own."""
+        derived = self.derive(reference_values).get('gait', {})
+        return {key: _plain(derived.get(key, reference_values['gait'][key])) for key in keys}
 
     def document(self) -> dict:
         """The ROS parameter file of both sources (``estimator.x`` nested, as rcl reads it)."""
@@ -146,13 +156,16 @@ def robot_layer(robot: str, configs: Path, root: Path,
     is_reference = spec.urdf == reference.urdf and spec.joints == reference.joints
     reference_facts = robot_facts(reference)
     facts = reference_facts if is_reference else robot_facts(spec)
-    try:
-        # The reference keeps its tuned values (a ratio of exactly 1, nothing measured).
-        derived = derived_parameters(facts, reference_facts, reference_values, rules,
-                                     measure=not is_reference,
-                                     actuators=(spec.actuator, reference.actuator))
-    except ValueError as err:
-        raise ConfigError(f'{rules_path}: {err}') from None
+    def derive(values: Mapping[str, Mapping[str, Any]]) -> dict:
+        try:
+            # The reference keeps its tuned values (a ratio of exactly 1, nothing measured).
+            return derived_parameters(facts, reference_facts, values, rules,
+                                      measure=not is_reference,
+                                      actuators=(spec.actuator, reference.actuator))
+        except ValueError as err:
+            raise ConfigError(f'{rules_path}: {err}') from None
+
+    derived = derive(reference_values)
     # A name stays a name (the run can be made again from its bag on another machine).
     given = robot if path.parent == configs / 'robots' and path.stem == robot else str(
         path.resolve())
@@ -168,4 +181,4 @@ def robot_layer(robot: str, configs: Path, root: Path,
     return RobotLayer(spec.name, path, spec,
                       Source(f'robot {spec.name} (derived: {rules_path.name})', sections),
                       Source(f'{path} (parameters)', overrides),
-                      facts.standing_height / reference_facts.standing_height)
+                      facts.standing_height / reference_facts.standing_height, derive)

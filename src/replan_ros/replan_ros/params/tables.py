@@ -55,8 +55,11 @@ def _gait_table() -> tuple[ParamSpec, ...]:
            's', min=0.0, max=5.0),
         _p('step_height', _G.step_height, 'swing apex above the higher of lift-off and foothold',
            'm', min=0.0, max=0.4),
-        _p('gait', 'crawl', 'the gait in force, a name of config/gaits/ (the launcher sets it '
+        _p('gait', 'crawl', 'the start gait, a name of config/gaits/ (the launcher sets it '
            'with the gait file\'s values: --gait, a scenario\'s gait:)'),
+        _p('gait_library', '', 'the gaits a run may switch to (gait_command): JSON, name -> '
+           'the gait file\'s values scaled for the robot, as the launcher writes it; \'\' = '
+           'the start gait only'),
         _p('sequence', [LEGS[i] for i in _G.sequence],
            'swing order, each leg once; group_size legs in a row swing together',
            choices=tuple(LEGS), length=4),
