@@ -35,6 +35,7 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
+from std_msgs.msg import Header
 
 from replan_ros.launch.graph import NODES
 from replan_ros.messages.stamps import stamp_to_ns, stamp_to_sec
@@ -42,7 +43,8 @@ from replan_ros.params import ConfigError
 from replan_ros.recording.bag_io import check_bag
 from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
-INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped}
+INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped,
+                '/gait_in_force': Header}
 # What a run computes, tick by tick and re-plan by re-plan; each message starts with a
 # std_msgs/Header. Left out: wall-clock figures (/diagnostics, /rosout, solve times) and what
 # is derived for viewers at the recorder's pace.
@@ -64,6 +66,7 @@ class RecordedRun:
 
     setpoints: list[TwistStamped] = field(default_factory=list)
     wrenches: list[WrenchStamped] = field(default_factory=list)
+    gaits: list[Header] = field(default_factory=list)            # the gait of each re-plan
     odom: dict[int, np.ndarray] = field(default_factory=dict)   # stamp ns -> position (m)
     config_files: list[str] = field(default_factory=list)        # recorded order
     config_text: dict[str, str] = field(default_factory=dict)    # path -> content
@@ -113,6 +116,8 @@ def load_run(bag: str | Path) -> RecordedRun:
                 odom[channel.topic].append(deserialize_message(message.data, Odometry))
             elif channel.topic == '/velocity_setpoint':
                 run.setpoints.append(deserialize_message(message.data, TwistStamped))
+            elif channel.topic == '/gait_in_force':
+                run.gaits.append(deserialize_message(message.data, Header))
             else:
                 run.wrenches.append(deserialize_message(message.data, WrenchStamped))
     run.odom = odom_positions(odom[ODOM_TOPIC] or odom[LEGACY_ODOM_TOPIC])
@@ -141,6 +146,16 @@ def schedule_inputs(run: RecordedRun) -> tuple[list[TwistStamped], list[WrenchSt
             changes.append(msg)
     wrenches = sorted(run.wrenches, key=lambda m: stamp_to_ns(m.header.stamp))
     return changes, wrenches
+
+
+def schedule_gaits(run: RecordedRun) -> list[Header]:
+    """The gait requests to send: each re-plan's gait where it changes, stamped with that
+    re-plan (so the re-run's re-plan at that stamp switches as the recorded one did)."""
+    changes: list[Header] = []
+    for msg in sorted(run.gaits, key=lambda m: stamp_to_ns(m.stamp)):
+        if not changes or msg.frame_id != changes[-1].frame_id:
+            changes.append(msg)
+    return changes[1:]          # the first is the run's start gait, in its parameters
 
 
 def write_config(run: RecordedRun, out_dir: Path, fallback_dir: Path,
@@ -300,18 +315,22 @@ def rerun(bag: Path, out_dir: Path, *, tolerance: float = 0.0, gui: bool = False
         extra_params = {'recorder': {'scenario_file': str(out_dir / 'scenario.yaml')}}
     bag_dir = out_dir / 'bag'
     # The recorded parameter files include the run's profile: none is added again.
+    # The recorded parameter files include the run's gait: none is added again either.
     graph = Graph(out_dir, config_dir=new_config, param_files=param_files, profile=None,
-                  record_dir=bag_dir, gui=gui, respawn=False, extra_params=extra_params, log=log,
-                  stop_time=run.duration)
+                  gait=None, record_dir=bag_dir, gui=gui, respawn=False,
+                  extra_params=extra_params, log=log, stop_time=run.duration)
+    gaits = schedule_gaits(run)
 
     def send_inputs(node) -> list:
-        deliveries = ScheduledInputs(setpoints, wrenches).publish(node)
-        log(f'[rerun] sent {len(setpoints)} set-points and {len(wrenches)} wrenches')
+        deliveries = ScheduledInputs(setpoints, wrenches, gaits).publish(node)
+        log(f'[rerun] sent {len(setpoints)} set-points, {len(wrenches)} wrenches and '
+            f'{len(gaits)} gait switches')
         return deliveries
 
     log(f'[rerun] {bag}: {run.duration:.2f} s of sim time, recorded at git '
         f'{run.run_info.get("git_revision", "?")}; output in {out_dir}')
     event_times = [stamp_to_sec(m.header.stamp) for m in [*setpoints, *wrenches]]
+    event_times += [stamp_to_sec(m.stamp) for m in gaits]
     code = run_graph(graph, run.duration, wall_timeout=max(300.0, 20.0 * run.duration),
                      on_start=send_inputs, progress=progress, event_times=event_times)
     new_bag = find_bag(bag_dir)
