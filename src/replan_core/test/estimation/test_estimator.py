@@ -17,7 +17,8 @@ import pytest
 
 from replan_core.common.rotations import quaternion_to_matrix, yaw_of
 from replan_core.common.types import BaseState, ImuReading, JointState
-from replan_core.estimation.estimator import EstimatorParams, StateEstimator
+from replan_core.estimation.estimator import StateEstimator
+from replan_core.estimation.settings import EstimatorParams
 from replan_core.robot.model import RobotModel
 from replan_core.sim.world import STANDING_POSE, SimWorld
 from replan_core.wbc.controller import SwingReference, WholeBodyController

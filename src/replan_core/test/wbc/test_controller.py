@@ -17,7 +17,6 @@ from replan_core.wbc.controller import (
     PlanFollower,
     StandHold,
     SwingReference,
-    WbcParams,
     WholeBodyController,
     first_swing_liftoff,
     haptic_reference,
@@ -25,6 +24,7 @@ from replan_core.wbc.controller import (
     swing_reference,
     trunk_tilt,
 )
+from replan_core.wbc.settings import WbcParams
 
 ROOT = Path(__file__).resolve().parents[4]
 DT = 0.004  # s, control period

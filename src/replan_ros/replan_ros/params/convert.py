@@ -85,31 +85,31 @@ def gait_params(values: Mapping[str, Any]):
 
 def mpc_settings(values: Mapping[str, Any]):
     """``MpcSettings`` of the mpc node."""
-    from replan_core.mpc.lip_mpc import MpcSettings
+    from replan_core.mpc.settings import MpcSettings
     return dataclass_from_params(MpcSettings, values, fixed=MPC_FIXED)
 
 
 def wbc_params(values: Mapping[str, Any]):
     """``WbcParams`` of the wbc node (the force QP's solver settings are the core's)."""
-    from replan_core.wbc.controller import WbcParams
+    from replan_core.wbc.settings import WbcParams
     return dataclass_from_params(WbcParams, values, fixed=('qp_max_iter', 'qp_eps_abs'))
 
 
 def protocol_params(values: Mapping[str, Any]):
     """``ProtocolParams`` of the wbc node (the controller's re-plan protocol)."""
-    from replan_core.wbc.tick_protocol import ProtocolParams
+    from replan_core.wbc.settings import ProtocolParams
     return dataclass_from_params(ProtocolParams, values)
 
 
 def estimator_params(values: Mapping[str, Any]):
     """``EstimatorParams`` of the wbc node (``estimator.<field>``)."""
-    from replan_core.estimation.estimator import EstimatorParams
+    from replan_core.estimation.settings import EstimatorParams
     return dataclass_from_params(EstimatorParams, values, prefix='estimator.')
 
 
 def actuator_params(values: Mapping[str, Any]):
     """``ActuatorParams`` of the sim node."""
-    from replan_core.sim.world import ActuatorParams
+    from replan_core.sim.settings import ActuatorParams
     return dataclass_from_params(ActuatorParams, values, names={
         'time_constant': 'actuator_time_constant', 'delay': 'actuator_delay',
         'viscous_damping': 'joint_viscous_damping', 'coulomb_friction': 'joint_coulomb_friction'})

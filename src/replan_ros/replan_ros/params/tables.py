@@ -131,7 +131,7 @@ def _gait_table() -> tuple[ParamSpec, ...]:
 
 
 def _mpc_table() -> tuple[ParamSpec, ...]:
-    from replan_core.mpc.lip_mpc import MpcSettings  # lazy: see _LazyTables
+    from replan_core.mpc.settings import MpcSettings  # lazy: see _LazyTables
     _M = MpcSettings()
     return (
         _ROBOT_FILE,
@@ -202,7 +202,7 @@ _ESTIMATOR_RANGES = {'contact_observer_gain': (0.0, 1000.0)}
 
 def _estimator_specs() -> tuple[ParamSpec, ...]:
     """``estimator.<field>`` of ``EstimatorParams``, its defaults (the core is the source)."""
-    from replan_core.estimation.estimator import EstimatorParams  # lazy: see _LazyTables
+    from replan_core.estimation.settings import EstimatorParams  # lazy: see _LazyTables
 
     defaults = EstimatorParams()
     specs = []
@@ -214,15 +214,15 @@ def _estimator_specs() -> tuple[ParamSpec, ...]:
         low, high = _ESTIMATOR_RANGES.get(item.name, (low, high))
         specs.append(_p(f'estimator.{item.name}', value,
                         f'state estimator: {item.name} '
-                        '(replan_core.estimation.estimator.EstimatorParams)',
+                        '(replan_core.estimation.settings.EstimatorParams)',
                         _ESTIMATOR_UNITS.get(item.name, ''), min=low, max=high))
     return tuple(specs)
 
 
 def _wbc_table() -> tuple[ParamSpec, ...]:
-    from replan_core.wbc.controller import WbcParams  # lazy: see _LazyTables
+    from replan_core.wbc.settings import WbcParams  # lazy: see _LazyTables
     _W = WbcParams()
-    from replan_core.wbc.tick_protocol import ProtocolParams  # lazy, as WbcParams
+    from replan_core.wbc.settings import ProtocolParams  # lazy, as WbcParams
     _P = ProtocolParams()   # one default each: the protocol's dataclass
     return (
         _ROBOT_FILE,

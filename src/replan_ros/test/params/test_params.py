@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from replan_core.estimation.estimator import EstimatorParams
-from replan_core.sim.world import STANDING_POSE, TERRAINS, ActuatorParams
+from replan_core.common.types import STANDING_POSE
+from replan_core.estimation.settings import EstimatorParams
+from replan_core.sim.settings import TERRAINS, ActuatorParams
 from replan_ros import params
 from replan_ros.launch.param_files import check_run_files
 from replan_ros.params import ConfigError, Source, check_run, resolve, sources_from_argv
@@ -251,10 +252,10 @@ def _same_types(a, b) -> list[str]:
 
 @pytest.mark.parametrize('node, build, core', [
     ('gait', params.gait_params, 'replan_core.gait.crawl.GaitParams'),
-    ('mpc', params.mpc_settings, 'replan_core.mpc.lip_mpc.MpcSettings'),
-    ('wbc', params.wbc_params, 'replan_core.wbc.controller.WbcParams'),
-    ('wbc', params.estimator_params, 'replan_core.estimation.estimator.EstimatorParams'),
-    ('sim', params.actuator_params, 'replan_core.sim.world.ActuatorParams'),
+    ('mpc', params.mpc_settings, 'replan_core.mpc.settings.MpcSettings'),
+    ('wbc', params.wbc_params, 'replan_core.wbc.settings.WbcParams'),
+    ('wbc', params.estimator_params, 'replan_core.estimation.settings.EstimatorParams'),
+    ('sim', params.actuator_params, 'replan_core.sim.settings.ActuatorParams'),
     ('sim', params.imu_noise_params, 'replan_core.sim.sensors.ImuNoiseParams'),
     ('sim', params.joint_sensor_params, 'replan_core.sim.sensors.JointSensorParams'),
 ])
