@@ -7,6 +7,7 @@ any of the three packages."""
 from __future__ import annotations
 
 import ast
+import sys
 from pathlib import Path
 
 import pytest
@@ -181,6 +182,21 @@ def test_the_core_roles_follow_the_flow_without_a_circle():
     roles = {role: allowed or set() for role, allowed in CORE_ALLOWED.items()}
     assert import_circles(roles) == []
     assert all('bench' not in allowed for allowed in roles.values())
+
+
+# The roles whose settings (the dataclasses a node fills from its parameters) live beside heavy
+# modules keep them in a light ``settings`` module, which the parameter tables import.
+CORE_SETTINGS = ('sim', 'estimation', 'mpc', 'wbc')
+
+
+@pytest.mark.parametrize('role', CORE_SETTINGS)
+def test_each_role_settings_module_is_light(role):
+    """Standard library and numpy only, so that the parameter tables can import it
+    (test_params checks in a fresh process what importing ``replan_ros.params`` loads)."""
+    path = CORE / role / 'settings.py'
+    roots = {name.split('.')[0] for name in _imports(path)}
+    heavy = roots - set(sys.stdlib_module_names) - {'__future__', 'numpy', 'replan_core'}
+    assert not heavy, f'{path.relative_to(CORE)} imports {sorted(heavy)}'
 
 
 def test_the_core_imports_no_ros():

@@ -19,7 +19,8 @@ from replan_core.evaluation.metrics import roll_pitch_yaw
 from replan_core.robot.model import RobotModel
 from replan_core.robot.robot_file import default_urdf
 from replan_core.robot.variant import perturbed_urdf
-from replan_core.sim.world import ActuatorParams, SimWorld
+from replan_core.sim.settings import ActuatorParams
+from replan_core.sim.world import SimWorld
 from replan_core.wbc.controller import SwingReference, WholeBodyController
 
 DT = 0.004              # s, control period

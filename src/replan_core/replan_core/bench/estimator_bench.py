@@ -32,7 +32,8 @@ def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False,
     ``prepare``: call ``prepare_next`` after each update (timed apart)."""
     from replan_core.bench.wbc_bench import crawl_plan
     from replan_core.common.rotations import quaternion_to_matrix
-    from replan_core.estimation.estimator import EstimatorParams, StateEstimator
+    from replan_core.estimation.estimator import StateEstimator
+    from replan_core.estimation.settings import EstimatorParams
     from replan_core.robot.model import RobotModel
     from replan_core.sim.world import SimWorld
     from replan_core.wbc.controller import PlanFollower, WholeBodyController

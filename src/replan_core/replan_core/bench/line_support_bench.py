@@ -33,7 +33,8 @@ from replan_core.common.proxqp import proxqp
 from replan_core.gait.crawl import CrawlSchedule, GaitParams, compute_footholds
 from replan_core.gait.gait_file import load_gait
 from replan_core.mpc.lip import lift
-from replan_core.mpc.lip_mpc import LipMpc, MpcSettings
+from replan_core.mpc.lip_mpc import LipMpc
+from replan_core.mpc.settings import MpcSettings
 from replan_core.mpc.support import implied_velocity, support_schedule
 
 ROOT = Path(__file__).resolve().parents[4]      # the repository (src/replan_core/replan_core/..)

@@ -31,7 +31,8 @@ import numpy as np
 
 from replan_core.bench import bench_robots, is_reference
 from replan_core.common.types import FootholdPlan, Step
-from replan_core.mpc.lip_mpc import LipMpc, MpcSettings
+from replan_core.mpc.lip_mpc import LipMpc
+from replan_core.mpc.settings import MpcSettings
 from replan_core.robot.robot_file import robot_facts
 from replan_core.robot.scaling import SCALES
 

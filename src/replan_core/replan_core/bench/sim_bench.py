@@ -32,13 +32,12 @@ from replan_core.robot.robot_file import RobotSpec, robot_facts
 from replan_core.robot.scaling import SCALES, derived_parameters
 from replan_core.robot.variant import perturbed_urdf
 from replan_core.sim.sensors import REALISTIC_IMU, REALISTIC_JOINTS, ImuSensor, JointSensor
-from replan_core.sim.world import (
+from replan_core.sim.settings import (
     REALISTIC_ACTUATOR,
     REALISTIC_CONTACT_DAMPING,
     REALISTIC_CONTACT_STIFFNESS,
-    STANDING_POSE,
-    SimWorld,
 )
+from replan_core.sim.world import STANDING_POSE, SimWorld
 
 PD_GAINS = (300.0, 10.0)          # N m/rad, N m s/rad: holds HyQ's standing pose
 PAYLOAD = (5.0, (0.10, 0.05, 0.05))   # kg, m: the realistic payload on HyQ's trunk

@@ -108,7 +108,7 @@ def bench_robot(spec, reference, rules: dict) -> WbcBenchRobot:
     bench crawl scaled with the leg length and pendulum time."""
     from replan_core.robot.robot_file import robot_facts
     from replan_core.robot.scaling import SCALES, derived_parameters
-    from replan_core.wbc.controller import WbcParams
+    from replan_core.wbc.settings import WbcParams
 
     facts, ref = robot_facts(spec), robot_facts(reference)
     base = WbcParams()
@@ -141,7 +141,8 @@ def run(urdf: str, cycles: int, quiet: bool = False,
     """Closed-loop crawl; returns timing figures (s) and tracking figures (m)."""
     from replan_core.robot.model import RobotModel
     from replan_core.sim.world import SimWorld
-    from replan_core.wbc.controller import PlanFollower, WbcParams, WholeBodyController
+    from replan_core.wbc.controller import PlanFollower, WholeBodyController
+    from replan_core.wbc.settings import WbcParams
 
     robot = robot or WbcBenchRobot(urdf)
     world = SimWorld(robot.urdf, contact_threshold=robot.contact_threshold, **robot.names)

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,6 +37,7 @@ from replan_core.wbc.controller import (
     plan_ends_stand,
     trunk_tilt,
 )
+from replan_core.wbc.settings import ProtocolParams
 
 _NS = 1_000_000_000
 KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead of the ticks)
@@ -45,21 +45,6 @@ KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead o
 # log(level, text): level is 'info', 'warning', 'error' or 'warning_throttled' (a message that
 # may repeat every tick: the caller rate-limits it).
 Log = Callable[[str, str], None]
-
-
-@dataclass
-class ProtocolParams:
-    """The protocol's settings (the wbc node fills them from its parameters, params.WBC)."""
-
-    control_rate: float = 250.0         # Hz, the sim's control tick rate
-    plan_latency: float = 0.0           # sim s from a re-plan trigger to its plans' effect
-    plan_max_age: float = 6.0           # sim s: an older plan pair (or one past its end) -> stand
-    stale_ticks: int = 3                # control periods between answered ticks -> stale: stand
-    missed_replans_to_stand: int = 2    # due re-plans in a row without plans -> stand
-    sat_down_height: float = 0.1        # m shorter legs (median) than standing: sat down
-    stand_adopt_age: float = 0.5        # sim s: a stand ends only with a plan at most this old
-    stand_adopt_lead: float = 0.1       # sim s: ... whose first swing lifts off this much later
-    fall_time: float = 0.1              # sim s tilted beyond fall_tilt (every tick): fallen
 
 
 def _ns(seconds: float) -> int:

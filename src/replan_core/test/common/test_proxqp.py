@@ -19,7 +19,8 @@ from replan_core.common.proxqp import (
     is_aligned,
     proxqp,
 )
-from replan_core.mpc.lip_mpc import LipMpc, MpcSettings
+from replan_core.mpc.lip_mpc import LipMpc
+from replan_core.mpc.settings import MpcSettings
 from replan_core.robot.model import RobotModel
 from replan_core.sim.world import SimWorld
 from replan_core.wbc.controller import PlanFollower, WholeBodyController

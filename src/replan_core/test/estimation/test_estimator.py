@@ -16,10 +16,9 @@ import numpy as np
 import pytest
 
 from replan_core.common.rotations import quaternion_to_matrix, yaw_of
-from replan_core.common.types import BaseState, ImuReading, JointState
-from replan_core.estimation.estimator import EstimatorParams, StateEstimator
-from replan_core.robot.model import RobotModel
-from replan_core.sim.world import STANDING_POSE, SimWorld
+from replan_core.common.types import STANDING_POSE, BaseState, ImuReading, JointState
+from replan_core.estimation.estimator import StateEstimator
+from replan_core.estimation.settings import EstimatorParams
 from replan_core.wbc.controller import SwingReference, WholeBodyController
 
 ROOT = Path(__file__).resolve().parents[4]
@@ -27,18 +26,6 @@ DT = 0.004                                  # s, control period
 G_WORLD = np.array([0.0, 0.0, -9.81])       # m/s^2
 GYRO_BIAS = np.array([0.002, -0.002, 0.002])   # rad/s, a decent MEMS gyro after calibration
 ACCEL_BIAS = np.array([0.03, -0.03, 0.03])     # m/s^2
-
-
-@pytest.fixture(scope='module')
-def robot(urdf):
-    return RobotModel(urdf)
-
-
-@pytest.fixture
-def world(urdf):
-    sim = SimWorld(urdf, physics_dt=0.001, control_period=DT)
-    yield sim
-    sim.close()
 
 
 class Sensors:

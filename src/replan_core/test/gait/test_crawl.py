@@ -21,7 +21,8 @@ from replan_core.gait.crawl import (
     stand_plan,
 )
 from replan_core.gait.touchdown import StepTracker
-from replan_core.mpc.lip_mpc import STATUS_SOLVED, LipMpc, MpcSettings
+from replan_core.mpc.lip_mpc import STATUS_SOLVED, LipMpc
+from replan_core.mpc.settings import MpcSettings
 from replan_core.mpc.support import support_schedule
 
 TOL = 1e-9

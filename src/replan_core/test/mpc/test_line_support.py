@@ -9,7 +9,8 @@ import pytest
 from replan_core.common.types import FootholdPlan, Step
 from replan_core.gait.crawl import CrawlSchedule, compute_footholds
 from replan_core.gait.gait_file import load_gait
-from replan_core.mpc.lip_mpc import STATUS_DEGENERATE, STATUS_SOLVED, LipMpc, MpcSettings
+from replan_core.mpc.lip_mpc import STATUS_DEGENERATE, STATUS_SOLVED, LipMpc
+from replan_core.mpc.settings import MpcSettings
 from replan_core.mpc.support import polygon, stance_at, support_schedule
 
 CONFIG = Path(__file__).resolve().parents[4] / 'config'

@@ -27,9 +27,9 @@ from replan_core.mpc.lip_mpc import (
     STATUS_REJECTED,
     STATUS_SOLVED,
     LipMpc,
-    MpcSettings,
     replan_start_state,
 )
+from replan_core.mpc.settings import MpcSettings
 from replan_core.mpc.support import support_schedule
 from replan_core.mpc.working_set import _nnqp
 

@@ -10,13 +10,12 @@ import pinocchio as pin
 import pytest
 
 from replan_core.common.rotations import quaternion_to_matrix
-from replan_core.common.types import FOOT_FRAMES, BaseState, JointState
+from replan_core.common.types import FOOT_FRAMES, STANDING_POSE, BaseState, JointState
 from replan_core.robot.frames import LinkFrames, base_transform, compose
 from replan_core.robot.model import RobotModel
 
 ROOT = Path(__file__).resolve().parents[4]
 URDF = os.environ.get('REPLAN_URDF') or str(ROOT / 'urdf' / 'hyq.urdf')
-STAND_Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
 
 
 @pytest.fixture(scope='module')
@@ -27,7 +26,7 @@ def frames():
 def test_one_transform_per_urdf_joint_parent_to_child(frames):
     joints = ET.parse(URDF).getroot().findall('joint')
     expected = {(j.find('parent').get('link'), j.find('child').get('link')) for j in joints}
-    got = frames.link_transforms(STAND_Q)
+    got = frames.link_transforms(STANDING_POSE)
     assert {(t.parent, t.child) for t in got} == expected
     assert len(got) == len(joints) == 16
     assert frames.links[0] == 'base_link' and len(set(frames.links)) == 17
@@ -42,7 +41,7 @@ def test_chain_to_each_foot_matches_the_free_flyer_model(frames):
         quat = rng.normal(size=4)
         quat /= np.linalg.norm(quat)
         position = rng.normal(size=3)
-        q = STAND_Q + 0.3 * rng.normal(size=12)
+        q = STANDING_POSE + 0.3 * rng.normal(size=12)
         expected = model.foot_positions(BaseState(0.0, position, quat, np.zeros(3), np.zeros(3)),
                                         JointState(0.0, q, np.zeros(12), np.zeros(12)))
         by_child = {t.child: t for t in frames.link_transforms(q)}
@@ -62,7 +61,7 @@ def test_chain_to_each_foot_matches_the_free_flyer_model(frames):
 
 
 def test_joint_angle_rotates_only_its_child(frames):
-    q = STAND_Q.copy()
+    q = STANDING_POSE.copy()
     before = {t.child: t for t in frames.link_transforms(q)}
     q[2] += 0.5                                   # lf_kfe_joint
     after = {t.child: t for t in frames.link_transforms(q)}

@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 from replan_core.common.rotations import quaternion_to_matrix
-from replan_core.common.types import JOINT_NAMES, LEGS, BaseState, JointState
+from replan_core.common.types import JOINT_NAMES, LEGS, STANDING_POSE, BaseState, JointState
 from replan_core.robot.model import RobotModel, joint_id, link_frame_id
 from replan_core.robot.robot_file import load_robot_file
 
@@ -17,7 +17,6 @@ ROOT = Path(__file__).resolve().parents[4]
 ERD_HYQ = (Path(sys.prefix) / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}'
            / 'site-packages' / 'cmeel.prefix' / 'share' / 'example-robot-data' / 'robots'
            / 'hyq_description' / 'robots' / 'hyq_no_sensors.urdf')
-STAND_Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
 
 
 def urdf_path() -> str:
@@ -37,7 +36,7 @@ def random_state(rng: np.random.Generator) -> tuple[BaseState, JointState]:
     quat = rng.normal(size=4)
     quat /= np.linalg.norm(quat)
     base = BaseState(0.0, rng.normal(size=3), quat, rng.normal(size=3), rng.normal(size=3))
-    joints = JointState(0.0, STAND_Q + 0.3 * rng.normal(size=12), rng.normal(size=12),
+    joints = JointState(0.0, STANDING_POSE + 0.3 * rng.normal(size=12), rng.normal(size=12),
                         np.zeros(12))
     return base, joints
 
@@ -69,7 +68,7 @@ def test_joint_order_mapping(robot):
     """Bending only rf_kfe moves only the rf foot, whatever pinocchio's internal order."""
     base = BaseState(0.0, np.array([0.0, 0.0, 0.6]), np.array([0, 0, 0, 1.0]),
                      np.zeros(3), np.zeros(3))
-    joints = JointState(0.0, STAND_Q.copy(), np.zeros(12), np.zeros(12))
+    joints = JointState(0.0, STANDING_POSE.copy(), np.zeros(12), np.zeros(12))
     feet0 = robot.foot_positions(base, joints)
     joints.position[JOINT_NAMES.index('rf_kfe_joint')] += 0.2
     feet1 = robot.foot_positions(base, joints)
@@ -80,7 +79,7 @@ def test_joint_order_mapping(robot):
 def test_foot_positions_standing(robot):
     base = BaseState(0.0, np.array([1.0, -2.0, 0.6]), np.array([0, 0, 0, 1.0]),
                      np.zeros(3), np.zeros(3))
-    joints = JointState(0.0, STAND_Q.copy(), np.zeros(12), np.zeros(12))
+    joints = JointState(0.0, STANDING_POSE.copy(), np.zeros(12), np.zeros(12))
     feet = robot.foot_positions(base, joints)
     hips = robot.hip_positions(base)
     # Left feet on the left (+y), front feet in front, all below the hips, symmetric stance.

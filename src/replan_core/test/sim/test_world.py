@@ -9,7 +9,8 @@ import pytest
 
 from replan_core.common.types import FOOT_FRAMES, JOINT_NAMES
 from replan_core.robot.model import joint_id, link_frame_id
-from replan_core.sim.world import STANDING_POSE, ActuatorParams, SimWorld
+from replan_core.sim.settings import ActuatorParams
+from replan_core.sim.world import STANDING_POSE, SimWorld
 
 URDF = os.environ.get(
     'REPLAN_URDF', str(Path(__file__).resolve().parents[4] / 'urdf' / 'hyq.urdf'))

@@ -10,14 +10,11 @@ from replan_core.bench.wbc_bench import crawl_plan
 from replan_core.common.rotations import yaw_of
 from replan_core.common.types import STANDING_POSE, BaseState, JointState, Step
 from replan_core.gait.swing import swing_trajectory
-from replan_core.robot.model import RobotModel
-from replan_core.sim.world import SimWorld
 from replan_core.wbc.controller import (
     JointStandUp,
     PlanFollower,
     StandHold,
     SwingReference,
-    WbcParams,
     WholeBodyController,
     first_swing_liftoff,
     haptic_reference,
@@ -25,21 +22,10 @@ from replan_core.wbc.controller import (
     swing_reference,
     trunk_tilt,
 )
+from replan_core.wbc.settings import WbcParams
 
 ROOT = Path(__file__).resolve().parents[4]
 DT = 0.004  # s, control period
-
-
-@pytest.fixture(scope='module')
-def robot(urdf):
-    return RobotModel(urdf)
-
-
-@pytest.fixture
-def world(urdf):
-    sim = SimWorld(urdf, physics_dt=0.001, control_period=DT)
-    yield sim
-    sim.close()
 
 
 def roll_pitch(quaternion) -> tuple[float, float]:

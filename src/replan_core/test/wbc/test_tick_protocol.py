@@ -18,7 +18,8 @@ from replan_core.common.types import (
 )
 from replan_core.robot.model import RobotModel
 from replan_core.wbc.controller import WholeBodyController
-from replan_core.wbc.tick_protocol import KEEP_PLANS, ControllerProtocol, ProtocolParams
+from replan_core.wbc.settings import ProtocolParams
+from replan_core.wbc.tick_protocol import KEEP_PLANS, ControllerProtocol
 
 NS = 1_000_000_000
 TICK = 4_000_000                  # ns, 250 Hz

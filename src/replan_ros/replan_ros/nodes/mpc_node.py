@@ -38,7 +38,8 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from replan_core.common.types import WORLD_FRAME, BaseState, ComPlan, FootholdPlan, JointState
 from replan_core.gait.crawl import is_stand_plan
-from replan_core.mpc.lip_mpc import LipMpc, MpcResult, MpcSettings, replan_start_state
+from replan_core.mpc.lip_mpc import LipMpc, MpcResult, replan_start_state
+from replan_core.mpc.settings import MpcSettings
 from replan_core.mpc.support import implied_velocity
 from replan_core.robot.model import RobotModel
 from replan_ros.messages.com_plan import encode_com_plan

@@ -4,10 +4,10 @@ against the same tables before anything starts (``files.check_run``), and each n
 check on its own command line, so a bad value stops the start with one line naming the file,
 the node, the key, the value and what is allowed (``config error: /tmp/x.yaml:
 gait.replan_window = 0 is out of range [1, 8]``); ``spec`` holds ``ParamSpec`` and the value
-checks, ``tables`` the per-node tables (``GAIT``, ``MPC`` and ``WBC`` built on first use, so
-that importing this package loads neither pinocchio, proxsuite nor PyBullet), ``convert`` the
-one conversion of checked values into the core's dataclasses. This module re-exports the
-public names of all of them.
+checks, ``tables`` the per-node tables (their defaults read from the core's settings modules,
+numpy only: importing this package loads neither pinocchio, proxsuite nor PyBullet),
+``convert`` the one conversion of checked values into the core's dataclasses. This module
+re-exports the public names of all of them.
 """
 
 from __future__ import annotations
@@ -46,21 +46,20 @@ from replan_ros.params.spec import (
     check_value,
 )
 from replan_ros.params.tables import (
-    _TABLE_NAMES,
+    GAIT,
     LIVE_VIEW,
+    MPC,
     RECORDER,
     SIM,
-    STANDING_POSE,
     TABLES,
-    TERRAINS,
+    WBC,
     defaults,
     table,
 )
 
-# GAIT, MPC and WBC are not listed: ``from replan_ros.params import *`` must not build them.
 __all__ = [
-    'BUILTIN', 'INF', 'KINDS', 'LIVE_VIEW', 'MPC_FIXED', 'RECORDER', 'RESTART_HINT', 'SIM',
-    'STANDING_POSE', 'TABLES', 'TERRAINS', 'ConfigError', 'ParamSpec', 'Resolved', 'Source',
+    'BUILTIN', 'GAIT', 'INF', 'KINDS', 'LIVE_VIEW', 'MPC', 'MPC_FIXED', 'RECORDER',
+    'RESTART_HINT', 'SIM', 'TABLES', 'WBC', 'ConfigError', 'ParamSpec', 'Resolved', 'Source',
     'actuator_params', 'check_run', 'check_value', 'cross_node_checks', 'dataclass_from_params',
     'declare_node_parameters', 'defaults', 'estimator_params', 'gait_params',
     'imu_noise_params', 'joint_sensor_params', 'load_param_file', 'load_yaml', 'mpc_settings',
@@ -68,10 +67,3 @@ __all__ = [
     'wbc_params',
 ]
 
-
-def __getattr__(name: str):
-    """``params.GAIT``, ``params.MPC``, ``params.WBC``: built on first use (PEP 562), the same
-    tuples as ``params.tables.GAIT`` ... and ``params.TABLES['gait']`` ..."""
-    if name in _TABLE_NAMES:
-        return TABLES[_TABLE_NAMES[name]]
-    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')

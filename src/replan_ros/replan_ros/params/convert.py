@@ -2,8 +2,8 @@
 fills any core dataclass field by field (a field without its parameter is an error, so a field
 added to the core cannot miss its table unnoticed), and one function per dataclass says how
 (``gait_params``, ``mpc_settings``, ``wbc_params``, ``protocol_params``, ``estimator_params``,
-``actuator_params``, ``imu_noise_params``, ``joint_sensor_params``); each imports its core module
-on use, as the tables do, so importing this module loads neither numpy nor the core's solvers.
+``actuator_params``, ``imu_noise_params``, ``joint_sensor_params``). The core's settings modules
+it imports are numpy only: importing this module loads none of the core's solvers.
 """
 
 from __future__ import annotations
@@ -12,7 +12,15 @@ import dataclasses
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+import numpy as np
+
 from replan_core.common.types import LEGS
+from replan_core.estimation.settings import EstimatorParams
+from replan_core.gait.crawl import GaitParams
+from replan_core.mpc.settings import MpcSettings
+from replan_core.sim.sensors import ImuNoiseParams, JointSensorParams
+from replan_core.sim.settings import ActuatorParams
+from replan_core.wbc.settings import ProtocolParams, WbcParams
 
 
 def dataclass_from_params(cls: type, values: Mapping[str, Any], *, prefix: str = '',
@@ -26,8 +34,6 @@ def dataclass_from_params(cls: type, values: Mapping[str, Any], *, prefix: str =
     default. Any other field without its parameter is a KeyError naming it, so a field added
     to the core cannot miss its parameter table unnoticed. ValueError from a converter passes
     through (the node reports it as a config error)."""
-    import numpy as np
-
     names, convert, fixed = names or {}, convert or {}, set(fixed)
     defaults_ = cls()
     kwargs = {}
@@ -52,8 +58,7 @@ def dataclass_from_params(cls: type, values: Mapping[str, Any], *, prefix: str =
     return cls(**kwargs)
 
 
-# How each node's checked values fill the core's dataclasses (dataclass_from_params); the core
-# modules are imported here on use, as for the tables (_LazyTables).
+# How each node's checked values fill the core's dataclasses (dataclass_from_params).
 # The MpcSettings fields that are not node parameters: the solver's internals, the core's
 # defaults (scripts/bench_mpc.sh compares the alternatives).
 MPC_FIXED = ('formulation', 'warm_start', 'violation_tol', 'slack_weight', 'max_rounds',
@@ -68,10 +73,9 @@ def _stance_offsets(values) -> tuple:
     return tuple((offsets[2 * i], offsets[2 * i + 1]) for i in range(4))
 
 
-def gait_params(values: Mapping[str, Any]):
+def gait_params(values: Mapping[str, Any]) -> GaitParams:
     """``GaitParams`` of the gait node (leg names to indices, offsets to pairs, the sequence
     cut into steps of ``group_size`` legs; the hip offsets are the core's)."""
-    from replan_core.gait.crawl import GaitParams
     params = dataclass_from_params(GaitParams, values, fixed=('hip_offsets', 'groups'), convert={
         'sequence': lambda names: tuple(LEGS.index(str(n).lower()) for n in names),
         'stance_offsets': _stance_offsets})
@@ -83,46 +87,39 @@ def gait_params(values: Mapping[str, Any]):
     return dataclasses.replace(params, groups=groups)
 
 
-def mpc_settings(values: Mapping[str, Any]):
+def mpc_settings(values: Mapping[str, Any]) -> MpcSettings:
     """``MpcSettings`` of the mpc node."""
-    from replan_core.mpc.lip_mpc import MpcSettings
     return dataclass_from_params(MpcSettings, values, fixed=MPC_FIXED)
 
 
-def wbc_params(values: Mapping[str, Any]):
+def wbc_params(values: Mapping[str, Any]) -> WbcParams:
     """``WbcParams`` of the wbc node (the force QP's solver settings are the core's)."""
-    from replan_core.wbc.controller import WbcParams
     return dataclass_from_params(WbcParams, values, fixed=('qp_max_iter', 'qp_eps_abs'))
 
 
-def protocol_params(values: Mapping[str, Any]):
+def protocol_params(values: Mapping[str, Any]) -> ProtocolParams:
     """``ProtocolParams`` of the wbc node (the controller's re-plan protocol)."""
-    from replan_core.wbc.tick_protocol import ProtocolParams
     return dataclass_from_params(ProtocolParams, values)
 
 
-def estimator_params(values: Mapping[str, Any]):
+def estimator_params(values: Mapping[str, Any]) -> EstimatorParams:
     """``EstimatorParams`` of the wbc node (``estimator.<field>``)."""
-    from replan_core.estimation.estimator import EstimatorParams
     return dataclass_from_params(EstimatorParams, values, prefix='estimator.')
 
 
-def actuator_params(values: Mapping[str, Any]):
+def actuator_params(values: Mapping[str, Any]) -> ActuatorParams:
     """``ActuatorParams`` of the sim node."""
-    from replan_core.sim.world import ActuatorParams
     return dataclass_from_params(ActuatorParams, values, names={
         'time_constant': 'actuator_time_constant', 'delay': 'actuator_delay',
         'viscous_damping': 'joint_viscous_damping', 'coulomb_friction': 'joint_coulomb_friction'})
 
 
-def imu_noise_params(values: Mapping[str, Any]):
+def imu_noise_params(values: Mapping[str, Any]) -> ImuNoiseParams:
     """``ImuNoiseParams`` of the sim node (``imu_<field>``)."""
-    from replan_core.sim.sensors import ImuNoiseParams
     return dataclass_from_params(ImuNoiseParams, values, prefix='imu_')
 
 
-def joint_sensor_params(values: Mapping[str, Any]):
+def joint_sensor_params(values: Mapping[str, Any]) -> JointSensorParams:
     """``JointSensorParams`` of the sim node (``joint_<field>``)."""
-    from replan_core.sim.sensors import JointSensorParams
     return dataclass_from_params(JointSensorParams, values, prefix='joint_',
                                  names={'encoder_counts_per_rev': 'encoder_counts_per_rev'})

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
-from replan_core.estimation.estimator import EstimatorParams
-from replan_core.sim.world import STANDING_POSE, TERRAINS, ActuatorParams
+from replan_core.estimation.settings import EstimatorParams
 from replan_ros import params
 from replan_ros.launch.param_files import check_run_files
 from replan_ros.params import ConfigError, Source, check_run, resolve, sources_from_argv
@@ -63,17 +64,15 @@ def test_nearly_everything_is_read_only():
                         ('wbc', 'plan_timeout')}
 
 
-def test_sim_literals_agree_with_the_core():
-    assert params.TERRAINS == TERRAINS
-    assert list(params.STANDING_POSE) == STANDING_POSE.tolist()
-    actuator = ActuatorParams()
-    sim = params.table('sim')
-    for field_name, key in (('time_constant', 'actuator_time_constant'),
-                            ('delay', 'actuator_delay'),
-                            ('viscous_damping', 'joint_viscous_damping'),
-                            ('coulomb_friction', 'joint_coulomb_friction'),
-                            ('torque_limit_scale', 'torque_limit_scale')):
-        assert sim[key].default == getattr(actuator, field_name)
+def test_importing_the_tables_loads_no_solver_simulator_or_plotting():
+    """The tables read the core's settings modules (numpy only): a process that checks or
+    declares parameters (the launcher, the sim, the recorder) loads none of these."""
+    heavy = ('pinocchio', 'proxsuite', 'pybullet', 'scipy', 'matplotlib')
+    code = ('import sys, replan_ros.params; '
+            f'print(",".join(sorted(m for m in {heavy!r} if m in sys.modules)))')
+    out = subprocess.run([sys.executable, '-c', code], check=True, capture_output=True,
+                         text=True)
+    assert out.stdout.strip() == ''
 
 
 def test_wbc_declares_every_estimator_field():
@@ -251,10 +250,11 @@ def _same_types(a, b) -> list[str]:
 
 @pytest.mark.parametrize('node, build, core', [
     ('gait', params.gait_params, 'replan_core.gait.crawl.GaitParams'),
-    ('mpc', params.mpc_settings, 'replan_core.mpc.lip_mpc.MpcSettings'),
-    ('wbc', params.wbc_params, 'replan_core.wbc.controller.WbcParams'),
-    ('wbc', params.estimator_params, 'replan_core.estimation.estimator.EstimatorParams'),
-    ('sim', params.actuator_params, 'replan_core.sim.world.ActuatorParams'),
+    ('mpc', params.mpc_settings, 'replan_core.mpc.settings.MpcSettings'),
+    ('wbc', params.wbc_params, 'replan_core.wbc.settings.WbcParams'),
+    ('wbc', params.estimator_params, 'replan_core.estimation.settings.EstimatorParams'),
+    ('wbc', params.protocol_params, 'replan_core.wbc.settings.ProtocolParams'),
+    ('sim', params.actuator_params, 'replan_core.sim.settings.ActuatorParams'),
     ('sim', params.imu_noise_params, 'replan_core.sim.sensors.ImuNoiseParams'),
     ('sim', params.joint_sensor_params, 'replan_core.sim.sensors.JointSensorParams'),
 ])

@@ -17,7 +17,7 @@ from rosbags.highlevel import AnyReader
 from std_msgs.msg import ColorRGBA, Float64
 from visualization_msgs.msg import Marker, MarkerArray
 
-from replan_core.common.types import BaseState, ContactState, JointState
+from replan_core.common.types import STANDING_POSE, BaseState, ContactState, JointState
 from replan_core.robot.frames import LinkFrames, base_transform
 from replan_ros.messages.contacts import contacts_to_msg
 from replan_ros.messages.joint_state import joint_state_to_msg
@@ -42,7 +42,6 @@ from replan_ros.view.state_view import (
     encode_vector3_stamped,
 )
 
-STAND_Q = np.array([-0.2, 0.75, -1.5, -0.2, 0.75, -1.5, -0.2, -0.75, 1.5, -0.2, -0.75, 1.5])
 DT = 0.004
 
 
@@ -52,7 +51,7 @@ def view():
 
 
 def state(t: float, x: float = 0.1) -> tuple[bytes, bytes]:
-    joints = JointState(t, STAND_Q + 0.01 * t, np.zeros(12), np.zeros(12))
+    joints = JointState(t, STANDING_POSE + 0.01 * t, np.zeros(12), np.zeros(12))
     base = BaseState(t, np.array([x + 0.1 * t, -0.05, 0.6]),
                      np.array([0.0, 0.0, np.sin(0.1), np.cos(0.1)]), np.zeros(3), np.zeros(3))
     return (bytes(serialize_message(joint_state_to_msg(joints))),
@@ -107,7 +106,7 @@ def test_bag_tf_and_description_decode_with_rosbags(tmp_path, view):
     assert base.header.stamp.sec == 1 and abs(base.header.stamp.nanosec - 80_000_000) < 2
     np.testing.assert_allclose([base.transform.translation.x, base.transform.rotation.z],
                                [0.1 + 0.1 * t, np.sin(0.1)], atol=1e-12)
-    expected = LinkFrames(default_urdf_path()).link_transforms(STAND_Q + 0.01 * t)
+    expected = LinkFrames(default_urdf_path()).link_transforms(STANDING_POSE + 0.01 * t)
     assert [(m.header.frame_id, m.child_frame_id) for m in msg.transforms[1:]] == [
         (e.parent, e.child) for e in expected]
     for got, want in zip(msg.transforms[1:], expected, strict=True):
@@ -165,7 +164,7 @@ def test_tf_encoder_writes_the_bytes_of_the_generic_encoder(view):
 
     generic = serialize_dynamic(TF_TYPE, definition(TF_TYPE))[TF_TYPE]
     transforms = [base_transform((1.0, -2.0, 0.5), (0.0, 0.0, 0.6, 0.8), 'odom', 'base_link'),
-                  *view.frames.link_transforms(STAND_Q)]
+                  *view.frames.link_transforms(STANDING_POSE)]
     stamp = 12_345_678_901
     expected = generic({'transforms': [{
         'header': {'stamp': {'sec': 12, 'nanosec': 345_678_901}, 'frame_id': t.parent},
