@@ -13,6 +13,7 @@ import yaml
 
 from replan_experiments.robot_info import robot_info
 from replan_experiments.stats import TESTS
+from replan_ros.launch.param_files import check_run_files, gait_parameters
 
 # The keys each experiment reads: a misspelt one in the plan file is an error, not a default.
 PLAN_KEYS = {
@@ -289,10 +290,8 @@ def node_settings(config_dir: Path, robot: str | None = None) -> dict:
             values = robot_info(config_dir, robot, 'realistic').values
             gait, wbc = values['gait'], values['wbc']
         else:
-            gait = yaml.safe_load((config_dir / 'gait.yaml').read_text())['gait'][
-                'ros__parameters']
-            wbc = yaml.safe_load((config_dir / 'wbc.yaml').read_text())['wbc'][
-                'ros__parameters']
+            values = check_run_files(config_dir, [gait_parameters(config_dir, 'crawl')]).values
+            gait, wbc = values['gait'], values['wbc']
         out = {'crawl_cycle_s': 4.0 * (float(gait['swing_duration'])
                                        + float(gait['four_feet_duration'])),
                'max_step_length_x_m': float(gait['max_step_length_x']),

@@ -27,21 +27,31 @@ class RobotInfo:
 
     @property
     def cycle_s(self) -> float:
-        """The crawl cycle: four swings, each with its four-feet phase."""
-        return 4.0 * (float(self.value('gait.swing_duration'))
-                      + float(self.value('gait.four_feet_duration')))
+        """The gait's cycle: each step (a group of ``group_size`` legs) a swing and its
+        four-feet phase."""
+        steps = 4 // int(self.value('gait.group_size'))
+        return steps * (float(self.value('gait.swing_duration'))
+                        + float(self.value('gait.four_feet_duration')))
 
 
-def robot_info(config_dir: Path, robot: str, profile: str) -> RobotInfo:
+def robot_info(config_dir: Path, robot: str, profile: str, gait: str = 'crawl') -> RobotInfo:
     """The robot's facts (``robot_facts`` on its model) and every node parameter as a run on
-    ``profile`` gives it (the launcher's derivation: node files, profile, the scaling rules,
-    the robot file's own parameters). ConfigError for an unknown robot or a bad file."""
+    ``profile`` in ``gait`` gives it (the launcher's derivation: node files, the gait,
+    profile, the scaling rules, the robot file's own parameters). ConfigError for an unknown
+    robot or gait or a bad file."""
     from replan_core.robot.robot_file import robot_facts  # pinocchio: only here
-    from replan_ros.launch.param_files import check_run_files, profile_file, robot_parameters
+    from replan_ros.launch.param_files import (
+        check_run_files,
+        gait_parameters,
+        profile_file,
+        robot_parameters,
+    )
 
     profile_path = profile_file(config_dir, profile)
-    layer = robot_parameters(config_dir, robot, profile_path)
-    values = check_run_files(config_dir, [profile_path, layer.derived, layer.overrides]).values
+    gait_source = gait_parameters(config_dir, gait)
+    layer = robot_parameters(config_dir, robot, profile_path, gait_source)
+    values = check_run_files(config_dir, [gait_source, profile_path, layer.derived,
+                                          layer.overrides]).values
     facts = robot_facts(layer.spec)
     return RobotInfo(robot, facts.mass, facts.leg_length, facts.standing_height,
                      facts.com_height, facts.min_joint_inertia, values)

@@ -34,6 +34,7 @@ def synthetic(name: str = 'go1', mass: float = 10.0, leg: float = 0.5, swing: fl
               four_feet: float = 0.1) -> RobotInfo:
     return RobotInfo(name, mass, leg, 0.3, 0.28, 0.005,
                      {'gait': {'swing_duration': swing, 'four_feet_duration': four_feet,
+                               'group_size': 1,
                                'max_linear_x': 0.2}})
 
 

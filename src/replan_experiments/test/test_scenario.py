@@ -54,7 +54,7 @@ def test_a_scenario_names_its_robot_default_hyq():
     ('duration: 5\nevents: [{t: 1, cmd_vel: [1, 0]}]\n', 'list of 3 numbers'),
     ('duration: 5\nevents: [{t: 9, cmd_vel: [0, 0, 0]}]\n', 'within [0, duration]'),
     ('duration: 5\nevents: [{t: 1, push: {force: [0, 1, 0]}}]\n', 'force and duration'),
-    ('duration: 5\nevents: [{t: 1, jump: 1}]\n', 'either cmd_vel or push'),
+    ('duration: 5\nevents: [{t: 1, jump: 1}]\n', 'one of cmd_vel, push or gait'),
     ('duration: 5\nparams: {planner: {a: 1}}\n', 'unknown nodes'),
 ])
 def test_broken_scenarios_are_rejected_with_a_reason(text, message):

@@ -153,7 +153,7 @@ MPC = (
     _p('com_offset', [0.0393, 0.0151], "the CoM about the centre of the feet in the "
        "standing pose, body frame x, y: added to the position term's reference, turned "
        'with the yaw reference', 'm', min=-0.5, max=0.5, length=2),
-    _p('line_support_width', _M.line_support_width, 'width of the strip about the '
+    _p('line_support_width', 0.02, 'width of the strip about the '
        'segment of two stance feet (a trot\'s diagonal) the ZMP stays in; 0: two feet are a '
        'degenerate polygon (docs/mpc.md, "Line support")', 'm', min=0.0, max=0.2),
     _p('zmp_margin', 0.02, 'inward safety margin of the support polygons', 'm', min=0.0,

@@ -1,6 +1,6 @@
 """Keyboard teleoperation: a geometry_msgs/Twist set-point on cmd_vel, repeated at 10 Hz.
 
-    scripts/teleop.sh [--rate HZ] [--gait-config FILE]
+    scripts/teleop.sh [--rate HZ] [--gait NAME|FILE]
 
 Keys (each press moves the set-point by one increment, clamped to the gait node's limits):
     w / s, Up / Down       forward / backward (vx)
@@ -10,8 +10,9 @@ Keys (each press moves the set-point by one increment, clamped to the gait node'
     space                  stop (zero set-point)
     x, Ctrl-C              send a zero set-point and quit
 
-The limits are max_linear_x, max_linear_y and max_angular_z of the gait node, read from
-$REPLAN_CONFIG/gait.yaml (or --gait-config): beyond them the gait node clamps anyway. The
+The limits are max_linear_x, max_linear_y and max_angular_z of the gait (HyQ's units), read from
+$REPLAN_CONFIG/gaits/NAME.yaml (--gait, default crawl) or a gait file: beyond them the gait
+node clamps anyway. The
 set-point is repeated because the gait node stops the robot when cmd_vel falls silent for
 cmd_vel_timeout (0.5 s). Needs a terminal (stdin a TTY); for scripted set-points use
 scripts/cmd_vel.sh.
@@ -32,12 +33,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import rclpy
-import yaml
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
+from replan_core.gait.gait_file import gait_file_path, load_gait_file
+from replan_ros.params.robot import config_dir
 from replan_ros.transport import qos
 
 # Increments per key press, as fractions of each axis' limit; + / - move along this list.
@@ -61,11 +63,10 @@ class Limits:
     wz: float
 
     @classmethod
-    def from_gait_yaml(cls, path: Path) -> Limits:
-        """The gait node's ``max_linear_x``, ``max_linear_y``, ``max_angular_z``."""
-        params = yaml.safe_load(path.read_text())['gait']['ros__parameters']
-        return cls(float(params['max_linear_x']), float(params['max_linear_y']),
-                   float(params['max_angular_z']))
+    def from_gait_file(cls, path: Path) -> Limits:
+        """The gait's ``max_linear_x``, ``max_linear_y``, ``max_angular_z``."""
+        params = load_gait_file(path).params()
+        return cls(params.max_linear_x, params.max_linear_y, params.max_angular_z)
 
 
 @dataclass(frozen=True)
@@ -137,12 +138,11 @@ def keys_help() -> str:
     return next(p for p in __doc__.split('\n\n') if p.startswith('Keys'))
 
 
-def _default_gait_config() -> Path:
-    config = os.environ.get('REPLAN_CONFIG')
-    if config:
-        return Path(config) / 'gait.yaml'
-    from ament_index_python.packages import get_package_share_directory
-    return Path(get_package_share_directory('replan_ros')) / 'config' / 'gait.yaml'
+def _gait_file(gait: str) -> Path:
+    """A gait file, or the file of a gait name of the configuration folder."""
+    if gait.endswith(('.yaml', '.yml')):
+        return Path(gait)
+    return gait_file_path(gait, config_dir())
 
 
 def _raise_interrupt(signum, frame) -> None:
@@ -207,8 +207,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='teleop.sh', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--rate', type=float, default=10.0, help='publish rate, Hz (default 10)')
-    parser.add_argument('--gait-config', type=Path, metavar='FILE',
-                        help='gait parameters with the limits (default $REPLAN_CONFIG/gait.yaml)')
+    parser.add_argument('--gait', default='crawl', metavar='NAME|FILE',
+                        help='the gait whose limits apply: a name of config/gaits/ or a gait '
+                             'file (default crawl)')
     argv = list(sys.argv[1:] if argv is None else argv)
     # Only what follows --ros-args is rclpy's: any other unknown option is an error.
     args = parser.parse_args(remove_ros_args(['', *argv])[1:])
@@ -218,11 +219,10 @@ def main(argv: list[str] | None = None) -> int:
         print('teleop: stdin is not a terminal; run it in an interactive terminal '
               '(for scripted set-points: scripts/cmd_vel.sh VX VY WZ)', file=sys.stderr)
         return 2
-    path = args.gait_config or _default_gait_config()
     try:
-        limits = Limits.from_gait_yaml(path)
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
-        print(f'teleop: cannot read the limits from {path}: {err!r}', file=sys.stderr)
+        limits = Limits.from_gait_file(_gait_file(args.gait))
+    except ValueError as err:
+        print(f'teleop: cannot read the limits: {err}', file=sys.stderr)
         return 2
     return run(limits, args.rate, ['teleop.sh', *argv])
 

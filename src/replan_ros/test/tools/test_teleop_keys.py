@@ -15,7 +15,7 @@ from replan_ros.tools.teleop import (
     status_line,
 )
 
-GAIT_YAML = Path(__file__).resolve().parents[4] / 'config' / 'gait.yaml'
+GAIT_YAML = Path(__file__).resolve().parents[4] / 'config' / 'gaits' / 'crawl.yaml'
 LIMITS = Limits(vx=0.2, vy=0.1, wz=0.25)
 
 
@@ -29,8 +29,8 @@ def press(keys, setpoint=None, limits=LIMITS):
 
 
 def test_limits_come_from_the_gait_parameters():
-    params = yaml.safe_load(GAIT_YAML.read_text())['gait']['ros__parameters']
-    assert Limits.from_gait_yaml(GAIT_YAML) == Limits(
+    params = yaml.safe_load(GAIT_YAML.read_text())
+    assert Limits.from_gait_file(GAIT_YAML) == Limits(
         params['max_linear_x'], params['max_linear_y'], params['max_angular_z'])
 
 
