@@ -12,16 +12,20 @@
 # Prints one JSON line: real-time factors (sim s per wall s, from the first tick; median, min,
 # max and every run) per profile, the realistic/ideal ratio of each round, peak memory, MPC
 # solve times, distance.
-#   Usage: scripts/bench_graph.sh [--runs N] [--robot NAME|FILE] [OUT_DIR]
+#   Usage: scripts/bench_graph.sh [--runs N] [--robot NAME|FILE] [--gait NAME] [OUT_DIR]
 #   --robot: the robot of every run (default hyq; config/robots/, docs/robot_files.md).
+#   --gait: the gait of every run (default crawl; config/gaits/); with trot the walk is the
+#     robot's config/scenarios/<robot>_trot.yaml (Froude 0.02, then a stop), where it has one.
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 runs=3
 robot=hyq
+gait=crawl
 while [ $# -gt 0 ]; do
     case "$1" in
         -h|--help) usage; exit 0 ;;
         --runs) runs="$2"; shift 2 ;;
         --robot) robot="$2"; shift 2 ;;
+        --gait) gait="$2"; shift 2 ;;
         -*) echo "bench_graph.sh: unknown option $1" >&2; usage >&2; exit 2 ;;
         *) break ;;
     esac
@@ -38,15 +42,18 @@ try:
 except RobotFileError as err:
     print(f"config error: {err}", file=sys.stderr)
     sys.exit(2)' "$robot") || exit 2
+if [ -f "$ROOT/config/scenarios/${robot}_$gait.yaml" ]; then
+    walk="$ROOT/config/scenarios/${robot}_$gait.yaml"
+fi
 for k in $(seq 1 "$runs"); do
     for profile in ideal realistic; do
-        "$ROOT/scripts/launch.sh" --profile "$profile" --robot "$robot" --duration 20 \
+        "$ROOT/scripts/launch.sh" --profile "$profile" --robot "$robot" --gait "$gait" --duration 20 \
             --run-dir "$out/graph_${profile}_$k" > "$out/graph_${profile}_$k.log" 2>&1
         "$ROOT/scripts/scenario.sh" "$walk" --profile "$profile" \
-            --robot "$robot" --out "$out/forward_${profile}_$k" >/dev/null
+            --robot "$robot" --gait "$gait" --out "$out/forward_${profile}_$k" >/dev/null
     done
 done
-python - "$out" "$runs" "$robot" "$walk" <<'PY'
+python - "$out" "$runs" "$robot" "$walk" "$gait" <<'PY'
 import json, re, statistics, sys
 from pathlib import Path
 out, runs = Path(sys.argv[1]), int(sys.argv[2])
@@ -55,7 +62,7 @@ def summary(values):
     return {'median': round(statistics.median(values), 3), 'min': min(values),
             'max': max(values), 'runs': values}
 
-result = {'robot': sys.argv[3], 'walk_scenario': Path(sys.argv[4]).name}
+result = {'robot': sys.argv[3], 'gait': sys.argv[5], 'walk_scenario': Path(sys.argv[4]).name}
 for profile in ('ideal', 'realistic'):
     rtf, memory = [], []
     for k in range(1, runs + 1):

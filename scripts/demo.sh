@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The main job: set up if needed, then run the demo scenario headless (30 s of sim time:
-# forward, sideways, turn, stop) and print a summary with where the bag and plots are.
+# The main job: set up if needed, then run the demo scenario headless (36 s of sim time:
+# a crawl forward, sideways and turning, then a trot, then stop) and print a summary with
+# where the bag and plots are.
 # Usage: scripts/demo.sh [OUT_DIR] [--live [PORT]] [--robot NAME|FILE]   (default runs/demo-<time>)
 #   --robot: a name of config/robots/ (default hyq) or a robot file (docs/robot_files.md)
 #   --live [PORT]: watch it in Foxglove/Lichtblick at ws://localhost:PORT (default 8765)

@@ -122,7 +122,8 @@ def test_velocity_step_is_followed_within_two_steps(ros_domain, tmp_path):
 
 
 def test_demo_script_walks_and_says_where_the_results_are(ros_domain, tmp_path):
-    """The README's first command, headless: forward, sideways, turn, stop; summary printed."""
+    """The README's first command, headless: a crawl forward, sideways and turning, a trot,
+    stop; summary printed."""
     out = tmp_path / 'demo'
     result = subprocess.run([str(REPO_ROOT / 'scripts' / 'demo.sh'), str(out)],
                             env=graph_env(ros_domain), capture_output=True, text=True,
@@ -137,3 +138,6 @@ def test_demo_script_walks_and_says_where_the_results_are(ros_domain, tmp_path):
     assert list((out / 'bag').glob('*.mcap'))
     final_segment = metrics['velocity_tracking'][-1]
     assert final_segment['commanded'] == [0.0, 0.0, 0.0]
+    trot = segment(metrics, 24.0)                       # the switch to the trot, 0.37 m/s
+    assert trot['commanded'][0] == 0.37
+    assert trot['achieved'][0] == pytest.approx(0.37, rel=0.15), metrics['velocity_tracking']
