@@ -86,6 +86,29 @@ def test_a_wrong_robot_is_refused_in_one_line(tool, case, ros_domain, tmp_path):
     assert wall < 15.0
 
 
+@pytest.mark.parametrize('tool', ['launch', 'scenario', 'scenario_event'])
+def test_an_unknown_gait_is_refused_in_one_line(tool, ros_domain, tmp_path):
+    """``--gait pace`` (no such gait file), a scenario's ``gait: pace`` or a switch to it:
+    one line naming the gaits there are, exit 2, nothing started."""
+    expected = (f"unknown gait 'pace': no {CONFIG_DIR / 'gaits' / 'pace.yaml'}; gaits: crawl, "
+                'trot, walking_trot')
+    out = tmp_path / 'run'
+    if tool == 'launch':
+        module, args = 'replan_ros.launch.launch_graph', ['--gait', 'pace', '--duration', '1',
+                                                           '--run-dir', str(out)]
+    else:
+        scenario = tmp_path / 'walk.yaml'
+        scenario.write_text('duration: 2\n' + ('gait: pace\n' if tool == 'scenario' else
+                                               'events:\n  - {t: 1.0, gait: pace}\n'))
+        module, args = 'replan_experiments.scenario', [str(scenario), '--out', str(out)]
+    result, wall = _run_tool(module, args, ros_domain, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    lines = (result.stdout + result.stderr).strip().splitlines()
+    assert lines == [f'config error: {expected}'], lines
+    assert not out.exists(), 'no run folder, no logs: nothing was started'
+    assert wall < 15.0
+
+
 def test_scenario_refuses_terrain_set_in_two_places(ros_domain, tmp_path):
     scenario = tmp_path / 'step.yaml'
     scenario.write_text('duration: 2\nparams:\n  sim: {terrain: step_down}\n'
