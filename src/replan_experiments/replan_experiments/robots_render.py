@@ -344,7 +344,7 @@ def standing_cell(gait: dict) -> str:
     start, end = standing['window_s']
     steps = standing['touchdowns']
     return (f'{100.0 * standing["drift_m"]:.2f} cm, {steps} touchdown'
-            f'{"" if steps == 1 else "s"} ({start:g}-{end:g} s)')
+            f'{"" if steps == 1 else "s"} ({start:.2f}-{end:.2f} s)')
 
 
 def falls_cell(gait: dict) -> str:

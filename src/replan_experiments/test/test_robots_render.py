@@ -198,7 +198,7 @@ def test_a_gait_section_gives_set_point_froude_number_shares_push_step_and_stand
     assert '**0.3 m/s** (3.9 N s) at all 2 phases' in section
     assert '**0.1** of the leg (4.3 cm)' in section
     assert '| standing after the stop: trunk drift, touchdowns | 0.42 cm, 0 touchdowns ' \
-        '(5.7-7.7 s) | **fell** at 3.1 s |' in section
+        '(5.70-7.70 s) | **fell** at 3.1 s |' in section
     assert '**1 of 7 runs**: `go1_trot_step_down_0.15`' in section
     assert section.count('not run: falls walking forward on flat ground') == 2
     block = readme_block(data)
