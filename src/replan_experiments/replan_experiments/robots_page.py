@@ -13,6 +13,12 @@ that fells it at some phase, and blind step downs of shares of its leg length. R
 factor and MPC solve time come from all its runs. A robot that falls walking on flat ground is
 reported so, and is not pushed or sent down a step.
 
+Then each other gait of the plan (``gaits:``, e.g. the trot and the walking trot) at set-points
+from the robot's leg length (the trot's forward at a Froude number) or its crawl set-point: a
+walk forward then a stop (achieved over the last whole cycles of the gait before the stop, and
+the standing still after it), a walk sideways then turning, lateral pushes at phases of the
+gait's cycle and blind step downs one after the other up to the first not crossed.
+
 Runs go through the experiments' runner (``runs.Runner``): a run's folder is named after a hash
 of its scenario and the code, so a run made before is read, not made again; at most ``--jobs``
 at once, each on its own ROS_DOMAIN_ID from ``--domain-base``. The page names the revision and
@@ -31,22 +37,29 @@ from pathlib import Path
 
 import numpy as np
 
+from replan_core.evaluation.metrics import steady_velocity as last_cycles_velocity
 from replan_experiments.plan import ExperimentError
 from replan_experiments.push_effects import read_truth
 from replan_experiments.robot_info import RobotInfo, robot_info
 from replan_experiments.robots_plan import (
     ROBOT_KEYS,
     RobotsPlan,
+    froude_number,
+    gait_plan,
+    gait_turn_doc,
+    gait_walk_doc,
     listed_parameters,
     load_robots_plan,
     push_doc,
     push_force,
     push_times,
+    quiet_window,
     response_doc,
     stand_doc,
     step_doc,
     step_geometry,
     walk_doc,
+    walk_start,
 )
 from replan_experiments.runs import (
     DEFAULT_DOMAIN_BASE,
@@ -257,11 +270,103 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
 def planned_runs(plan: RobotsPlan) -> int:
     """Upper bound of the runs: per robot three walks, the stand, the response, every step
     down and every push level at every phase (the pushes stop at the first level that fells
-    it)."""
-    push = plan.tests['push']
-    per_robot = (len(ROBOT_KEYS) + 2 + len(plan.tests['step_down']['shares'])
-                 + len(push['levels']) * push['phases'])
+    it); per other gait the walk and stop, the turn, every step down and every push."""
+    def ladders(tests: dict) -> int:
+        push = tests['push']
+        return len(tests['step_down']['shares']) + len(push['levels']) * push['phases']
+    per_robot = len(ROBOT_KEYS) + 2 + ladders(plan.tests)
+    per_robot += sum(2 + ladders(g['tests']) for g in plan.gaits.values())
     return per_robot * len(plan.robots)
+
+
+# -- the other gaits -------------------------------------------------------------------------
+
+
+def gait_axes(result: RunResult, steady_cycles: int) -> dict:
+    """Per segment with a set-point of a gait's run (its axis: the set-point's largest
+    component): the mean of that component over the last ``steady_cycles`` whole cycles of
+    the gait (a true touchdown of a leg to its next) before the next set-point, as a share of
+    the set-point (``share`` None with fewer cycles), and the cycles it had."""
+    axes = {}
+    for segment in result.metrics.get('velocity_tracking') or []:
+        commanded = segment.get('commanded') or []
+        if not any(commanded):
+            continue
+        k = int(np.argmax(np.abs(commanded)))
+        cycles = segment.get('cycle_velocities') or []
+        steady = last_cycles_velocity(cycles, steady_cycles)
+        axes[ROBOT_KEYS[k]] = {'commanded': commanded[k], 'cycles': len(cycles),
+                               'achieved': None if steady is None else round(steady[k], 5),
+                               'share': (None if steady is None
+                                         else round(steady[k] / commanded[k], 4))}
+    return axes
+
+
+def _run_row(result: RunResult) -> dict:
+    return {'run': result.key, 'ok': result.ok, 'fell': result.fell,
+            'fall_time_s': result.metrics.get('fall_time_s')}
+
+
+def step_ladder(runner: Runner, base: dict, info: RobotInfo, plan: RobotsPlan) -> list[dict]:
+    """The step downs one after the other, up to the first share not crossed."""
+    rows = []
+    for share in plan.tests['step_down']['shares']:
+        rows.append(step_row(runner.run(step_doc(base, info, plan, share)),
+                             step_geometry(info, plan, share)))
+        if not rows[-1]['crossed']:
+            break
+    return rows
+
+
+def measure_gait(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
+    """Every run of one robot in the gait of ``plan`` (``gait_plan``; ``info`` the robot in
+    that gait): the walk and stop (achieved forward, the standing after it), the turn
+    (achieved lateral and yaw), the pushes and the step downs; the last two only if the walk
+    did not fall."""
+    tests = plan.tests
+    walk_base = runner.scenario(tests['walk']['scenario'])
+    turn_base = runner.scenario(tests['turn']['scenario'])
+    step_base = runner.scenario(tests['step_down']['scenario'])
+    setpoints = plan.robots[info.name]
+    row: dict = {'gait': plan.gait, 'setpoints': setpoints, 'cycle_s': round(info.cycle_s, 4),
+                 'froude': round(froude_number(setpoints['forward'], info.leg_length_m), 4),
+                 'push': None, 'step_down': []}
+    with ThreadPoolExecutor(2) as pool:
+        turn_future = pool.submit(runner.run, gait_turn_doc(turn_base, info, plan))
+        walk = runner.run(gait_walk_doc(walk_base, info, plan), True)
+        walks_on_flat = walk.ok and not walk.fell
+        if walks_on_flat:
+            steps = pool.submit(step_ladder, runner, step_base, info, plan)
+            row['push'] = push_ladder(runner, walk_base, info, plan)
+            row['step_down'] = steps.result()
+        turn = turn_future.result()
+    row['walk'] = {**_run_row(walk), 'axes': gait_axes(walk, tests['walk']['steady_cycles'])}
+    row['turn'] = {**_run_row(turn), 'axes': gait_axes(turn, tests['turn']['steady_cycles'])}
+    begin, end = quiet_window(info, plan, walk_start(walk_base))
+    standing = None
+    if walks_on_flat and (walk.folder / 'bag').exists():
+        standing = cached_stand_measures(walk.folder, begin)
+    row['standing'] = {'window_s': [begin, end], **(standing or {})}
+    made = [walk, turn] + [runner.results[s['run']] for s in row['step_down']]
+    if row['push']:
+        made += [runner.results[p['run']] for level in row['push']['levels']
+                 for p in level['phases']]
+    made = [r for r in made if isinstance(r, RunResult)]
+    row['falls'] = [r.key for r in made if r.ok and r.fell]
+    row['runs'] = len(made)
+    row['skipped'] = (None if walks_on_flat else
+                      'falls walking forward on flat ground' if walk.ok
+                      else 'the forward walk did not complete')
+    row['timing'] = timing(made)
+    return row
+
+
+def measure_gaits(runner: Runner, plan: RobotsPlan, gait_infos: dict[str, dict[str, RobotInfo]],
+                  name: str) -> dict:
+    """``measure_gait`` of robot ``name`` in each of the plan's gaits (``gait_infos``: gait ->
+    robot -> the robot in that gait)."""
+    return {gait: measure_gait(runner, gait_plan(plan, gait, infos), infos[name])
+            for gait, infos in gait_infos.items()}
 
 
 def robot_facts_row(info: RobotInfo, plan: RobotsPlan) -> dict:
@@ -360,6 +465,9 @@ def main(argv=None) -> int:
     try:
         plan = load_robots_plan(plan_file, args.quick, args.robot)
         infos = {name: robot_info(config_dir, name, plan.profile) for name in plan.robots}
+        gait_infos = {gait: {name: robot_info(config_dir, name, plan.profile, gait=gait)
+                             for name in plan.robots} for gait in plan.gaits}
+        gait_plans = {gait: gait_plan(plan, gait, gait_infos[gait]) for gait in plan.gaits}
         facts = {name: robot_facts_row(info, plan) for name, info in infos.items()}
     except (ExperimentError, ConfigError, ValueError) as err:
         print(f'robots_page: {err}', file=sys.stderr)
@@ -377,8 +485,10 @@ def main(argv=None) -> int:
     started = time.monotonic()
     try:
         with ThreadPoolExecutor(len(infos)) as pool:
-            rows = dict(zip(infos, pool.map(lambda i: measure_robot(runner, plan, i),
-                                            infos.values()), strict=True))
+            rows = dict(zip(infos, pool.map(
+                lambda i: {**measure_robot(runner, plan, i),
+                           'gaits': measure_gaits(runner, plan, gait_infos, i.name)},
+                infos.values()), strict=True))
     except ExperimentError as err:
         progress.close()
         print(f'robots_page: {err}', file=sys.stderr)
@@ -392,7 +502,9 @@ def main(argv=None) -> int:
             'wall_time_min': round((time.monotonic() - started) / 60.0, 1),
             'runs': sum(r.ok for r in made), 'reused': progress.reused, 'quick': args.quick,
             'jobs': args.jobs, 'failures': runner.failures, 'plan_file': _shown(plan_file, root),
-            'profile': plan.profile, 'seed': plan.seed, 'tests': plan.tests}
+            'profile': plan.profile, 'seed': plan.seed, 'tests': plan.tests,
+            'gaits': {gait: {'setpoints': plan.gaits[gait]['setpoints'],
+                             'tests': gait_plans[gait].tests} for gait in plan.gaits}}
     data = {'meta': meta, 'facts': facts, 'robots': rows}
     (out / 'robots.json').write_text(json.dumps(data, indent=1, default=str))
     page.parent.mkdir(parents=True, exist_ok=True)

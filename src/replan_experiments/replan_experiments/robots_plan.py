@@ -1,7 +1,9 @@
 """The plan of the robots page (``config/robots_page.yaml``, docs/robots.md): its checked
 ``full`` or ``quick`` section and robots, each robot's facts and derived parameters as the
 launcher derives them (``robot_info``), and the scenario documents of its runs: forces from its
-mass, push times from its crawl cycle, step heights and distances from its leg length.
+mass, push times from its crawl cycle, step heights and distances from its leg length; and
+per other gait of the plan (``gaits:``) its set-points (the trot's from a Froude number of the
+leg length, the walking trot's from the crawl's) and runs timed in that gait's cycle.
 
 Nothing here is robot-specific: every robot number comes from the plan file or the robot's
 model and files."""
@@ -9,7 +11,7 @@ model and files."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import yaml
@@ -17,7 +19,7 @@ import yaml
 from replan_experiments.plan import ExperimentError, variant
 from replan_experiments.robot_info import RobotInfo
 
-TOP_KEYS = {'profile', 'seed', 'parameters', 'robots', 'full', 'quick'}
+TOP_KEYS = {'profile', 'seed', 'parameters', 'robots', 'full', 'quick', 'gaits'}
 ROBOT_KEYS = ('forward', 'lateral', 'yaw')
 # Each test's keys, all required: a misspelt or missing one is an error, not a default.
 TEST_KEYS = {
@@ -28,6 +30,21 @@ TEST_KEYS = {
              'after_push_cycles'},
     'step_down': {'scenario', 'shares', 'step_x_legs', 'cross_legs', 'time_margin'},
 }
+# The other gaits' runs (``gaits.<name>.full`` and ``.quick``), in the gait's cycles: a walk
+# forward then a stop (the standing after it), a walk sideways then turning, and the crawl's
+# push and step down tests (step downs as a ladder: up to the first share not crossed).
+GAIT_TEST_KEYS = {
+    'walk': {'scenario', 'forward_cycles', 'steady_cycles', 'settle_s', 'quiet_s'},
+    'turn': {'scenario', 'segment_cycles', 'steady_cycles'},
+    'push': TEST_KEYS['push'],
+    'step_down': TEST_KEYS['step_down'],
+}
+# A gait's set-points from each robot: forward from the Froude number v^2 / (g l) of its leg
+# length l (``froude``) or a multiple of its crawl forward set-point (``crawl_times``), one
+# of the two; lateral = ``lateral_share`` x forward; yaw = forward / (``yaw_legs`` x l).
+SETPOINT_KEYS = {'lateral_share', 'yaw_legs'}
+FORWARD_RULES = ('froude', 'crawl_times')
+GRAVITY = 9.81
 _TEXT_KEYS = {'scenario'}
 _LIST_KEYS = {'levels', 'shares', 'direction'}
 
@@ -42,6 +59,9 @@ class RobotsPlan:
     parameters: list[str]
     robots: dict[str, dict[str, float]]      # name -> {forward, lateral, yaw}
     tests: dict[str, dict]                   # TEST_KEYS name -> its settings
+    # The other gaits: name -> {'setpoints': rule, 'tests': GAIT_TEST_KEYS name -> settings}.
+    gaits: dict[str, dict] = field(default_factory=dict)
+    gait: str | None = None      # a gait's plan (``gait_plan``): the gait its documents run
 
 
 def _fail(source: str, key: str, problem: str) -> ExperimentError:
@@ -56,10 +76,10 @@ def _number(value, source: str, key: str, positive: bool = True) -> float:
     return float(value)
 
 
-def _check_test(name: str, cfg, source: str, where: str) -> dict:
+def _check_test(name: str, cfg, source: str, where: str, known: dict | None = None) -> dict:
     if not isinstance(cfg, dict):
         raise _fail(source, where, 'must be a mapping')
-    keys = TEST_KEYS[name]
+    keys = (known or TEST_KEYS)[name]
     if set(cfg) - keys:
         raise _fail(source, f'{where}.{sorted(set(cfg) - keys)[0]}',
                     f'unknown key (known: {", ".join(sorted(keys))})')
@@ -77,9 +97,9 @@ def _check_test(name: str, cfg, source: str, where: str) -> dict:
                 raise _fail(source, at, f'expected a non-empty list of numbers, got {value!r}')
             out[key] = [_number(v, source, f'{at}[{i}]', positive=key != 'direction')
                         for i, v in enumerate(value)]
-        elif key in ('phases', 'segment_cycles'):
+        elif key in ('phases', 'segment_cycles', 'forward_cycles', 'steady_cycles'):
             # A response needs a first cycle and later ones to tell rise from steady state.
-            least = 2 if key == 'segment_cycles' else 1
+            least = 2 if key in ('segment_cycles', 'forward_cycles') else 1
             if not isinstance(value, int) or isinstance(value, bool) or value < least:
                 raise _fail(source, at, f'expected a whole number >= {least}, got {value!r}')
             out[key] = value
@@ -96,6 +116,56 @@ def _check_test(name: str, cfg, source: str, where: str) -> dict:
         raise _fail(source, f'{where}.direction', 'expected [x, y], not both zero')
     if name == 'stand' and out['drift_from'] >= out['duration']:
         raise _fail(source, f'{where}.drift_from', 'must come before the duration')
+    cycles = out.get('forward_cycles', out.get('segment_cycles'))
+    if 'steady_cycles' in out and out['steady_cycles'] >= cycles:
+        raise _fail(source, f'{where}.steady_cycles', 'must be fewer than the segment\'s '
+                                                      f'cycles ({cycles})')
+    return out
+
+
+def _check_gait_tests(tests, source: str, where: str) -> dict[str, dict]:
+    if not isinstance(tests, dict):
+        raise _fail(source, where, 'must be a mapping')
+    if set(tests) != set(GAIT_TEST_KEYS):
+        wrong = sorted(set(tests) ^ set(GAIT_TEST_KEYS))[0]
+        raise _fail(source, f'{where}.{wrong}', 'unknown test' if wrong in tests else 'missing')
+    return {n: _check_test(n, c, source, f'{where}.{n}', GAIT_TEST_KEYS)
+            for n, c in tests.items()}
+
+
+def _check_gaits(gaits, source: str, section: str) -> dict[str, dict]:
+    """The plan's ``gaits``: per gait its set-point rule and its ``section``'s tests."""
+    if gaits is None:
+        return {}
+    if not isinstance(gaits, dict):
+        raise _fail(source, 'gaits', 'expected a mapping of gait names to their runs')
+    out = {}
+    for name, cfg in gaits.items():
+        where = f'gaits.{name}'
+        if name == 'crawl':
+            raise _fail(source, where, 'the crawl is the plan\'s own (robots:, full:, quick:)')
+        if not isinstance(cfg, dict):
+            raise _fail(source, where, 'expected {setpoints, full, quick}')
+        if set(cfg) != {'setpoints', 'full', 'quick'}:
+            wrong = sorted(set(cfg) ^ {'setpoints', 'full', 'quick'})[0]
+            raise _fail(source, f'{where}.{wrong}', 'unknown key' if wrong in cfg else 'missing')
+        rule = cfg['setpoints']
+        at = f'{where}.setpoints'
+        if not isinstance(rule, dict):
+            raise _fail(source, at, 'must be a mapping')
+        forward = [k for k in FORWARD_RULES if k in rule]
+        if len(forward) != 1:
+            raise _fail(source, at, f'expected one of {", ".join(FORWARD_RULES)}, '
+                                    f'got {forward or "none"}')
+        keys = SETPOINT_KEYS | set(forward)
+        if set(rule) != keys:
+            wrong = sorted(set(rule) ^ keys)[0]
+            raise _fail(source, f'{at}.{wrong}', 'unknown key' if wrong in rule else 'missing')
+        checked = {k: _number(v, source, f'{at}.{k}') for k, v in rule.items()}
+        # Both sections checked: a mistake in the other is found before the page it makes.
+        both = {sec: _check_gait_tests(cfg[sec], source, f'{where}.{sec}')
+                for sec in ('full', 'quick')}
+        out[str(name)] = {'setpoints': checked, 'tests': both[section]}
     return out
 
 
@@ -154,7 +224,8 @@ def load_robots_plan(path: Path, quick: bool = False, only: list[str] | None = N
                     else 'missing')
     return RobotsPlan(source, profile, seed, list(parameters),
                       {n: s for n, s in checked.items() if not only or n in only},
-                      {n: _check_test(n, c, source, f'{section}.{n}') for n, c in tests.items()})
+                      {n: _check_test(n, c, source, f'{section}.{n}') for n, c in tests.items()},
+                      _check_gaits(doc.get('gaits'), source, section))
 
 
 def listed_parameters(info: RobotInfo, plan: RobotsPlan) -> dict[str, object]:
@@ -171,9 +242,14 @@ def listed_parameters(info: RobotInfo, plan: RobotsPlan) -> dict[str, object]:
 # -- the scenario documents of one robot ----------------------------------------------------
 
 
-def _robot_doc(doc: dict, info: RobotInfo, kind: str) -> dict:
+def _robot_doc(doc: dict, info: RobotInfo, kind: str, gait: str | None = None) -> dict:
+    """The robot's document named ``<robot>_<kind>``; in a gait's plan it runs the gait
+    (top-level ``gait:``) and is named ``<robot>_<gait>_<kind>`` (the crawl's documents, and
+    so their run keys, are as before gaits had plans)."""
     doc['robot'] = info.name
-    doc['name'] = f'{info.name}_{kind}'
+    doc['name'] = f'{info.name}_{kind}' if gait is None else f'{info.name}_{gait}_{kind}'
+    if gait is not None:
+        doc['gait'] = gait
     return doc
 
 
@@ -185,7 +261,7 @@ def walk_start(base: dict) -> float:
 def stand_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
     cfg = plan.tests['stand']
     return _robot_doc(variant(base, world=plan.profile, seed=plan.seed,
-                              duration=cfg['duration']), info, 'stand')
+                              duration=cfg['duration']), info, 'stand', plan.gait)
 
 
 def walk_doc(base: dict, info: RobotInfo, plan: RobotsPlan, axis: str) -> dict:
@@ -194,7 +270,7 @@ def walk_doc(base: dict, info: RobotInfo, plan: RobotsPlan, axis: str) -> dict:
     setpoint[ROBOT_KEYS.index(axis)] = plan.robots[info.name][axis]
     return _robot_doc(variant(base, world=plan.profile, seed=plan.seed,
                               duration=plan.tests['walk']['duration'],
-                              setpoint=tuple(setpoint)), info, axis)
+                              setpoint=tuple(setpoint)), info, axis, plan.gait)
 
 
 def response_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
@@ -211,7 +287,7 @@ def response_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
     doc = variant(base, world=plan.profile, seed=plan.seed,
                   duration=round(start + len(ROBOT_KEYS) * span, 4))
     doc['events'] = events
-    return _robot_doc(doc, info, 'response')
+    return _robot_doc(doc, info, 'response', plan.gait)
 
 
 def push_times(base: dict, info: RobotInfo, plan: RobotsPlan) -> list[float]:
@@ -239,7 +315,7 @@ def push_doc(base: dict, info: RobotInfo, plan: RobotsPlan, dv: float, t: float)
     doc = variant(base, world=plan.profile, seed=plan.seed, duration=round(duration, 4),
                   setpoint=(plan.robots[info.name]['forward'], 0.0, 0.0),
                   push=(t, push_force(info, plan, dv), cfg['push_duration']))
-    return _robot_doc(doc, info, f'push_{dv:g}')
+    return _robot_doc(doc, info, f'push_{dv:g}', plan.gait)
 
 
 def step_geometry(info: RobotInfo, plan: RobotsPlan, share: float) -> dict:
@@ -262,4 +338,78 @@ def step_doc(base: dict, info: RobotInfo, plan: RobotsPlan, share: float) -> dic
                'step_x': geometry['edge_x_m']}
     doc = variant(base, world=plan.profile, seed=plan.seed, terrain=terrain,
                   duration=round(duration, 2), setpoint=(speed, 0.0, 0.0))
-    return _robot_doc(doc, info, f'step_down_{share:g}')
+    return _robot_doc(doc, info, f'step_down_{share:g}', plan.gait)
+
+
+# -- the other gaits ---------------------------------------------------------------------------
+
+
+def froude_number(speed: float, leg_length: float) -> float:
+    """v^2 / (g l): the speed relative to the leg length, the same for geometrically similar
+    robots walking alike."""
+    return speed * speed / (GRAVITY * leg_length)
+
+
+def gait_setpoints(rule: dict, info: RobotInfo, crawl_forward: float) -> dict[str, float]:
+    """A robot's set-points in a gait from the plan's rule (``SETPOINT_KEYS``,
+    ``FORWARD_RULES``): forward at the Froude number ``froude`` of its leg length, or
+    ``crawl_times`` its crawl forward set-point; lateral a share of it; yaw forward over
+    ``yaw_legs`` leg lengths. m/s and rad/s to the millimetre (milliradian)."""
+    leg = info.leg_length_m
+    forward = (math.sqrt(rule['froude'] * GRAVITY * leg) if 'froude' in rule
+               else rule['crawl_times'] * crawl_forward)
+    return {'forward': round(forward, 3), 'lateral': round(rule['lateral_share'] * forward, 3),
+            'yaw': round(forward / (rule['yaw_legs'] * leg), 3)}
+
+
+def gait_plan(plan: RobotsPlan, gait: str, infos: dict[str, RobotInfo]) -> RobotsPlan:
+    """The plan of ``gait``'s runs: its set-points per robot of ``infos`` (from the robot's
+    leg length and crawl set-point) and its tests, so the crawl's document builders
+    (``push_doc``, ``step_doc``) make the gait's documents."""
+    cfg = plan.gaits[gait]
+    robots = {name: gait_setpoints(cfg['setpoints'], infos[name], plan.robots[name]['forward'])
+              for name in plan.robots}
+    return replace(plan, robots=robots, tests=cfg['tests'], gaits={}, gait=gait)
+
+
+def gait_walk_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
+    """A gait's plan: from standing the robot's forward set-point for ``forward_cycles`` of
+    the gait's cycles from the base scenario's first set-point, then zero; the run ends
+    ``settle_s`` + ``quiet_s`` after the gait's ``idle_after`` from the stop."""
+    start = walk_start(base)
+    stop = gait_stop(info, plan, start)
+    window = quiet_window(info, plan, start)
+    doc = variant(base, world=plan.profile, seed=plan.seed, duration=window[1])
+    doc['events'] = [{'t': start, 'cmd_vel': [float(plan.robots[info.name]['forward']), 0.0,
+                                              0.0]},
+                     {'t': stop, 'cmd_vel': [0.0, 0.0, 0.0]}]
+    return _robot_doc(doc, info, 'walk', plan.gait)
+
+
+def gait_stop(info: RobotInfo, plan: RobotsPlan, start: float) -> float:
+    """The stop of ``gait_walk_doc`` whose walk starts at ``start``."""
+    return round(start + plan.tests['walk']['forward_cycles'] * info.cycle_s, 4)
+
+
+def quiet_window(info: RobotInfo, plan: RobotsPlan, start: float | None = None
+                 ) -> tuple[float, float]:
+    """The span after ``gait_walk_doc``'s stop in which the robot must stand still: from the
+    gait's ``idle_after`` plus ``settle_s`` after the stop, ``quiet_s`` long (its end is the
+    run's). ``start``: the walk's start (default 0.5 s, the walk scenarios')."""
+    cfg = plan.tests['walk']
+    stop = gait_stop(info, plan, 0.5 if start is None else start)
+    begin = stop + float(info.value('gait.idle_after')) + cfg['settle_s']
+    return round(begin, 4), round(begin + cfg['quiet_s'], 4)
+
+
+def gait_turn_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
+    """A gait's plan: from standing the robot's lateral set-point, then its yaw one, each for
+    ``segment_cycles`` of the gait's cycles."""
+    span = plan.tests['turn']['segment_cycles'] * info.cycle_s
+    start = walk_start(base)
+    setpoints = plan.robots[info.name]
+    doc = variant(base, world=plan.profile, seed=plan.seed, duration=round(start + 2 * span, 4))
+    doc['events'] = [{'t': start, 'cmd_vel': [0.0, float(setpoints['lateral']), 0.0]},
+                     {'t': round(start + span, 4), 'cmd_vel': [0.0, 0.0,
+                                                               float(setpoints['yaw'])]}]
+    return _robot_doc(doc, info, 'turn', plan.gait)

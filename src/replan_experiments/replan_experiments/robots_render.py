@@ -262,6 +262,23 @@ def _short_response(row: dict | None) -> str:
     return 'met' if not missed else 'off: ' + ', '.join(missed)
 
 
+def _gait_heading(gait: str, rule: dict) -> str:
+    at = (f'Froude {rule["froude"]:g}' if 'froude' in rule
+          else f'{rule["crawl_times"]:g} x the crawl')
+    return f'{gait.replace("_", " ")} at {at}: forward achieved, % of set-point'
+
+
+def _short_gait(gait: dict | None) -> str:
+    """A gait's forward achieved in per cent of its set-point, or what the run says."""
+    if gait is None:
+        return '-'
+    walk = gait.get('walk')
+    if (said := _not_measured(walk)) is not None:
+        return said
+    cell = (walk.get('axes') or {}).get('forward') or {}
+    return f'{100.0 * cell["share"]:.1f}' if cell.get('share') is not None else 'no figure'
+
+
 def readme_block(data: dict) -> str:
     """A short table of docs/robots.md for the README (between its robots markers): per robot
     the steady walks, standing, the largest push and step down, and whether the response to
@@ -283,15 +300,120 @@ def readme_block(data: dict) -> str:
             crossed += 1
         stepped = (f'{steps[crossed - 1]["share"]:g} of the leg' if crossed
                    else step_cell(steps, robot['skipped']))
+        gaits = [_short_gait((robot.get('gaits') or {}).get(gait))
+                 for gait in meta.get('gaits') or {}]
         rows.append([name, walks, standing, pushed, stepped,
-                     _short_response(robot.get('response'))])
+                     _short_response(robot.get('response')), *gaits])
     header = ['robot', 'walk: forward / lateral / yaw, % off the set-point',
               f'standing {meta["tests"]["stand"]["duration"]:g} s from launch',
               'lateral push survived at every phase (dv)', 'blind step down crossed',
-              'response to set-point changes']
+              'response to set-point changes',
+              *[_gait_heading(gait, cfg['setpoints'])
+                for gait, cfg in (meta.get('gaits') or {}).items()]]
     return '\n'.join([f'From [docs/robots.md](docs/robots.md) ({meta["date"]}, '
                       f'{meta["profile"]} profile; generated, the page names the revision of '
                       'its runs):', '', *_table(header, rows)]) + '\n'
+
+
+# -- the other gaits ---------------------------------------------------------------------------
+
+
+def share_cell(run: dict | None, axis: str, unit: str) -> str:
+    """A gait's achieved ``axis`` over its last whole cycles, in per cent of the set-point,
+    or the fall, the failure or the missing cycles."""
+    if (said := _not_measured(run)) is not None:
+        return said
+    cell = (run.get('axes') or {}).get(axis)
+    if not cell:
+        return 'no segment'
+    if cell.get('share') is None:
+        return f'too few whole cycles ({cell.get("cycles", 0)})'
+    return (f'{100.0 * cell["share"]:.1f} % ({_num(cell["achieved"])} of '
+            f'{cell["commanded"]:g} {unit})')
+
+
+def standing_cell(gait: dict) -> str:
+    """Standing after the stop: the trunk's drift over the quiet window and the touchdowns
+    in it."""
+    walk = gait.get('walk')
+    if (said := _not_measured(walk)) is not None:
+        return said
+    standing = gait.get('standing') or {}
+    if standing.get('drift_m') is None:
+        return 'no truth in the bag'
+    start, end = standing['window_s']
+    steps = standing['touchdowns']
+    return (f'{100.0 * standing["drift_m"]:.2f} cm, {steps} touchdown'
+            f'{"" if steps == 1 else "s"} ({start:.2f}-{end:.2f} s)')
+
+
+def falls_cell(gait: dict) -> str:
+    falls = gait.get('falls') or []
+    if not falls:
+        return f'none ({gait.get("runs", 0)} runs)'
+    return f'**{len(falls)} of {gait.get("runs", 0)} runs**: ' + ', '.join(
+        f'`{key.rsplit("-", 1)[0]}`' for key in falls)
+
+
+def gait_table(robots: dict, gait: str) -> list[str]:
+    names = [n for n in robots if gait in (robots[n].get('gaits') or {})]
+    rows_of = {n: robots[n]['gaits'][gait] for n in names}
+    rows = [['set-point forward (Froude number v^2 / (g l))',
+             *[f'{rows_of[n]["setpoints"]["forward"]:g} m/s ({rows_of[n]["froude"]:.4f})'
+               for n in names]],
+            ['set-points lateral, yaw',
+             *[f'{rows_of[n]["setpoints"]["lateral"]:g} m/s, '
+               f'{rows_of[n]["setpoints"]["yaw"]:g} rad/s' for n in names]],
+            ['cycle s', *[_num(rows_of[n]['cycle_s']) for n in names]],
+            ['forward achieved, % of set-point',
+             *[share_cell(rows_of[n].get('walk'), 'forward', 'm/s') for n in names]],
+            ['lateral achieved, % of set-point',
+             *[share_cell(rows_of[n].get('turn'), 'lateral', 'm/s') for n in names]],
+            ['yaw achieved, % of set-point',
+             *[share_cell(rows_of[n].get('turn'), 'yaw', 'rad/s') for n in names]],
+            ['largest lateral push survived at every phase (dv = impulse / mass)',
+             *[push_cell(rows_of[n]['push'], rows_of[n]['skipped']) for n in names]],
+            ['blind step down crossed (share of leg length)',
+             *[step_cell(rows_of[n]['step_down'], rows_of[n]['skipped']) for n in names]],
+            ['standing after the stop: trunk drift, touchdowns',
+             *[standing_cell(rows_of[n]) for n in names]],
+            ['falls', *[falls_cell(rows_of[n]) for n in names]]]
+    cells = [timing_cells(rows_of[n].get('timing') or {}) for n in names]
+    rows.append(['real-time factor, median over its runs', *[c[0] for c in cells]])
+    rows.append(['MPC solve time', *[c[1] for c in cells]])
+    return _table(['', *names], rows)
+
+
+def _setpoint_rule(rule: dict) -> str:
+    forward = (f'the speed of Froude number v^2 / (g l) = {rule["froude"]:g} for its leg '
+               f'length l, sqrt({rule["froude"]:g} g l)' if 'froude' in rule else
+               f'{rule["crawl_times"]:g} x its crawl forward set-point')
+    return (f'forward {forward}; lateral {rule["lateral_share"]:g} x forward; yaw forward / '
+            f'({rule["yaw_legs"]:g} x l)')
+
+
+def gait_section(meta: dict, robots: dict, gait: str) -> list[str]:
+    cfg = meta['gaits'][gait]
+    tests = cfg['tests']
+    walk, turn, push, step = tests['walk'], tests['turn'], tests['push'], tests['step_down']
+    title = gait.replace('_', ' ')
+    return [
+        f'## {title[0].upper() + title[1:]}', '',
+        f'`config/gaits/{gait}.yaml`, each robot\'s set-points from its leg length: '
+        f'{_setpoint_rule(cfg["setpoints"])}. One run walks forward from standing for '
+        f'{walk["forward_cycles"]} of the gait\'s cycles, then stops: achieved = the mean over '
+        f'the last {walk["steady_cycles"]} whole cycles before the stop (a true touchdown of a '
+        'leg to its next); standing after = the trunk\'s drift on the truth and the true '
+        f'touchdowns from the gait\'s `idle_after` + {walk["settle_s"]:g} s after the stop to '
+        f'{walk["quiet_s"]:g} s later (the run\'s end). One run goes sideways, then turns, '
+        f'{turn["segment_cycles"]} cycles each (the last {turn["steady_cycles"]} whole cycles '
+        f'of each). Pushes at {push["phases"]} phases of the cycle (the first '
+        f'{push["first_push_cycles"]:g} cycles after the start, force = mass x dv / '
+        f'{push["push_duration"]:g} s, levels {push["levels"]} m/s) and blind step downs '
+        f'(shares {step["shares"]}, edge {step["step_x_legs"]:g} leg lengths ahead, one after '
+        'the other up to the first not crossed) as the crawl\'s, walking forward at the '
+        'gait\'s set-point; not run if the walk falls.', '',
+        *gait_table(robots, gait), '']
 
 
 def render_page(data: dict) -> str:
@@ -315,6 +437,8 @@ def render_page(data: dict) -> str:
               f'the nodes get them on the `{meta["profile"]}` profile.', '',
               *facts_table(facts), '',
               '## Measured', '', *results_table(robots), '', *how_section(meta)]
+    for gait in meta.get('gaits') or {}:
+        lines += ['', *gait_section(meta, robots, gait)]
     if meta.get('failures'):
         lines += ['', f'{len(meta["failures"])} runs failed to produce metrics:',
                   *[f'- `{f}`' for f in meta['failures']]]

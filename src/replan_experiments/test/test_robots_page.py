@@ -5,6 +5,7 @@ does for the bisection); the stand's measures from synthetic truth."""
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,8 @@ from test_robots_plan import PLAN, WALK, synthetic
 
 from replan_experiments.robots_page import (
     drift_and_touchdowns,
+    gait_axes,
+    measure_gait,
     measure_robot,
     planned_runs,
     push_ladder,
@@ -20,7 +23,7 @@ from replan_experiments.robots_page import (
     timing,
     walk_row,
 )
-from replan_experiments.robots_plan import load_robots_plan, push_times
+from replan_experiments.robots_plan import gait_plan, load_robots_plan, push_times
 from replan_experiments.runs import RunResult, code_fingerprint, run_key
 
 CONFIG = PLAN.parent
@@ -102,7 +105,8 @@ def test_a_robot_that_walks_is_measured_on_every_test(tmp_path):
     assert row['walks']['lateral']['achieved'] == pytest.approx(0.95 * 0.033)
     assert row['push']['survived_dv'] == 0.3 and row['push']['fell_dv'] is None
     assert [s['crossed'] for s in row['step_down']] == [True]
-    assert len(runner.docs) == planned_runs(plan)        # 5 + 1 share + 1 level x 1 phase
+    # 5 + 1 share + 1 level x 1 phase; the other gaits' runs are measure_gait's
+    assert len(runner.docs) == planned_runs(replace(plan, gaits={}))
     assert row['response']['axes']['forward']['shares'] == []     # no cycles here
     assert row['timing'] == {'runs': 7, 'rtf_median': 1.2, 'rtf_min': 1.2,
                              'mpc_median_ms': 1.5, 'mpc_p99_max_ms': 4.0}
@@ -195,3 +199,78 @@ def test_the_page_names_its_plan_relative_to_the_repository(tmp_path):
     root = tmp_path / 'repo'
     assert _shown(root / 'config' / 'robots_page.yaml', root) == 'config/robots_page.yaml'
     assert _shown(tmp_path / 'mine.yaml', root) == str(tmp_path / 'mine.yaml')
+
+
+class GaitRunner(StandInRunner):
+    """As StandInRunner, with a segment per set-point of the document, each with three whole
+    cycles of the gait at 97 % of its set-point."""
+
+    def run(self, doc: dict, bag: bool = False) -> RunResult:
+        result = super().run(doc, bag)
+        commands = [e['cmd_vel'] for e in doc['events'] if 'cmd_vel' in e]
+        result.metrics['velocity_tracking'] = [
+            {'commanded': c, 'cycle_velocities': [
+                {'start_s': float(k), 'end_s': k + 1.0, 'velocity': [0.97 * v for v in c]}
+                for k in range(3)]} for c in commands]
+        return result
+
+
+def trot_info(name: str = 'go1') -> object:
+    info = synthetic(name, swing=0.3, four_feet=0.0)
+    info.values['gait'].update(group_size=2, idle_after=0.6)
+    return info
+
+
+def test_a_gait_is_measured_walking_turning_pushed_and_down_a_ladder_of_steps(tmp_path):
+    plan = load_robots_plan(PLAN, only=['go1'])
+    info = trot_info()
+    trot = gait_plan(plan, 'trot', {'go1': info})
+    runner = GaitRunner(tmp_path, step_limit=0.08)
+    runner.times = []
+    row = measure_gait(runner, trot, info)
+    assert row['gait'] == 'trot' and row['froude'] == pytest.approx(0.02, abs=2e-4)
+    assert row['walk']['axes']['forward']['share'] == pytest.approx(0.97)
+    assert set(row['turn']['axes']) == {'lateral', 'yaw'}
+    assert row['turn']['axes']['yaw']['share'] == pytest.approx(0.97)
+    # The ladder stops at the first share not crossed: 0.05 crossed, 0.10 fell, 0.15 not run.
+    assert [s['share'] for s in row['step_down']] == [0.05, 0.10]
+    assert [s['crossed'] for s in row['step_down']] == [True, False]
+    assert row['push']['survived_dv'] == 0.3 and row['push']['phases'] == 2
+    assert len(row['falls']) == 1 and '_trot_step_down_0.1-' in row['falls'][0]
+    assert all(d['gait'] == 'trot' and d['name'].startswith('go1_trot_') for d in runner.docs)
+    assert len(runner.docs) == row['runs'] == 2 + 2 + 2
+    walk = next(d for d in runner.docs if d['name'] == 'go1_trot_walk')
+    assert row['standing']['window_s'][1] == walk['duration']          # the run's end
+
+
+def test_a_gait_whose_walk_falls_is_not_pushed_or_stepped_down(tmp_path):
+    plan = load_robots_plan(PLAN, quick=True, only=['go1'])
+    info = trot_info()
+    runner = GaitRunner(tmp_path, forward_falls=True)
+    row = measure_gait(runner, gait_plan(plan, 'walking_trot', {'go1': info}), info)
+    assert row['push'] is None and row['step_down'] == []
+    assert row['skipped'] == 'falls walking forward on flat ground'
+    assert len(runner.docs) == 2 and len(row['falls']) == 2
+
+
+def test_planned_runs_count_every_gait():
+    plan = load_robots_plan(PLAN, quick=True, only=['go1'])
+    # crawl: 3 walks + stand + response + 1 share + 1 push; each gait: walk, turn, 1 share,
+    # 1 push
+    assert planned_runs(plan) == 7 + 4 + 4
+    full = load_robots_plan(PLAN)
+    assert planned_runs(full) == planned_runs(replace(full, gaits={})) + 7 * (
+        2 + 3 + 2 + 2 + 1 + 1)
+
+
+def test_a_gaits_achieved_is_the_mean_of_its_last_whole_cycles():
+    cycles = [{'start_s': 0.0, 'end_s': 1.0, 'velocity': [0.1, 0.0, 0.0]},
+              {'start_s': 1.0, 'end_s': 2.0, 'velocity': [0.28, 0.01, 0.0]},
+              {'start_s': 2.0, 'end_s': 3.0, 'velocity': [0.30, -0.01, 0.0]}]
+    metrics = {'velocity_tracking': [{'commanded': [0.29, 0.0, 0.0], 'cycle_velocities': cycles},
+                                     {'commanded': [0.0, 0.0, 0.0], 'cycle_velocities': []}]}
+    axes = gait_axes(RunResult('w', {}, metrics, Path('w')), 2)
+    assert list(axes) == ['forward']
+    assert axes['forward']['share'] == pytest.approx(0.29 / 0.29) and axes['forward'][
+        'cycles'] == 3
+    assert gait_axes(RunResult('w', {}, metrics, Path('w')), 4)['forward']['share'] is None

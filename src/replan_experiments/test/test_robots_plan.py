@@ -14,11 +14,18 @@ import yaml
 from replan_experiments.plan import ExperimentError
 from replan_experiments.robot_info import RobotInfo, robot_info
 from replan_experiments.robots_plan import (
+    GRAVITY,
+    froude_number,
+    gait_plan,
+    gait_turn_doc,
+    gait_walk_doc,
     listed_parameters,
     load_robots_plan,
     push_doc,
     push_force,
     push_times,
+    quiet_window,
+    response_doc,
     stand_doc,
     step_doc,
     step_geometry,
@@ -145,3 +152,113 @@ def test_robot_info_is_the_launchers_derivation():
     assert go1.value('sim.payload_mass') < hyq.value('sim.payload_mass') == 5.0
     parameters = listed_parameters(go1, load_robots_plan(PLAN))
     assert parameters['mpc.com_height'] == pytest.approx(go1.com_height_m)
+
+
+def trot(name: str = 'go1', mass: float = 10.0, leg: float = 0.5) -> RobotInfo:
+    """A robot in a trot: two steps of a 0.3 s swing, idle after 0.6 s."""
+    info = synthetic(name, mass=mass, leg=leg, swing=0.3, four_feet=0.0)
+    info.values['gait'].update(group_size=2, idle_after=0.6)
+    return info
+
+
+def test_the_committed_plan_has_the_trot_at_froude_002_and_the_walking_trot_at_twice_the_crawl():
+    for quick in (False, True):
+        plan = load_robots_plan(PLAN, quick=quick)
+        assert list(plan.gaits) == ['trot', 'walking_trot']
+        assert plan.gaits['trot']['setpoints']['froude'] == 0.02
+        assert plan.gaits['walking_trot']['setpoints']['crawl_times'] == 2.0
+        assert plan.gaits['trot']['tests']['step_down']['shares'] == (
+            [0.05, 0.1, 0.15] if not quick else [0.05])
+
+
+@pytest.mark.parametrize('change, key', [
+    (lambda d: d['gaits']['trot']['full']['walk'].update(cycles=3),
+     'gaits.trot.full.walk.cycles: unknown key'),
+    (lambda d: d['gaits']['trot']['quick'].pop('push'), 'gaits.trot.quick.push'),
+    (lambda d: d['gaits']['trot']['full']['push'].pop('phases'),
+     'gaits.trot.full.push.phases: missing'),
+    (lambda d: d['gaits']['trot']['full']['walk'].update(steady_cycles=8),
+     'gaits.trot.full.walk.steady_cycles: must be fewer'),
+    (lambda d: d['gaits']['trot']['full']['step_down'].update(shares=[0.1, 0.05]),
+     'gaits.trot.full.step_down.shares: must rise'),
+    (lambda d: d['gaits']['trot']['setpoints'].update(crawl_times=2.0),
+     'gaits.trot.setpoints: expected one of froude, crawl_times'),
+    (lambda d: d['gaits']['trot']['setpoints'].pop('yaw_legs'),
+     'gaits.trot.setpoints.yaw_legs: missing'),
+    (lambda d: d['gaits']['trot']['setpoints'].update(froude=-0.02),
+     'gaits.trot.setpoints.froude: expected a pos'),
+    (lambda d: d['gaits']['trot'].update(ful={}), 'gaits.trot.ful: unknown key'),
+    (lambda d: d['gaits'].update(crawl=d['gaits']['trot']), 'gaits.crawl: the crawl'),
+    (lambda d: d['gaits']['walking_trot']['full'].update(jump={}),
+     'gaits.walking_trot.full.jump: unknown test'),
+])
+def test_a_bad_gait_plan_is_one_line_naming_the_file_and_the_key(tmp_path, change, key):
+    path = _mutated(tmp_path, change)
+    with pytest.raises(ExperimentError) as err:
+        load_robots_plan(path)
+    message = str(err.value)
+    assert '\n' not in message
+    assert message.startswith(f'{path}: ') and key in message, message
+
+
+def test_a_gaits_set_points_come_from_the_leg_length_and_the_crawl():
+    plan = load_robots_plan(PLAN)
+    short, long_ = trot(leg=0.4), trot('hyq', leg=0.7)
+    trots = gait_plan(plan, 'trot', {'go1': short, 'hyq': long_, **{
+        n: trot(n) for n in plan.robots if n not in ('go1', 'hyq')}})
+    for info in (short, long_):
+        forward = math.sqrt(0.02 * GRAVITY * info.leg_length_m)
+        setpoints = trots.robots[info.name]
+        assert setpoints['forward'] == pytest.approx(forward, abs=5e-4)
+        assert froude_number(setpoints['forward'], info.leg_length_m) == pytest.approx(
+            0.02, rel=0.01)
+        assert setpoints['lateral'] == pytest.approx(0.5 * forward, abs=5e-4)
+        assert setpoints['yaw'] == pytest.approx(forward / (2.0 * info.leg_length_m), abs=5e-4)
+    walking = gait_plan(plan, 'walking_trot', {n: trot(n) for n in plan.robots})
+    assert walking.robots['go1']['forward'] == pytest.approx(2 * 0.05)
+    assert walking.robots['hyq']['forward'] == pytest.approx(2 * 0.15)
+    assert trots.gait == 'trot' and trots.tests == plan.gaits['trot']['tests']
+
+
+def test_a_gaits_documents_run_the_gait_in_its_cycles():
+    plan = load_robots_plan(PLAN, only=['go1'])
+    info = trot(mass=12.0, leg=0.5)
+    trots = gait_plan(plan, 'trot', {'go1': info})
+    cfg, forward = trots.tests, trots.robots['go1']['forward']
+    assert info.cycle_s == pytest.approx(0.6)
+    walk = gait_walk_doc(WALK, info, trots)
+    stop = 0.5 + cfg['walk']['forward_cycles'] * 0.6
+    assert walk['gait'] == 'trot' and walk['name'] == 'go1_trot_walk'
+    assert walk['events'] == [{'t': 0.5, 'cmd_vel': [forward, 0.0, 0.0]},
+                              {'t': pytest.approx(stop), 'cmd_vel': [0.0, 0.0, 0.0]}]
+    begin, end = quiet_window(info, trots)
+    assert begin == pytest.approx(stop + 0.6 + cfg['walk']['settle_s'])
+    assert end == pytest.approx(begin + cfg['walk']['quiet_s']) == walk['duration']
+    turn = gait_turn_doc(WALK, info, trots)
+    span = cfg['turn']['segment_cycles'] * 0.6
+    assert [e['cmd_vel'] for e in turn['events']] == [
+        [0.0, trots.robots['go1']['lateral'], 0.0], [0.0, 0.0, trots.robots['go1']['yaw']]]
+    assert turn['duration'] == pytest.approx(0.5 + 2 * span) and turn['gait'] == 'trot'
+    # The push: mass x 0.3 m/s over the push's duration, at phases of the trot's cycle.
+    times = push_times(WALK, info, trots)
+    assert len(times) == cfg['push']['phases'] == 2
+    assert times[1] - times[0] == pytest.approx(0.3)
+    push = push_doc(WALK, info, trots, 0.3, times[0])
+    assert push['events'][-1]['push']['force'][1] == pytest.approx(
+        12.0 * 0.3 / cfg['push']['push_duration'], abs=1e-4)
+    assert push['gait'] == 'trot' and push['name'] == 'go1_trot_push_0.3'
+    assert push['events'][0]['cmd_vel'] == [forward, 0.0, 0.0]
+    step = step_doc(WALK, info, trots, 0.15)
+    assert step['terrain']['step_height'] == pytest.approx(0.075)
+    assert step['gait'] == 'trot' and step['name'] == 'go1_trot_step_down_0.15'
+
+
+def test_the_crawls_documents_are_as_before_gaits_had_plans():
+    """No gait key and the same names: the crawl's run keys, and so its cached runs, stay."""
+    plan = load_robots_plan(PLAN)
+    info = synthetic()
+    docs = [walk_doc(WALK, info, plan, 'forward'), response_doc(WALK, info, plan),
+            push_doc(WALK, info, plan, 0.3, 4.0), step_doc(WALK, info, plan, 0.05)]
+    assert all('gait' not in d for d in docs)
+    assert [d['name'] for d in docs] == ['go1_forward', 'go1_response', 'go1_push_0.3',
+                                         'go1_step_down_0.05']

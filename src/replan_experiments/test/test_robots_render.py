@@ -14,6 +14,8 @@ from replan_experiments.robots_render import (
     readme_block,
     render_page,
     response_cell,
+    share_cell,
+    standing_cell,
     step_cell,
 )
 
@@ -153,3 +155,67 @@ def test_the_readme_table_and_a_render_from_saved_data(tmp_path):
     assert (docs / 'robots.md').read_text() == render_page(data)
     assert readme.read_text() == f'# X\n\nbefore\n{README_BEGIN}\n{block}{README_END}\nafter\n'
     assert render_saved(tmp_path, tmp_path / 'none', docs / 'robots.md') == 2
+
+
+def _gait_run(**axes) -> dict:
+    return {'run': 'r', 'ok': True, 'fell': False, 'fall_time_s': None,
+            'axes': {a: {'commanded': c, 'achieved': share * c, 'share': share, 'cycles': 8}
+                     for a, (c, share) in axes.items()}}
+
+
+GO1_TROT = {'gait': 'trot', 'setpoints': {'forward': 0.289, 'lateral': 0.145, 'yaw': 0.339},
+            'cycle_s': 0.469, 'froude': 0.02, 'walk': _gait_run(forward=(0.289, 0.987)),
+            'turn': _gait_run(lateral=(0.145, 0.93), yaw=(0.339, 1.02)),
+            'push': {**GO1['push'], 'levels': GO1['push']['levels'][1:2], 'survived_dv': 0.3,
+                     'fell_dv': None, 'phases': 2},
+            'step_down': GO1['step_down'][:2],
+            'standing': {'window_s': [5.7, 7.7], 'drift_m': 0.0042, 'travel_m': 0.005,
+                         'touchdowns': 0, 'last_touchdown_s': None},
+            'falls': ['go1_trot_step_down_0.15-abc'], 'runs': 7, 'skipped': None,
+            'timing': {'runs': 7, 'rtf_median': 1.1, 'rtf_min': 0.9, 'mpc_median_ms': 2.0,
+                       'mpc_p99_max_ms': 8.0}}
+GAIT_META = {**META, 'gaits': {
+    'trot': {'setpoints': {'froude': 0.02, 'lateral_share': 0.5, 'yaw_legs': 2.0},
+             'tests': load_robots_plan(PLAN).gaits['trot']['tests']}}}
+
+
+def test_a_gait_section_gives_set_point_froude_number_shares_push_step_and_standing():
+    anymal_trot = {**GO1_TROT, 'walk': {'run': 'r', 'ok': True, 'fell': True,
+                                        'fall_time_s': 3.1, 'axes': {}},
+                   'push': None, 'step_down': [], 'standing': {'window_s': [5.0, 7.0]},
+                   'falls': ['anymal_c_trot_walk-abc'], 'runs': 2,
+                   'skipped': 'falls walking forward on flat ground'}
+    data = {'meta': GAIT_META, 'facts': {'go1': _facts(13.1), 'anymal_c': _facts(52.13)},
+            'robots': {'go1': {**GO1, 'gaits': {'trot': GO1_TROT}},
+                       'anymal_c': {**ANYMAL, 'gaits': {'trot': anymal_trot}}}}
+    text = render_page(data)
+    section = text[text.index('## Trot'):]
+    assert 'Froude number v^2 / (g l) = 0.02' in section
+    assert '| set-point forward (Froude number v^2 / (g l)) | 0.289 m/s (0.0200) |' in section
+    assert '| forward achieved, % of set-point | 98.7 % (0.285 of 0.289 m/s) | ' \
+        '**fell** at 3.1 s |' in section
+    assert '| yaw achieved, % of set-point | 102.0 % (0.346 of 0.339 rad/s) |' in section
+    assert '**0.3 m/s** (3.9 N s) at all 2 phases' in section
+    assert '**0.1** of the leg (4.3 cm)' in section
+    assert '| standing after the stop: trunk drift, touchdowns | 0.42 cm, 0 touchdowns ' \
+        '(5.70-7.70 s) | **fell** at 3.1 s |' in section
+    assert '**1 of 7 runs**: `go1_trot_step_down_0.15`' in section
+    assert section.count('not run: falls walking forward on flat ground') == 2
+    block = readme_block(data)
+    assert 'trot at Froude 0.02: forward achieved, % of set-point |' in block
+    assert '| off: lateral, yaw | 98.7 |' in block and '| **fell** at 3.1 s |' in block
+    # A page without gaits (older robots.json) renders as before.
+    assert '## Trot' not in render_page({'meta': META, 'facts': {'go1': _facts(13.1)},
+                                         'robots': {'go1': GO1}})
+
+
+def test_gait_cells_at_the_edges():
+    assert share_cell(None, 'forward', 'm/s') == '-'
+    few = {'run': 'r', 'ok': True, 'fell': False,
+           'axes': {'forward': {'commanded': 0.3, 'achieved': None, 'share': None,
+                                'cycles': 1}}}
+    assert share_cell(few, 'forward', 'm/s') == 'too few whole cycles (1)'
+    assert share_cell(few, 'yaw', 'rad/s') == 'no segment'
+    assert share_cell({'run': 'r', 'ok': False}, 'forward', 'm/s') == 'run failed'
+    assert standing_cell({'walk': few, 'standing': {'window_s': [1.0, 2.0]}}) == \
+        'no truth in the bag'
