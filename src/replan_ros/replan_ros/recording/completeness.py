@@ -1,0 +1,253 @@
+"""Is a bag complete? What was published counted against what was written.
+
+- Per-tick topics (``TICK_TOPICS``: one message per 4 ms tick, stamped with it): the distinct
+  header stamps written against the ticks the sim ran, from the first tick any of them holds
+  to the last tick the sim ran (the newest per-tick stamp, or the ``sim_time`` of the sim's
+  last ``/diagnostics``, whichever is later). A republished tick counts once.
+- Every other topic with a single publisher: the publisher's own count, its DDS publication
+  sequence number (1, 2, 3, ... per writer), which the recorder stores as the mcap message's
+  ``sequence`` (what the mcap format means that field for). A gap between two written
+  sequence numbers is a lost message; a number that drops starts a new writer (a respawned
+  node). Messages before the recorder subscribed, or after its last take, are not seen.
+- Topics with several publishers (``/diagnostics``, ``/rosout``) are not counted.
+
+The recorder counts while it writes (``Counter``) and stores the result in the bag as the
+metadata record ``replan_completeness`` (``Completeness.record``); ``bag_dir`` copies it into
+``metadata.yaml``'s ``custom_data``. ``bag_completeness`` reads it back, or counts the bag's
+messages when no file has it (a killed recorder, a split bag). ``is_complete`` is the verdict.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from replan_ros.recording.bag_files import bag_files
+from replan_ros.recording.bag_io import iter_raw, summarize
+
+RECORD = 'replan_completeness'
+TICK_TOPICS = frozenset({
+    '/imu', '/joint_states', '/ground_truth/odom', '/ground_truth/contacts', '/odom',
+    '/contacts', '/joint_torque_cmd'})
+# Topics every node publishes on: one sequence per writer, interleaved, so not counted.
+DIAGNOSTICS = '/diagnostics'
+SHARED_TOPICS = frozenset({DIAGNOSTICS, '/rosout', '/parameter_events'})
+SIM_STATUS = 'sim'            # the sim's status name on /diagnostics
+MAX_GAPS = 20                 # gaps listed per topic (all are counted)
+
+
+def _stamp_ns(data: bytes) -> int | None:
+    """``header.stamp`` (ns) of a CDR payload whose first field is a std_msgs/Header."""
+    if len(data) < 12:
+        return None
+    order = 'little' if data[1] & 1 else 'big'      # CDR encapsulation: 0x0001 little endian
+    return (int.from_bytes(data[4:8], order, signed=True) * 1_000_000_000
+            + int.from_bytes(data[8:12], order))
+
+
+@dataclass
+class _Sequence:
+    """One topic's publication sequence numbers, in the order they were written."""
+    last: int = 0
+    missing: int = 0
+    gaps: list[tuple[int, int]] = field(default_factory=list)
+
+    def add(self, number: int) -> None:
+        if number <= 0:
+            return                      # no sequence number: not counted
+        if self.last and number > self.last + 1:
+            self.missing += number - self.last - 1
+            if len(self.gaps) < MAX_GAPS:
+                self.gaps.append((self.last + 1, number - 1))
+        self.last = number              # a smaller number: a new writer, counted from there
+
+
+@dataclass
+class TopicCount:
+    """A topic's verdict: ``counted_by`` 'ticks', 'sequence' or '' (not counted)."""
+    written: int = 0
+    counted_by: str = ''
+    missing: int = 0
+    gaps: list[list[int]] = field(default_factory=list)   # [first, last] tick ns or sequence
+
+
+@dataclass
+class Completeness:
+    complete: bool = True
+    tick_period_ns: int = 0
+    first_tick_ns: int = 0
+    last_tick_ns: int = 0
+    topics: dict[str, TopicCount] = field(default_factory=dict)
+
+    @property
+    def ticks(self) -> int:
+        if not self.tick_period_ns:
+            return 0
+        return (self.last_tick_ns - self.first_tick_ns) // self.tick_period_ns + 1
+
+    def gaps_text(self) -> str:
+        """'complete' or each incomplete topic with its count, in one line."""
+        if self.complete:
+            return 'complete'
+        parts = [f'{topic} misses {count.missing} '
+                 f'{"tick" if count.counted_by == "ticks" else "message"}'
+                 f'{"s" if count.missing > 1 else ""}'
+                 for topic, count in sorted(self.topics.items()) if count.missing]
+        return 'incomplete: ' + ', '.join(parts)
+
+    def record(self) -> dict[str, str]:
+        """The ``replan_completeness`` metadata record (a string map, as mcap requires)."""
+        return {
+            'complete': 'true' if self.complete else 'false',
+            'summary': self.gaps_text(),
+            'ticks': str(self.ticks),
+            'tick_period_ns': str(self.tick_period_ns),
+            'first_tick_ns': str(self.first_tick_ns),
+            'last_tick_ns': str(self.last_tick_ns),
+            'topics': json.dumps({t: vars(c) for t, c in sorted(self.topics.items())},
+                                 sort_keys=True),
+        }
+
+    @classmethod
+    def from_record(cls, record: dict[str, str]) -> Completeness:
+        topics = {t: TopicCount(**c) for t, c in json.loads(record.get('topics', '{}')).items()}
+        return cls(record.get('complete') == 'true', int(record.get('tick_period_ns', 0)),
+                   int(record.get('first_tick_ns', 0)), int(record.get('last_tick_ns', 0)),
+                   topics)
+
+
+def _tick_gaps(stamps: set[int], first: int, last: int, period: int) -> tuple[int, list]:
+    """Ticks of [first, last] (every ``period`` ns) that ``stamps`` lacks: (count, ranges)."""
+    have = {round((s - first) / period) for s in stamps if first <= s <= last}
+    missing, gaps, start = 0, [], None
+    for k in range((last - first) // period + 1):
+        if k in have:
+            if start is not None:
+                gaps.append([first + start * period, first + (k - 1) * period])
+                start = None
+            continue
+        missing += 1
+        start = k if start is None else start
+    if start is not None:
+        gaps.append([first + start * period, last])
+    return missing, gaps[:MAX_GAPS]
+
+
+class Counter:
+    """What a recording wrote, fed message by message (``add``)."""
+
+    def __init__(self) -> None:
+        self.written: dict[str, int] = {}
+        self.stamps: dict[str, set[int]] = {}
+        self.sequences: dict[str, _Sequence] = {}
+        self.shared: set[str] = set(SHARED_TOPICS)
+        self.sim_time_ns = 0
+
+    def add(self, topic: str, data: bytes, sequence: int) -> None:
+        self.written[topic] = self.written.get(topic, 0) + 1
+        if topic == DIAGNOSTICS:
+            self.add_diagnostics(data)
+        if topic in TICK_TOPICS:
+            stamp = _stamp_ns(data)
+            if stamp is not None:
+                self.stamps.setdefault(topic, set()).add(stamp)
+        elif topic not in self.shared:
+            self.sequences.setdefault(topic, _Sequence()).add(sequence)
+
+    def add_diagnostics(self, data: bytes) -> None:
+        """A ``/diagnostics`` message (CDR): the sim's status, if it holds it."""
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.serialization import deserialize_message
+        try:
+            array = deserialize_message(data, DiagnosticArray)
+        except Exception:        # another layout: not the sim's status
+            return
+        for status in array.status:
+            if status.name == SIM_STATUS:
+                self.add_sim_status({v.key: v.value for v in status.values})
+
+    def add_sim_status(self, values: dict[str, str]) -> None:
+        """The sim's ``/diagnostics`` values: its ``sim_time`` is the tick it has run to."""
+        with contextlib.suppress(KeyError, ValueError):
+            self.sim_time_ns = max(self.sim_time_ns, round(float(values['sim_time']) * 1e9))
+
+    def result(self) -> Completeness:
+        out = Completeness()
+        for topic, written in self.written.items():
+            out.topics[topic] = TopicCount(written=written)
+        diffs = []
+        for stamps in self.stamps.values():
+            ordered = sorted(stamps)
+            diffs += [b - a for a, b in itertools.pairwise(ordered)]
+        if diffs:
+            period = min(diffs)
+            first = min(min(s) for s in self.stamps.values())
+            last = max(max(s) for s in self.stamps.values())
+            if self.sim_time_ns > last:   # the sim's own report: it ran that far
+                last = first + round((self.sim_time_ns - first) / period) * period
+            out.tick_period_ns, out.first_tick_ns, out.last_tick_ns = period, first, last
+            for topic, stamps in self.stamps.items():
+                missing, gaps = _tick_gaps(stamps, first, last, period)
+                out.topics[topic] = TopicCount(self.written[topic], 'ticks', missing, gaps)
+        for topic, sequence in self.sequences.items():
+            if sequence.last:
+                out.topics[topic] = TopicCount(self.written[topic], 'sequence',
+                                               sequence.missing,
+                                               [list(g) for g in sequence.gaps])
+        out.complete = not any(count.missing for count in out.topics.values())
+        return out
+
+
+def count_files(files: list[Path]) -> Completeness:
+    """Count the messages of ``files`` (one bag, split or recovered) as the recorder does."""
+    counter = Counter()
+    for path in files:
+        try:
+            for _schema, channel, message in iter_raw(path):
+                counter.add(channel.topic, message.data, message.sequence)
+        except Exception:   # a killed recorder's file: counted as far as it reads
+            continue
+    return counter.result()
+
+
+def bag_completeness(bag: str | Path) -> Completeness:
+    """The verdict on ``bag`` (a file or a bag directory): the recorder's record when the bag
+    is one file that holds it, else counted from the messages of all its files."""
+    return files_completeness(bag_files(bag))
+
+
+def files_completeness(files: list[Path]) -> Completeness:
+    """``bag_completeness`` of a bag's files (``bag_files``, ``bag_open.readable_files``)."""
+    if len(files) == 1:
+        try:
+            record = summarize(files[0]).metadata.get(RECORD)
+        except Exception:         # no summary: counted from what the file holds
+            record = None
+        if record:
+            return Completeness.from_record(record)
+    return count_files(files)
+
+
+def is_complete(bag: str | Path) -> bool:
+    """True if every counted topic of ``bag`` has all its ticks or messages."""
+    return bag_completeness(bag).complete
+
+
+def main(args: list[str] | None = None) -> int:
+    """``python -m replan_ros.recording.completeness BAG...``: one line per bag; exit code 1
+    if one is incomplete."""
+    bags = sys.argv[1:] if args is None else args
+    bad = 0
+    for bag in bags:
+        result = bag_completeness(bag)
+        bad += not result.complete
+        print(f'{bag}: {result.gaps_text()} ({result.ticks} ticks)')
+    return 1 if bad else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,134 @@
+"""completeness: per-tick topics against the sim's ticks, others against their publisher's
+sequence numbers; the verdict stored in the bag, in metadata.yaml, and read back."""
+
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rclpy.serialization import serialize_message
+from std_msgs.msg import String
+
+from replan_ros.recording.bag_dir import METADATA_FILE, write_directory_metadata
+from replan_ros.recording.bag_writer import BagWriter
+from replan_ros.recording.completeness import (
+    RECORD,
+    Completeness,
+    Counter,
+    bag_completeness,
+    count_files,
+    is_complete,
+)
+
+TICK = 4_000_000
+
+
+def _odom(ns: int) -> bytes:
+    msg = Odometry()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+    return serialize_message(msg)
+
+
+def _sim_status(sim_time: float) -> bytes:
+    status = DiagnosticStatus(name='sim', values=[KeyValue(key='sim_time', value=str(sim_time))])
+    return serialize_message(DiagnosticArray(status=[status]))
+
+
+def _ticks(counter: Counter, topic: str, ticks) -> None:
+    for k in ticks:
+        counter.add(topic, _odom(k * TICK), 0)
+
+
+def test_every_tick_and_every_sequence_number_is_complete():
+    counter = Counter()
+    _ticks(counter, '/odom', range(100))
+    _ticks(counter, '/ground_truth/odom', [*range(100), 99])     # a republished tick
+    for n in range(1, 6):
+        counter.add('/footholds', b'', n)
+    result = counter.result()
+    assert result.complete, result.gaps_text()
+    assert (result.tick_period_ns, result.ticks) == (TICK, 100)
+    assert result.topics['/ground_truth/odom'].written == 101
+    assert result.topics['/footholds'].counted_by == 'sequence'
+
+
+def test_a_lost_tick_and_a_lost_message_are_named_with_their_place():
+    counter = Counter()
+    _ticks(counter, '/odom', [k for k in range(100) if k not in (40, 41, 42)])
+    _ticks(counter, '/ground_truth/odom', range(100))
+    for n in (1, 2, 5, 6):
+        counter.add('/footholds', b'', n)
+    result = counter.result()
+    assert not result.complete
+    odom = result.topics['/odom']
+    assert (odom.counted_by, odom.missing, odom.gaps) == ('ticks', 3, [[40 * TICK, 42 * TICK]])
+    assert result.topics['/footholds'].missing == 2
+    assert result.topics['/footholds'].gaps == [[3, 4]]
+    assert result.gaps_text() == 'incomplete: /footholds misses 2 messages, /odom misses 3 ticks'
+
+
+def test_ticks_the_sim_ran_after_the_last_written_one_are_missing():
+    counter = Counter()
+    _ticks(counter, '/joint_states', range(50))
+    counter.add('/diagnostics', _sim_status(59 * TICK * 1e-9), 0)
+    result = counter.result()
+    assert result.ticks == 60
+    assert result.topics['/joint_states'].missing == 10
+
+
+def test_a_new_writer_and_shared_topics_are_not_gaps():
+    counter = Counter()
+    for n in (1, 2, 3, 1, 2):               # the publisher respawned: its count starts again
+        counter.add('/com_plan', b'', n)
+    for n in (7, 1, 9, 2):                  # several nodes' diagnostics, interleaved
+        counter.add('/diagnostics', b'', n)
+    result = counter.result()
+    assert result.complete
+    assert result.topics['/diagnostics'].counted_by == ''
+
+
+def test_the_record_round_trips_and_is_read_back_from_the_bag(tmp_path):
+    counter = Counter()
+    _ticks(counter, '/odom', [0, 1, 3])
+    result = counter.result()
+    again = Completeness.from_record(result.record())
+    assert again == result
+    bag = tmp_path / 'bag'
+    bag.mkdir()
+    writer = BagWriter(bag / 'a.mcap')
+    channel = writer.add_channel('/odom', 'nav_msgs/msg/Odometry')
+    for k in (0, 1, 3):
+        writer.write(channel, _odom(k * TICK), k * TICK, k * TICK)
+    writer.add_metadata(RECORD, result.record())
+    writer.close()
+    assert bag_completeness(bag) == result
+    assert not is_complete(bag / 'a.mcap')
+    # Counted again from the messages: the same verdict.
+    assert count_files([bag / 'a.mcap']).topics['/odom'].gaps == [[2 * TICK, 2 * TICK]]
+    custom = yaml.safe_load((bag / METADATA_FILE).read_text())[
+        'rosbag2_bagfile_information']['custom_data']
+    assert custom['replan_complete'] == 'false'
+    assert custom['replan_completeness'] == 'incomplete: /odom misses 1 tick'
+
+
+def test_a_split_bag_is_counted_across_its_files(tmp_path):
+    """A respawned recorder's file knows only its own messages: the directory's verdict counts
+    both files, so the ticks while no recorder ran are missing."""
+    for name, ticks, numbers in (('a.mcap', range(0, 20), (1, 2)),
+                                 ('b.mcap', range(30, 50), (5, 6))):
+        writer = BagWriter(tmp_path / name, directory_metadata=False)
+        odom = writer.add_channel('/odom', 'nav_msgs/msg/Odometry')
+        plan = writer.add_channel('/footholds', 'std_msgs/msg/String')
+        for k in ticks:
+            writer.write(odom, _odom(k * TICK), k * TICK, k * TICK)
+        for n in numbers:
+            writer.write(plan, serialize_message(String(data='x')), n, n, sequence=n)
+        own = Counter()
+        _ticks(own, '/odom', ticks)
+        writer.add_metadata(RECORD, own.result().record())     # each file alone: complete
+        writer.close()
+    write_directory_metadata(tmp_path)
+    result = bag_completeness(tmp_path)
+    assert result.topics['/odom'].missing == 10
+    assert result.topics['/footholds'].missing == 2
+    custom = yaml.safe_load((tmp_path / METADATA_FILE).read_text())[
+        'rosbag2_bagfile_information']['custom_data']
+    assert custom['replan_complete'] == 'false'
