@@ -5,7 +5,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 # Sensor-like streams (joint_states, imu, odom, ground_truth/odom), as REP-2003 asks of a
 # driver: read best effort by our own nodes (SENSOR: the newest sample matters, a lost one is
-# replaced by the next tick and never waited for), published reliable (SENSOR_PUB, same depth),
+# replaced by the next tick and never waited for), published reliable (SENSOR_PUB),
 # so that a subscriber with the default QoS, which is reliable (`ros2 topic echo`, RViz, a
 # `create_subscription(..., 10)`), is compatible and receives them. A reliable writer does not
 # wait for best-effort readers, and with KEEP_LAST it never blocks on a slow reliable one.
