@@ -14,7 +14,7 @@ import time
 
 import pytest
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Transform, Twist
 from harness import CONFIG_DIR, REPO_ROOT, graph_env
 from mcap.reader import make_reader
@@ -416,8 +416,9 @@ def test_an_unwritable_output_stops_the_recording_with_one_line_and_the_recorder
     lines = [ln for ln in recorder.log().splitlines() if 'recording stopped' in ln]
     assert len(lines) == 1 and str(blocker) in lines[0] and 'Not a directory' in lines[0]
     assert probe.spin_until(lambda: any(
-        s.name.startswith('recorder') and s.level == 2 and 'recording stopped' in s.message
-        for a in diagnostics for s in a.status), timeout=10.0)
+        s.name.startswith('recorder') and s.level == DiagnosticStatus.ERROR
+        and 'recording stopped' in s.message for a in diagnostics for s in a.status),
+        timeout=10.0)
     assert recorder.alive                  # no crash, so no respawn loop that stops a graph
     assert recorder.stop() == 0, recorder.log()
     assert 'Traceback' not in recorder.log()
