@@ -9,9 +9,9 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
   every ``take_period`` wall s, all topics at once, and written in the order they were
   received. One wake-up per period instead of one per message keeps the recorder from slowing
   the lock-step graph (docs/performance.md).
-- Counted while written (``completeness``): per-tick topics against the sim's ticks, the others
-  against their publisher's sequence numbers (stored as the mcap ``sequence``); the verdict
-  goes into the bag (``replan_completeness``) and ``metadata.yaml``.
+- Counted while written (``completeness``): the sim's per-tick topics against its ticks, the
+  others against their publisher's sequence numbers (stored as the mcap ``sequence``); the
+  verdict goes into the bag (``replan_completeness``) and ``metadata.yaml``.
 - A file that cannot be written (full disk, unwritable folder): one error line with the path
   and the cause, and the recorder records no more; the graph runs on unaffected.
 - A respawned recorder continues the bag as a split: a new file beside the killed one, which

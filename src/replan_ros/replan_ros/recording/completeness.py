@@ -1,10 +1,12 @@
 """Is a bag complete? What was published counted against what was written.
 
-- Per-tick topics (``TICK_TOPICS``: one message per 4 ms tick, stamped with it): the distinct
-  header stamps written against the ticks the sim ran, from the first tick any of them holds
-  to the last tick the sim ran (the newest per-tick stamp, or the ``sim_time`` of the sim's
-  last ``/diagnostics``, whichever is later). A republished tick counts once.
-- Every other topic with a single publisher: the publisher's own count, its DDS publication
+- The sim's per-tick topics (``TICK_TOPICS``: one message per 4 ms tick, stamped with it):
+  the distinct header stamps written against the ticks the sim ran, from the first tick any
+  of them holds to the last tick the sim ran (the newest per-tick stamp, or the ``sim_time``
+  of the sim's last ``/diagnostics``, whichever is later). A republished tick counts once.
+- Every other topic with a single publisher, the controller's per-tick ``/odom``,
+  ``/contacts``, ``/joint_torque_cmd`` too (a dead controller answers no tick, and that is no
+  loss of the recording): the publisher's own count, its DDS publication
   sequence number (1, 2, 3, ... per writer), which the recorder stores as the mcap message's
   ``sequence`` (what the mcap format means that field for). A gap between two written
   sequence numbers is a lost message; a number that drops starts a new writer (a respawned
@@ -30,9 +32,7 @@ from replan_ros.recording.bag_files import bag_files
 from replan_ros.recording.bag_io import iter_raw, summarize
 
 RECORD = 'replan_completeness'
-TICK_TOPICS = frozenset({
-    '/imu', '/joint_states', '/ground_truth/odom', '/ground_truth/contacts', '/odom',
-    '/contacts', '/joint_torque_cmd'})
+TICK_TOPICS = frozenset({'/imu', '/joint_states', '/ground_truth/odom', '/ground_truth/contacts'})
 # Topics every node publishes on: one sequence per writer, interleaved, so not counted.
 DIAGNOSTICS = '/diagnostics'
 SHARED_TOPICS = frozenset({DIAGNOSTICS, '/rosout', '/parameter_events'})

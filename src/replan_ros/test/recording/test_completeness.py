@@ -39,7 +39,7 @@ def _ticks(counter: Counter, topic: str, ticks) -> None:
 
 def test_every_tick_and_every_sequence_number_is_complete():
     counter = Counter()
-    _ticks(counter, '/odom', range(100))
+    _ticks(counter, '/joint_states', range(100))
     _ticks(counter, '/ground_truth/odom', [*range(100), 99])     # a republished tick
     for n in range(1, 6):
         counter.add('/footholds', b'', n)
@@ -52,17 +52,19 @@ def test_every_tick_and_every_sequence_number_is_complete():
 
 def test_a_lost_tick_and_a_lost_message_are_named_with_their_place():
     counter = Counter()
-    _ticks(counter, '/odom', [k for k in range(100) if k not in (40, 41, 42)])
+    _ticks(counter, '/joint_states', [k for k in range(100) if k not in (40, 41, 42)])
     _ticks(counter, '/ground_truth/odom', range(100))
     for n in (1, 2, 5, 6):
         counter.add('/footholds', b'', n)
     result = counter.result()
     assert not result.complete
-    odom = result.topics['/odom']
-    assert (odom.counted_by, odom.missing, odom.gaps) == ('ticks', 3, [[40 * TICK, 42 * TICK]])
+    joints = result.topics['/joint_states']
+    assert (joints.counted_by, joints.missing) == ('ticks', 3)
+    assert joints.gaps == [[40 * TICK, 42 * TICK]]
     assert result.topics['/footholds'].missing == 2
     assert result.topics['/footholds'].gaps == [[3, 4]]
-    assert result.gaps_text() == 'incomplete: /footholds misses 2 messages, /odom misses 3 ticks'
+    assert result.gaps_text() == ('incomplete: /footholds misses 2 messages, '
+                                  '/joint_states misses 3 ticks')
 
 
 def test_ticks_the_sim_ran_after_the_last_written_one_are_missing():
@@ -72,6 +74,17 @@ def test_ticks_the_sim_ran_after_the_last_written_one_are_missing():
     result = counter.result()
     assert result.ticks == 60
     assert result.topics['/joint_states'].missing == 10
+
+
+def test_the_controller_s_per_tick_topics_count_against_its_own_sequence():
+    """A dead controller answers no tick: no loss of the recording, so /odom is counted
+    against what the controller published, not against the sim's ticks."""
+    counter = Counter()
+    _ticks(counter, '/joint_states', range(100))
+    for n, k in enumerate([*range(40), *range(70, 100)], start=1):   # ticks 40-69: dead
+        counter.add('/odom', _odom(k * TICK), n)
+    result = counter.result()
+    assert result.complete and result.topics['/odom'].counted_by == 'sequence'
 
 
 def test_a_new_writer_and_shared_topics_are_not_gaps():
@@ -87,14 +100,14 @@ def test_a_new_writer_and_shared_topics_are_not_gaps():
 
 def test_the_record_round_trips_and_is_read_back_from_the_bag(tmp_path):
     counter = Counter()
-    _ticks(counter, '/odom', [0, 1, 3])
+    _ticks(counter, '/joint_states', [0, 1, 3])
     result = counter.result()
     again = Completeness.from_record(result.record())
     assert again == result
     bag = tmp_path / 'bag'
     bag.mkdir()
     writer = BagWriter(bag / 'a.mcap')
-    channel = writer.add_channel('/odom', 'nav_msgs/msg/Odometry')
+    channel = writer.add_channel('/joint_states', 'nav_msgs/msg/Odometry')
     for k in (0, 1, 3):
         writer.write(channel, _odom(k * TICK), k * TICK, k * TICK)
     writer.add_metadata(RECORD, result.record())
@@ -102,11 +115,11 @@ def test_the_record_round_trips_and_is_read_back_from_the_bag(tmp_path):
     assert bag_completeness(bag) == result
     assert not is_complete(bag / 'a.mcap')
     # Counted again from the messages: the same verdict.
-    assert count_files([bag / 'a.mcap']).topics['/odom'].gaps == [[2 * TICK, 2 * TICK]]
+    assert count_files([bag / 'a.mcap']).topics['/joint_states'].gaps == [[2 * TICK, 2 * TICK]]
     custom = yaml.safe_load((bag / METADATA_FILE).read_text())[
         'rosbag2_bagfile_information']['custom_data']
     assert custom['replan_complete'] == 'false'
-    assert custom['replan_completeness'] == 'incomplete: /odom misses 1 tick'
+    assert custom['replan_completeness'] == 'incomplete: /joint_states misses 1 tick'
 
 
 def test_a_split_bag_is_counted_across_its_files(tmp_path):
@@ -115,19 +128,19 @@ def test_a_split_bag_is_counted_across_its_files(tmp_path):
     for name, ticks, numbers in (('a.mcap', range(0, 20), (1, 2)),
                                  ('b.mcap', range(30, 50), (5, 6))):
         writer = BagWriter(tmp_path / name, directory_metadata=False)
-        odom = writer.add_channel('/odom', 'nav_msgs/msg/Odometry')
+        odom = writer.add_channel('/joint_states', 'nav_msgs/msg/Odometry')
         plan = writer.add_channel('/footholds', 'std_msgs/msg/String')
         for k in ticks:
             writer.write(odom, _odom(k * TICK), k * TICK, k * TICK)
         for n in numbers:
             writer.write(plan, serialize_message(String(data='x')), n, n, sequence=n)
         own = Counter()
-        _ticks(own, '/odom', ticks)
+        _ticks(own, '/joint_states', ticks)
         writer.add_metadata(RECORD, own.result().record())     # each file alone: complete
         writer.close()
     write_directory_metadata(tmp_path)
     result = bag_completeness(tmp_path)
-    assert result.topics['/odom'].missing == 10
+    assert result.topics['/joint_states'].missing == 10
     assert result.topics['/footholds'].missing == 2
     custom = yaml.safe_load((tmp_path / METADATA_FILE).read_text())[
         'rosbag2_bagfile_information']['custom_data']
