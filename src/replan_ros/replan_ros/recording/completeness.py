@@ -2,8 +2,9 @@
 
 - The sim's per-tick topics (``TICK_TOPICS``: one message per 4 ms tick, stamped with it):
   the distinct header stamps written against the ticks the sim ran, from the first tick any
-  of them holds to the last tick the sim ran (the newest per-tick stamp, or the ``sim_time``
-  of the sim's last ``/diagnostics``, whichever is later). A republished tick counts once.
+  of them holds to the last tick the sim ran (the newest per-tick stamp, or the ``tick`` count
+  of the sim's last ``/diagnostics`` times the period, whichever is later; its ``sim_time``
+  has 6 significant digits only). A republished tick counts once.
 - Every other topic with a single publisher, the controller's per-tick ``/odom``,
   ``/contacts``, ``/joint_torque_cmd`` too (a dead controller answers no tick, and that is no
   loss of the recording): the publisher's own count, its DDS publication
@@ -87,7 +88,7 @@ class Completeness:
     def ticks(self) -> int:
         if not self.tick_period_ns:
             return 0
-        return (self.last_tick_ns - self.first_tick_ns) // self.tick_period_ns + 1
+        return round((self.last_tick_ns - self.first_tick_ns) / self.tick_period_ns) + 1
 
     def gaps_text(self) -> str:
         """'complete' or each incomplete topic with its count, in one line."""
@@ -124,7 +125,7 @@ def _tick_gaps(stamps: set[int], first: int, last: int, period: int) -> tuple[in
     """Ticks of [first, last] (every ``period`` ns) that ``stamps`` lacks: (count, ranges)."""
     have = {round((s - first) / period) for s in stamps if first <= s <= last}
     missing, gaps, start = 0, [], None
-    for k in range((last - first) // period + 1):
+    for k in range(round((last - first) / period) + 1):
         if k in have:
             if start is not None:
                 gaps.append([first + start * period, first + (k - 1) * period])
@@ -145,7 +146,8 @@ class Counter:
         self.stamps: dict[str, set[int]] = {}
         self.sequences: dict[str, _Sequence] = {}
         self.shared: set[str] = set(SHARED_TOPICS)
-        self.sim_time_ns = 0
+        self.sim_time_ns = 0      # the sim's own report: its sim_time (6 digits) ...
+        self.sim_ticks = 0        # ... and its count of ticks done (exact)
 
     def add(self, topic: str, data: bytes, sequence: int) -> None:
         self.written[topic] = self.written.get(topic, 0) + 1
@@ -174,6 +176,8 @@ class Counter:
         """The sim's ``/diagnostics`` values: its ``sim_time`` is the tick it has run to."""
         with contextlib.suppress(KeyError, ValueError):
             self.sim_time_ns = max(self.sim_time_ns, round(float(values['sim_time']) * 1e9))
+        with contextlib.suppress(KeyError, ValueError):
+            self.sim_ticks = max(self.sim_ticks, int(values['tick']))
 
     def result(self) -> Completeness:
         out = Completeness()
@@ -184,11 +188,14 @@ class Counter:
             ordered = sorted(stamps)
             diffs += [b - a for a, b in itertools.pairwise(ordered)]
         if diffs:
-            period = min(diffs)
+            # Stamps are float seconds rounded to ns: a period of whole microseconds.
+            period = max(round(min(diffs) / 1000) * 1000, 1)
             first = min(min(s) for s in self.stamps.values())
             last = max(max(s) for s in self.stamps.values())
-            if self.sim_time_ns > last:   # the sim's own report: it ran that far
-                last = first + round((self.sim_time_ns - first) / period) * period
+            # The sim's own report: it ran that far (stamps are ticks x period, from 0).
+            reported = (self.sim_ticks * period if self.sim_ticks
+                        else first + round((self.sim_time_ns - first) / period) * period)
+            last = max(last, reported)
             out.tick_period_ns, out.first_tick_ns, out.last_tick_ns = period, first, last
             for topic, stamps in self.stamps.items():
                 missing, gaps = _tick_gaps(stamps, first, last, period)

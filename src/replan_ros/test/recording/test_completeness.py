@@ -27,8 +27,11 @@ def _odom(ns: int) -> bytes:
     return serialize_message(msg)
 
 
-def _sim_status(sim_time: float) -> bytes:
-    status = DiagnosticStatus(name='sim', values=[KeyValue(key='sim_time', value=str(sim_time))])
+def _sim_status(ticks: int) -> bytes:
+    """The sim's status as it publishes it: sim_time with 6 digits, the ticks done exactly."""
+    status = DiagnosticStatus(name='sim', values=[
+        KeyValue(key='sim_time', value=f'{ticks * TICK * 1e-9:.6g}'),
+        KeyValue(key='tick', value=str(ticks))])
     return serialize_message(DiagnosticArray(status=[status]))
 
 
@@ -70,10 +73,15 @@ def test_a_lost_tick_and_a_lost_message_are_named_with_their_place():
 def test_ticks_the_sim_ran_after_the_last_written_one_are_missing():
     counter = Counter()
     _ticks(counter, '/joint_states', range(50))
-    counter.add('/diagnostics', _sim_status(59 * TICK * 1e-9), 0)
+    counter.add('/diagnostics', _sim_status(59), 0)
     result = counter.result()
     assert result.ticks == 60
     assert result.topics['/joint_states'].missing == 10
+    # 20 min in, 6 digits of sim_time are 10 ms: the tick count places the last tick.
+    counter = Counter()
+    _ticks(counter, '/joint_states', range(308640, 308643))
+    counter.add('/diagnostics', _sim_status(308642), 0)
+    assert counter.result().complete
 
 
 def test_the_controller_s_per_tick_topics_count_against_its_own_sequence():
