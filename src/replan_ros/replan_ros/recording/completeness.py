@@ -23,7 +23,6 @@ messages when no file has it (a killed recorder, a split bag). ``is_complete`` i
 from __future__ import annotations
 
 import contextlib
-import itertools
 import json
 import sys
 from dataclasses import dataclass, field
@@ -39,6 +38,7 @@ DIAGNOSTICS = '/diagnostics'
 SHARED_TOPICS = frozenset({DIAGNOSTICS, '/rosout', '/parameter_events'})
 SIM_STATUS = 'sim'            # the sim's status name on /diagnostics
 MAX_GAPS = 20                 # gaps listed per topic (all are counted)
+MAX_TICKS = 50_000_000        # more ticks than this between two stamps: not a tick stream
 
 
 def _stamp_ns(data: bytes) -> int | None:
@@ -121,21 +121,50 @@ class Completeness:
                    topics)
 
 
-def _tick_gaps(stamps: set[int], first: int, last: int, period: int) -> tuple[int, list]:
-    """Ticks of [first, last] (every ``period`` ns) that ``stamps`` lacks: (count, ranges)."""
-    have = {round((s - first) / period) for s in stamps if first <= s <= last}
-    missing, gaps, start = 0, [], None
-    for k in range(round((last - first) / period) + 1):
-        if k in have:
-            if start is not None:
-                gaps.append([first + start * period, first + (k - 1) * period])
-                start = None
-            continue
-        missing += 1
-        start = k if start is None else start
-    if start is not None:
-        gaps.append([first + start * period, last])
-    return missing, gaps[:MAX_GAPS]
+@dataclass
+class _Ticks:
+    """One per-tick topic's stamps, kept as steps (a long run holds millions of ticks): the
+    first and last stamp, how often each step between two new stamps occurred, and where the
+    first large steps were. A stamp not newer than the last (a republished tick) is skipped."""
+    first: int | None = None
+    last: int = 0
+    smallest: int = 0
+    steps: dict[int, int] = field(default_factory=dict)
+    jumps: list[tuple[int, int]] = field(default_factory=list)
+
+    def add(self, stamp: int) -> None:
+        # Called for every message the recorder writes: a few dict operations, no search.
+        if stamp <= self.last and self.first is not None:
+            return
+        if self.first is None:
+            self.first = self.last = stamp
+            return
+        step = stamp - self.last
+        steps = self.steps
+        if step in steps:
+            steps[step] += 1
+        else:
+            steps[step] = 1
+            # Kept for the list of gaps: the first step (the smallest is not known yet).
+            if not self.smallest and len(self.jumps) < MAX_GAPS:
+                self.jumps.append((self.last, stamp))
+            self.smallest = min(self.smallest or step, step)
+        # ... and steps half again the smallest so far.
+        if step * 2 > self.smallest * 3 and len(self.jumps) < MAX_GAPS:
+            self.jumps.append((self.last, stamp))
+        self.last = stamp
+
+    def missing(self, first: int, last: int, period: int) -> tuple[int, list[list[int]]]:
+        """Ticks of [first, last] (every ``period`` ns) without a stamp: (count, ranges)."""
+        head = round((self.first - first) / period)
+        tail = round((last - self.last) / period)
+        inner = sum(count * (round(step / period) - 1) for step, count in self.steps.items()
+                    if round(step / period) > 1)
+        gaps = [[first, self.first - period]] if head > 0 else []
+        gaps += [[a + period, b - period] for a, b in self.jumps if round((b - a) / period) > 1]
+        if tail > 0:
+            gaps.append([self.last + period, last])
+        return max(head, 0) + inner + max(tail, 0), gaps[:MAX_GAPS]
 
 
 class Counter:
@@ -143,22 +172,29 @@ class Counter:
 
     def __init__(self) -> None:
         self.written: dict[str, int] = {}
-        self.stamps: dict[str, set[int]] = {}
+        self.ticks: dict[str, _Ticks] = {}
         self.sequences: dict[str, _Sequence] = {}
         self.shared: set[str] = set(SHARED_TOPICS)
         self.sim_time_ns = 0      # the sim's own report: its sim_time (6 digits) ...
         self.sim_ticks = 0        # ... and its count of ticks done (exact)
 
     def add(self, topic: str, data: bytes, sequence: int) -> None:
-        self.written[topic] = self.written.get(topic, 0) + 1
-        if topic == DIAGNOSTICS:
-            self.add_diagnostics(data)
+        written = self.written
+        written[topic] = written.get(topic, 0) + 1
         if topic in TICK_TOPICS:
             stamp = _stamp_ns(data)
             if stamp is not None:
-                self.stamps.setdefault(topic, set()).add(stamp)
+                ticks = self.ticks.get(topic)
+                if ticks is None:
+                    ticks = self.ticks[topic] = _Ticks()
+                ticks.add(stamp)
         elif topic not in self.shared:
-            self.sequences.setdefault(topic, _Sequence()).add(sequence)
+            numbers = self.sequences.get(topic)
+            if numbers is None:
+                numbers = self.sequences[topic] = _Sequence()
+            numbers.add(sequence)
+        elif topic == DIAGNOSTICS:
+            self.add_diagnostics(data)
 
     def add_diagnostics(self, data: bytes) -> None:
         """A ``/diagnostics`` message (CDR): the sim's status, if it holds it."""
@@ -183,22 +219,20 @@ class Counter:
         out = Completeness()
         for topic, written in self.written.items():
             out.topics[topic] = TopicCount(written=written)
-        diffs = []
-        for stamps in self.stamps.values():
-            ordered = sorted(stamps)
-            diffs += [b - a for a, b in itertools.pairwise(ordered)]
-        if diffs:
-            # Stamps are float seconds rounded to ns: a period of whole microseconds.
-            period = max(round(min(diffs) / 1000) * 1000, 1)
-            first = min(min(s) for s in self.stamps.values())
-            last = max(max(s) for s in self.stamps.values())
+        steps = [t.smallest for t in self.ticks.values() if t.smallest]
+        # Stamps are float seconds rounded to ns: a period of whole microseconds.
+        period = round(min(steps) / 1000) * 1000 if steps else 0
+        if period:
+            first = min(t.first for t in self.ticks.values())
+            last = max(t.last for t in self.ticks.values())
             # The sim's own report: it ran that far (stamps are ticks x period, from 0).
             reported = (self.sim_ticks * period if self.sim_ticks
                         else first + round((self.sim_time_ns - first) / period) * period)
             last = max(last, reported)
+        if period and (last - first) / period < MAX_TICKS:     # else no tick stream
             out.tick_period_ns, out.first_tick_ns, out.last_tick_ns = period, first, last
-            for topic, stamps in self.stamps.items():
-                missing, gaps = _tick_gaps(stamps, first, last, period)
+            for topic, ticks in self.ticks.items():
+                missing, gaps = ticks.missing(first, last, period)
                 out.topics[topic] = TopicCount(self.written[topic], 'ticks', missing, gaps)
         for topic, sequence in self.sequences.items():
             if sequence.last:

@@ -1,6 +1,8 @@
 """completeness: per-tick topics against the sim's ticks, others against their publisher's
 sequence numbers; the verdict stored in the bag, in metadata.yaml, and read back."""
 
+import struct
+
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
@@ -153,3 +155,27 @@ def test_a_split_bag_is_counted_across_its_files(tmp_path):
     custom = yaml.safe_load((tmp_path / METADATA_FILE).read_text())[
         'rosbag2_bagfile_information']['custom_data']
     assert custom['replan_complete'] == 'false'
+
+
+def _stamped(ns: int) -> bytes:
+    """A little-endian CDR payload that starts with a header stamp."""
+    sec, nanosec = divmod(ns, 1_000_000_000)
+    return b'\x00\x01\x00\x00' + struct.pack('<iI', sec, nanosec)
+
+
+def test_a_long_run_of_float_stamps_is_counted_exactly_and_a_head_gap_too():
+    """Stamps are the sim's float seconds rounded to ns (steps of 3999999..4000001 ns) over
+    hours of ticks; the count keeps steps, not stamps."""
+    counter = Counter()
+    ticks = 50_000
+    for k in range(ticks):
+        data = _stamped(round(k * (TICK * 1e-9) * 1e9))
+        counter.add('/joint_states', data, 0)
+        if k >= 5:                              # subscribed 5 ticks late
+            counter.add('/ground_truth/odom', data, 0)
+    result = counter.result()
+    assert (result.tick_period_ns, result.ticks) == (TICK, ticks)
+    assert result.topics['/joint_states'].missing == 0
+    truth = result.topics['/ground_truth/odom']
+    assert (truth.missing, truth.gaps) == (5, [[0, 4 * TICK]])
+    assert len(counter.ticks['/joint_states'].steps) <= 3
