@@ -11,7 +11,8 @@
   sequence number (1, 2, 3, ... per writer), which the recorder stores as the mcap message's
   ``sequence`` (what the mcap format means that field for). A gap between two written
   sequence numbers is a lost message; a number that drops starts a new writer (a respawned
-  node). Messages before the recorder subscribed, or after its last take, are not seen.
+  node, a second publisher). Messages before the recorder subscribed, or after its last take,
+  are not seen.
 - Topics with several publishers (``/diagnostics``, ``/rosout``) are not counted.
 
 The recorder counts while it writes (``Counter``) and stores the result in the bag as the
@@ -39,6 +40,7 @@ SHARED_TOPICS = frozenset({DIAGNOSTICS, '/rosout', '/parameter_events'})
 SIM_STATUS = 'sim'            # the sim's status name on /diagnostics
 MAX_GAPS = 20                 # gaps listed per topic (all are counted)
 MAX_TICKS = 50_000_000        # more ticks than this between two stamps: not a tick stream
+MAX_WRITERS = 64              # runs of sequence numbers followed per topic
 
 
 def _stamp_ns(data: bytes) -> int | None:
@@ -52,19 +54,34 @@ def _stamp_ns(data: bytes) -> int | None:
 
 @dataclass
 class _Sequence:
-    """One topic's publication sequence numbers, in the order they were written."""
-    last: int = 0
+    """One topic's publication sequence numbers, in the order they were written. Each writer
+    counts 1, 2, 3, ...; the writer of a number is not known, so a number continues the run
+    that ended just before it, else the highest run below it (a gap), else it starts a run (a
+    new writer: a respawned node, a second publisher such as a user's tool)."""
+    last: int = 0                   # the newest number (0: none counted)
+    ends: set[int] = field(default_factory=set)
     missing: int = 0
     gaps: list[tuple[int, int]] = field(default_factory=list)
 
     def add(self, number: int) -> None:
         if number <= 0:
             return                      # no sequence number: not counted
-        if self.last and number > self.last + 1:
-            self.missing += number - self.last - 1
+        self.last = number
+        ends = self.ends
+        if number - 1 in ends:          # the common case: the next of a run
+            ends.discard(number - 1)
+            ends.add(number)
+            return
+        below = [end for end in ends if end < number]
+        if below:
+            end = max(below)
+            self.missing += number - end - 1
             if len(self.gaps) < MAX_GAPS:
-                self.gaps.append((self.last + 1, number - 1))
-        self.last = number              # a smaller number: a new writer, counted from there
+                self.gaps.append((end + 1, number - 1))
+            ends.discard(end)
+        ends.add(number)
+        if len(ends) > MAX_WRITERS:     # a bound on memory: the oldest runs are closed
+            ends.discard(min(ends))
 
 
 @dataclass

@@ -101,11 +101,15 @@ def test_a_new_writer_and_shared_topics_are_not_gaps():
     counter = Counter()
     for n in (1, 2, 3, 1, 2):               # the publisher respawned: its count starts again
         counter.add('/com_plan', b'', n)
+    for n in (1, 2, 3, 1, 4, 5, 2):         # a second publisher (a user's tool), interleaved
+        counter.add('/cmd_vel', b'', n)
     for n in (7, 1, 9, 2):                  # several nodes' diagnostics, interleaved
         counter.add('/diagnostics', b'', n)
     result = counter.result()
-    assert result.complete
+    assert result.complete, result.gaps_text()
     assert result.topics['/diagnostics'].counted_by == ''
+    counter.add('/cmd_vel', b'', 8)         # the first publisher's 6 and 7 lost
+    assert counter.result().topics['/cmd_vel'].gaps == [[6, 7]]
 
 
 def test_the_record_round_trips_and_is_read_back_from_the_bag(tmp_path):
