@@ -93,8 +93,15 @@ def odom_positions(messages) -> dict[int, np.ndarray]:
     return out
 
 
+_SAID: set[str] = set()
+
+
 def _say(line: str) -> None:
-    print(f'[rerun] {line}', file=sys.stderr, flush=True)
+    """One line on stderr per bag file (a comparison opens a bag more than once)."""
+    path = line.split(':', 1)[0]
+    if path not in _SAID:
+        _SAID.add(path)
+        print(f'[rerun] {line}', file=sys.stderr, flush=True)
 
 
 def bag_files_checked(bag: str | Path) -> list[Path]:
