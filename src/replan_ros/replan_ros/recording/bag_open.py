@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -18,7 +19,7 @@ from mcap.records import Channel, Message, Schema
 
 from replan_ros.recording.bag_files import bag_files, recovered_name
 from replan_ros.recording.bag_io import BagSummary, TopicInfo, iter_raw, summarize
-from replan_ros.recording.bag_writer import BagWriteError, recover
+from replan_ros.recording.bag_writer import recover
 
 
 def has_summary(path: Path) -> bool:
@@ -43,9 +44,11 @@ def recover_killed(bag: str | Path, log: Callable[[str], None] = print) -> list[
         out = recovered_name(path)
         try:
             report = recover(path, out)
-        except (BagWriteError, OSError) as err:   # a read-only folder: read what is there
-            out.unlink(missing_ok=True)         # half a copy would replace the file
-            log(f'{path}: no summary, and no recovered copy: {err}')
+        except Exception as err:   # a read-only folder, not mcap at all: read what is there
+            with contextlib.suppress(OSError):
+                out.unlink(missing_ok=True)     # half a copy would replace the file
+            what = str(err).splitlines()[0] if str(err) else type(err).__name__
+            log(f'{path}: no summary, and no recovered copy: {what}')
             continue
         log(f'{path}: no summary (its recorder was killed or its disk was full): recovered '
             f'{report.messages} messages of {report.chunks} chunks into {out.name}, '

@@ -101,3 +101,12 @@ def test_a_given_file_name_that_exists_is_never_overwritten(tmp_path):
     taken = tmp_path / 'walk.mcap'
     taken.write_bytes(b'')
     assert bag_path(str(taken)) == tmp_path / 'walk_1.mcap'
+
+
+def test_a_file_that_is_not_mcap_at_all_is_said_and_left(tmp_path):
+    """A recorder whose disk was full at once leaves a few bytes: no copy, one line."""
+    (tmp_path / 'empty.mcap').write_bytes(b'\x89MC')
+    lines = []
+    assert recover_killed(tmp_path, lines.append) == []
+    assert len(lines) == 1 and 'no recovered copy' in lines[0]
+    assert not recovered_name(tmp_path / 'empty.mcap').exists()
