@@ -32,7 +32,6 @@ Foxglove and any mcap reader open (conventions in ``bag_io``).
 
 from __future__ import annotations
 
-import re
 import sys
 import time
 
@@ -56,7 +55,12 @@ from replan_ros.recording.bag_io import (
 from replan_ros.recording.bag_open import recover_killed
 from replan_ros.recording.bag_writer import BagWriteError, BagWriter
 from replan_ros.recording.completeness import RECORD, Counter
-from replan_ros.recording.recorder_state import RecordedTopic, status_values, totals
+from replan_ros.recording.recorder_state import (
+    RecordedTopic,
+    TopicSelection,
+    status_values,
+    totals,
+)
 from replan_ros.recording.run_metadata import arrival_time, bag_path, run_records
 from replan_ros.telemetry import diagnostics
 from replan_ros.transport.on_demand import OnDemandSubscriptions
@@ -76,10 +80,6 @@ CLOCK_TOPIC = '/clock'
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 
 
-def _is_hidden(topic: str) -> bool:
-    return any(part.startswith('_') for part in topic.split('/'))
-
-
 class RecorderNode(Node):
     """Records the graph into one mcap file."""
 
@@ -90,10 +90,8 @@ class RecorderNode(Node):
         p = declare_node_parameters(self)
         for name in ('topics', 'config_files'):
             p[name] = [v for v in (p[name] or []) if v]
-        self._topics_wanted = set(p['topics'])
-        self._include = re.compile(p['topics_regex']) if p['topics_regex'] else None
-        self._exclude = re.compile(p['exclude_regex']) if p['exclude_regex'] else None
-        self._include_hidden = p['include_hidden']
+        self._selected = TopicSelection(p['topics'], p['topics_regex'], p['exclude_regex'],
+                                        p['include_hidden'])
         self._queue_depth = int(p['queue_depth'])
         self._publish_time = p['publish_time']
         self._log_time_clock = p['log_time_clock']
@@ -166,14 +164,6 @@ class RecorderNode(Node):
             self._input.destroy()
 
     # ------------------------------------------------------------------ discovery
-
-    def _selected(self, topic: str) -> bool:
-        if self._exclude is not None and self._exclude.search(topic):
-            return False
-        if not self._topics_wanted and self._include is None:
-            return self._include_hidden or not _is_hidden(topic)
-        return topic in self._topics_wanted or (
-            self._include is not None and self._include.search(topic) is not None)
 
     def _warn_once(self, key: str, text: str) -> None:
         if key not in self._warned:
