@@ -274,8 +274,12 @@ def count_files(files: list[Path]) -> Completeness:
 
 def bag_completeness(bag: str | Path) -> Completeness:
     """The verdict on ``bag`` (a file or a bag directory): the recorder's record when the bag
-    is one file that holds it, else counted from the messages of all its files."""
-    return files_completeness(bag_files(bag))
+    is one file that holds it, else counted from the messages of all its files. A path that
+    holds no .mcap file has no verdict: FileNotFoundError (not "complete")."""
+    files = bag_files(bag)
+    if not files:
+        raise FileNotFoundError(f'{bag}: no .mcap file')
+    return files_completeness(files)
 
 
 def files_completeness(files: list[Path]) -> Completeness:
@@ -301,7 +305,12 @@ def main(args: list[str] | None = None) -> int:
     bags = sys.argv[1:] if args is None else args
     bad = 0
     for bag in bags:
-        result = bag_completeness(bag)
+        try:
+            result = bag_completeness(bag)
+        except OSError as err:
+            print(f'{bag}: not counted: {err}')
+            bad += 1
+            continue
         bad += not result.complete
         print(f'{bag}: {result.gaps_text()} ({result.ticks} ticks)')
     return 1 if bad else 0

@@ -3,6 +3,7 @@ sequence numbers; the verdict stored in the bag, in metadata.yaml, and read back
 
 import struct
 
+import pytest
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
@@ -19,6 +20,7 @@ from replan_ros.recording.completeness import (
     count_files,
     is_complete,
 )
+from replan_ros.recording.completeness import main as completeness_main
 
 TICK = 4_000_000
 
@@ -183,3 +185,10 @@ def test_a_long_run_of_float_stamps_is_counted_exactly_and_a_head_gap_too():
     truth = result.topics['/ground_truth/odom']
     assert (truth.missing, truth.gaps) == (5, [[0, 4 * TICK]])
     assert len(counter.ticks['/joint_states'].steps) <= 3
+
+
+def test_a_path_without_a_bag_has_no_verdict(tmp_path, capsys):
+    with pytest.raises(FileNotFoundError, match=r'no \.mcap file'):
+        bag_completeness(tmp_path / 'missing')
+    assert completeness_main([str(tmp_path)]) == 1
+    assert 'not counted' in capsys.readouterr().out
