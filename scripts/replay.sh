@@ -3,6 +3,8 @@
 # Usage: scripts/replay.sh BAG [--topics T ...] [--rate R] [--loop] [--delay S] [--no-clock]
 #            [--wait-subscribers S]
 #        scripts/replay.sh BAG --info
+# BAG: an .mcap file or a bag directory (its files read as one); a killed recorder's file is
+# recovered on the way (one line).
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 if [ $# -lt 1 ] || [ "$1" = "-h" ] || [ "$1" = "--help" ]; then
     usage

@@ -14,7 +14,7 @@ import time
 
 import pytest
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Transform, Twist
 from harness import CONFIG_DIR, REPO_ROOT, graph_env
 from mcap.reader import make_reader
@@ -111,6 +111,12 @@ def _latest_counts(diagnostics: list) -> dict[str, str]:
     return {}
 
 
+def _received_all(diagnostics: list, topics) -> bool:
+    """True if the recorder's latest diagnostics count a message received on every topic."""
+    counts = _latest_counts(diagnostics)
+    return all(int(counts.get(f'{topic} received', 0)) > 0 for topic in topics)
+
+
 def _make_publishers(probe):
     node = probe.node
     return {
@@ -167,6 +173,8 @@ def test_recorded_bag_decodes_to_the_published_messages(launcher, probe, tmp_pat
     assert metadata['replan_user'] == {'purpose': 'test', 'seed': '7'}
     assert str(CONFIG_DIR / 'recorder.yaml') in metadata['replan_config']
     assert metadata['replan_run']['git_revision']
+    # Counted against the publishers' sequence numbers: nothing lost.
+    assert metadata['replan_completeness']['complete'] == 'true', metadata['replan_completeness']
 
     seen = dict.fromkeys(expected, 0)
     plans = []
@@ -400,3 +408,75 @@ def test_a_robot_the_bag_cannot_show_stops_the_run_before_the_robot_moves(ros_do
     errors = [line for line in log.splitlines() if 'error' in line.lower()]
     assert len(errors) == 1 and errors[0].startswith('[FATAL]') and reason in errors[0], log
     assert not list(tmp_path.glob('bag/*.mcap'))
+
+
+def test_an_unwritable_output_stops_the_recording_with_one_line_and_the_recorder_stays_up(
+        launcher, probe, tmp_path):
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    recorder = launcher.start('recorder_node', params_file=CONFIG_DIR / 'recorder.yaml',
+                              params={'output_dir': str(blocker / 'bag')})
+    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', RELIABLE)
+    assert probe.spin_until(lambda: 'recording stopped' in recorder.log(), timeout=20.0), \
+        recorder.log()
+    lines = [ln for ln in recorder.log().splitlines() if 'recording stopped' in ln]
+    assert len(lines) == 1 and str(blocker) in lines[0] and 'Not a directory' in lines[0]
+    assert probe.spin_until(lambda: any(
+        s.name.startswith('recorder') and s.level == DiagnosticStatus.ERROR
+        and 'recording stopped' in s.message for a in diagnostics for s in a.status),
+        timeout=10.0)
+    assert recorder.alive                  # no crash, so no respawn loop that stops a graph
+    assert recorder.stop() == 0, recorder.log()
+    assert 'Traceback' not in recorder.log()
+
+
+def test_a_respawned_recorder_continues_the_bag_as_a_split(launcher, probe, tmp_path):
+    from replan_ros.recording.bag_files import bag_files
+    from replan_ros.recording.bag_read import read_messages
+    from replan_ros.recording.completeness import bag_completeness
+
+    publishers = _make_publishers(probe)
+    folder = tmp_path / 'bag'
+    params = {'output_dir': str(folder), 'topics': ['/rec/joint_states', '/clock'],
+              'chunk_interval': 0.2}
+    first = launcher.start('recorder_node', params_file=CONFIG_DIR / 'recorder.yaml',
+                           params=params)
+    assert _wait_subscribed(probe, ['/rec/joint_states', '/clock']), launcher.logs()
+    probe.spin_for(1.0)
+    _publish_ticks(probe, publishers, 0, 250)
+    probe.spin_for(1.5)                    # > chunk_interval: phase 1 is in finished chunks
+    first.signal(signal.SIGKILL)
+    first.process.wait(10)
+    _publish_ticks(probe, publishers, 250, 50)      # while no recorder runs: lost, counted
+    diagnostics = probe.subscribe(DiagnosticArray, '/diagnostics', RELIABLE)
+    second = launcher.start('recorder_node', params_file=CONFIG_DIR / 'recorder.yaml',
+                            params=params)
+    assert probe.spin_until(lambda: 'recording to' in second.log(), timeout=20.0), second.log()
+    assert 'recovered' in second.log()             # the killed file, said in one line
+    assert _wait_subscribed(probe, ['/rec/joint_states', '/clock']), launcher.logs()
+    # A reader that replaces a killed process's is seen in the graph before samples reach it
+    # (DDS): ticks published until the new recorder has received both topics are the
+    # respawn's loss, counted below; every tick after that must be in the bag.
+    k = 300
+    while not _received_all(diagnostics, ('/rec/joint_states', '/clock')) and k < 300 + 2500:
+        _publish_ticks(probe, publishers, k, 25)
+        probe.spin_for(0.05)
+        k += 25
+    assert _received_all(diagnostics, ('/rec/joint_states', '/clock')), second.log()
+    _publish_ticks(probe, publishers, k, 250)
+    probe.spin_for(0.5)
+    assert second.stop() == 0, second.log()
+    files = bag_files(folder)
+    assert len(files) == 2 and files[0].name.endswith('.recovered.mcap'), files
+    with AnyReader([folder]) as reader:            # metadata.yaml lists both files
+        assert reader.message_count == sum(1 for _ in reader.messages())
+        total = reader.message_count
+    positions = [m.position[0] for _, m in
+                 read_messages(folder, topics=['/rec/joint_states'])['/rec/joint_states']]
+    assert positions == sorted(positions)
+    ticks = {round(p * 1000) for p in positions}
+    assert ticks >= set(range(250)) | set(range(k, k + 250)), sorted(ticks)
+    assert total >= len(positions)
+    counted = bag_completeness(folder)
+    assert not counted.complete and counted.topics['/rec/joint_states'].missing >= 50, \
+        counted.gaps_text()

@@ -38,6 +38,7 @@ from replan_ros.messages.joint_state import joint_state_from_msg
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.stamps import stamp_to_ns, stamp_to_sec
 from replan_ros.recording.bag_read import TRUTH_TOPIC, read_messages
+from replan_ros.recording.completeness import bag_completeness
 
 LEG_LABELS = ('LF', 'RF', 'LH', 'RH')      # replan_core.common.types.LEGS order
 JOINT_LABELS = ('HAA', 'HFE', 'KFE')       # per leg, replan_core.common.types.JOINTS_PER_LEG order
@@ -73,6 +74,13 @@ def analyse_run(bag: Path, scenario, out_dir: Path, *, launch_exit_code: int = 0
                      'profile': getattr(scenario, 'profile', None),
                      'launch_exit_code': launch_exit_code,
                      'dead_nodes': list(dead_nodes), 'bag': str(bag)}
+    # Measures read from an incomplete bag differ between runs that are the same to the bit:
+    # the pages use complete bags only, or say which were not (docs/recording.md).
+    try:
+        counted = bag_completeness(bag)
+        metrics.update(bag_complete=counted.complete, bag_gaps=counted.gaps_text())
+    except Exception as err:   # a bag that cannot be counted: no verdict, said so
+        metrics.update(bag_complete=None, bag_gaps=f'not counted: {err}')
     truth_topic = TRUTH_TOPIC if data.get(TRUTH_TOPIC) else '/odom'
     odom = first_per_stamp(base_state_from_odom(m) for _, m in data.get(truth_topic, []))
     clock = data.get('/clock', [])

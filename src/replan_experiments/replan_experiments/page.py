@@ -53,15 +53,21 @@ def _bag_gaps(gaps: dict | None) -> list[str]:
     if not gaps or not gaps.get('runs'):
         return []
     if not gaps['short']:
-        return [f'Every measure is read from the run\'s bag; the bags of all {gaps["runs"]} '
+        text = (f'Every measure is read from the run\'s bag; the bags of all {gaps["runs"]} '
                 'completed runs that did not fall hold every tick of the estimate and the '
-                'truth.', '']
-    return [f'Every measure is read from the run\'s bag, which holds what DDS delivered to '
-            f'the recorder: the bags of {gaps["short"]} of {gaps["runs"]} completed runs that '
-            'did not fall miss some ticks of the estimate (`/odom`) or the truth, at most '
-            f'{gaps["most_missing"]} of a run\'s {gaps["ticks"]}; their measures come from the '
-            'ticks recorded (a cause of small differences between two runs of one scenario '
-            'that are otherwise the same to the bit).', '']
+                'truth.')
+    else:
+        text = (f'Every measure is read from the run\'s bag, which holds what DDS delivered '
+                f'to the recorder: the bags of {gaps["short"]} of {gaps["runs"]} completed runs '
+                'that did not fall miss some ticks of the estimate (`/odom`) or the truth, at '
+                f'most {gaps["most_missing"]} of a run\'s {gaps["ticks"]}; their measures come '
+                'from the ticks recorded (a cause of small differences between two runs of one '
+                'scenario that are otherwise the same to the bit).')
+    if gaps.get('counted'):
+        text += (f' By the recorder\'s own count (published against written, '
+                 f'docs/recording.md), {gaps["counted"] - gaps["incomplete"]} of '
+                 f'{gaps["counted"]} counted bags are complete.')
+    return [text, '']
 
 
 class Page:

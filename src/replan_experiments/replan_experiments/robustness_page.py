@@ -57,14 +57,16 @@ How each fault is handled:
   0.5 s, with the weight fading in on the feet). Then the base estimate starts over, and only
   plans made after that are adopted.
 - **recorder killed**: the robot does not notice (the recorder is not in the loop); the bag has
-  no summary, replay and rerun refuse it with one line naming `bag_recover`, which keeps every
-  finished chunk (one closes every `chunk_interval`).
+  no summary, and replay, rerun and the analysis recover it when they open it, saying so in one
+  line (every finished chunk is kept; one closes every `chunk_interval`); a respawned recorder
+  continues the bag as a split, and the bag's count names the ticks lost meanwhile.
 - **malformed messages** (non-finite, wrong-sized, missing fields) on an internal topic: the
   receiver drops the message with one throttled line and keeps its last good input
   (the modules of `replan_ros/messages/` check sizes, layouts and finiteness of every decoded
   message).
 - **a damaged bag** for `replay.sh` / `rerun.sh`: every chunk is read (CRC checked) before
-  anything is published or started; one line and exit code 2.
+  anything is published or started; one line and exit code 2 (a truncated one has lost its
+  summary, as a killed recorder's: recovered on the way, one line).
 - **a missing or malformed URDF**: the node says so in one line and exits with code 1 (the gait
   node alone goes on with the nominal HyQ hips, as before).
 - **an infeasible MPC problem**: the status names the first violated block and sample

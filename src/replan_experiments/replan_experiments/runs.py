@@ -142,6 +142,11 @@ def bag_gaps(results, control_period: float) -> dict:
     for result in results:
         if not isinstance(result, RunResult) or not result.ok or result.fell:
             continue
+        # The recorder's own count (its bag's completeness), in runs analysed since it exists:
+        # ``counted`` bags, ``incomplete`` of them.
+        if result.metrics.get('bag_complete') is not None:
+            out['counted'] = out.get('counted', 0) + 1
+            out['incomplete'] = out.get('incomplete', 0) + (not result.metrics['bag_complete'])
         samples = (result.metrics.get('estimator') or {}).get('samples')
         if samples is None:
             continue

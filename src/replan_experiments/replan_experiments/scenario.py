@@ -460,6 +460,8 @@ def summary(metrics: dict, out: Path) -> str:
                      f'achieved ({ach})')
     if metrics.get('dead_nodes'):
         lines.append(f'  nodes that died: {metrics["dead_nodes"]}')
+    if metrics.get('bag_complete') is False:
+        lines.append(f'  bag {metrics.get("bag_gaps")}')
     lines.append(f'  bag: {out / "bag"}   metrics: {out / "metrics.json"}   plots: {out}/*.png')
     return '\n'.join(lines)
 

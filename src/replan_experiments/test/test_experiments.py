@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from replan_experiments.claims import bisect_impulse, second_push
-from replan_experiments.page import write_page
+from replan_experiments.page import _bag_gaps, write_page
 from replan_experiments.plan import (
     ExperimentError,
     load_plan,
@@ -103,6 +103,11 @@ def test_a_bag_that_lacks_ticks_is_counted(tmp_path):
                                                                   'completed': True}, tmp_path)]
     assert bag_gaps(results, 0.004) == {'runs': 3, 'short': 2, 'most_missing': 77,
                                         'ticks': 3501}
+    # Runs analysed with the recorder's count: how many of those are complete.
+    results += [result(3501, bag_complete=True), result(3501, bag_complete=False)]
+    gaps = bag_gaps(results, 0.004)
+    assert (gaps['counted'], gaps['incomplete']) == (2, 1)
+    assert '1 of 2 counted bags are complete' in ' '.join(_bag_gaps(gaps))
 
 
 def test_a_robot_file_shapes_only_its_own_robots_runs(tmp_path):

@@ -88,6 +88,14 @@ def test_the_summary_of_a_run_whose_node_died_shows_the_missing_figures_as_dashe
     assert "  nodes that died: ['mpc']" in text
 
 
+def test_the_summary_names_what_an_incomplete_bag_misses():
+    metrics = {'scenario': 'forward', 'fell': False, 'bag_complete': False,
+               'bag_gaps': 'incomplete: /odom misses 3 ticks'}
+    assert '\n  bag incomplete: /odom misses 3 ticks\n' in summary(metrics, Path('runs/x'))
+    metrics['bag_complete'] = True
+    assert 'incomplete' not in summary(metrics, Path('runs/x'))
+
+
 # ------------------------------------------------------------------ against the parameter tables
 def _scenario_error(text: str, extra=()) -> str:
     scenario = parse_scenario(text, 'sc.yaml')

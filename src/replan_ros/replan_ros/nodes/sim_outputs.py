@@ -42,12 +42,12 @@ class TickOutputs:
         self.last_publish_wall = 0.0             # time.monotonic() of the last publish
         self.published_ns: int | None = None     # perf_counter_ns of a tick's joint_states
         events = qos.INTERNAL_PUB_EVENTS
-        self.clock_pub = node.create_publisher(Clock, '/clock', qos.CLOCK,
+        self.clock_pub = node.create_publisher(Clock, '/clock', qos.CLOCK_PUB,
                                                event_callbacks=events)
         self.truth_odom_pub = node.create_publisher(Odometry, 'ground_truth/odom',
                                                     qos.SENSOR_PUB, event_callbacks=events)
         self.truth_contacts_pub = node.create_publisher(
-            PointCloud2, 'ground_truth/contacts', qos.CONTACTS, event_callbacks=events)
+            PointCloud2, 'ground_truth/contacts', qos.CONTACTS_PUB, event_callbacks=events)
         self.imu_pub = node.create_publisher(Imu, 'imu', qos.SENSOR_PUB, event_callbacks=events)
         self.joint_pub = node.create_publisher(JointState, 'joint_states', qos.SENSOR_PUB,
                                                event_callbacks=events)

@@ -51,7 +51,8 @@ from replan_ros.transport.direct_take import DirectTake
 from replan_ros.transport.listeners import ListenersGate
 from replan_ros.transport.qos import (
     COMMAND,
-    CONTACTS,
+    COMMAND_PUB,
+    CONTACTS_PUB,
     INTERNAL_PUB_EVENTS,
     INTERNAL_SUB_EVENTS,
     LATCHED,
@@ -124,15 +125,15 @@ class WbcNode(Node):
         self._budget_tick: int | None = None   # the stamp whose phases the budget gathers
         self._logic_start_ns: int | None = None  # perf_counter_ns the current phase began
 
-        self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND,
+        self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND_PUB,
                                              event_callbacks=INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
                                               event_callbacks=INTERNAL_PUB_EVENTS)
         self.odom_pub = self.create_publisher(Odometry, 'odom', SENSOR_PUB,
                                               event_callbacks=INTERNAL_PUB_EVENTS)
-        self.contacts_pub = self.create_publisher(PointCloud2, 'contacts', CONTACTS,
+        self.contacts_pub = self.create_publisher(PointCloud2, 'contacts', CONTACTS_PUB,
                                                   event_callbacks=INTERNAL_PUB_EVENTS)
-        self.events_pub = self.create_publisher(PointCloud2, 'contact_events', CONTACTS,
+        self.events_pub = self.create_publisher(PointCloud2, 'contact_events', CONTACTS_PUB,
                                                 event_callbacks=INTERNAL_PUB_EVENTS)
         # One wake-up per tick, on joint_states: the sim publishes the imu (and, to a controller
         # that reads it, the truth) before them, so they are queued by then, and are taken from

@@ -411,7 +411,8 @@ RECORDER = (
     _p('exclude_regex', '', 'never record topics matching this regex', syntax='regex'),
     _p('include_hidden', False, 'record hidden topics too'),
     _p('discovery_period', 0.5, 'graph poll for new topics', 's', min=0.01, max=60.0),
-    _p('queue_depth', 1000, 'history depth of each subscription', 'messages', min=1,
+    _p('queue_depth', 0, 'history of each subscription: 0 keeps all until taken (no loss), '
+       'N the newest N (older ones lost when the recorder falls behind)', 'messages', min=0,
        max=1_000_000),
     _p('take_period', 0.1, 'take and write the queued messages this often', 'wall s',
        min=0.001, max=10.0),

@@ -20,6 +20,7 @@ from pathlib import Path
 import yaml
 from mcap.exceptions import McapError
 
+from replan_ros.recording.bag_files import replaced
 from replan_ros.recording.bag_io import (
     BAG_METADATA_VERSION,
     MESSAGE_ENCODING,
@@ -27,10 +28,10 @@ from replan_ros.recording.bag_io import (
     BagSummary,
     summarize,
 )
+from replan_ros.recording.completeness import RECORD, Completeness, count_files
 
 METADATA_FILE = 'metadata.yaml'
 STORAGE_IDENTIFIER = 'mcap'
-RECOVERED_SUFFIX = '.recovered.mcap'
 
 
 @dataclass
@@ -58,10 +59,21 @@ def _span(summary: BagSummary) -> tuple[int, int]:
     return summary.start_ns, max(summary.end_ns - summary.start_ns, 0)
 
 
-def rosbag2_directory_metadata(files: list[tuple[str, BagSummary]]) -> dict:
+def completeness_data(completeness: Completeness | None) -> dict[str, str]:
+    """``custom_data`` of ``metadata.yaml``: the bag's completeness (``completeness``), for
+    a reader of the directory that does not open the files."""
+    if completeness is None:
+        return {}
+    record = completeness.record()
+    return {'replan_complete': record['complete'], 'replan_completeness': record['summary'],
+            'replan_completeness_topics': record['topics']}
+
+
+def rosbag2_directory_metadata(files: list[tuple[str, BagSummary]],
+                               completeness: Completeness | None = None) -> dict:
     """``metadata.yaml`` content (a dict) for a bag of ``files``: (file name relative to the
     directory, its summary), in playback order. Topics seen in several files are counted once
-    with the sum of their messages."""
+    with the sum of their messages; ``completeness`` goes into ``custom_data``."""
     topics: dict[str, dict] = {}
     file_entries = []
     starts, ends = [], []
@@ -104,9 +116,21 @@ def rosbag2_directory_metadata(files: list[tuple[str, BagSummary]]) -> dict:
         'compression_mode': '',
         'relative_file_paths': [name for name, _ in files],
         'files': file_entries,
-        'custom_data': {},
+        'custom_data': completeness_data(completeness),
         'ros_distro': ROS_DISTRO,
     }}
+
+
+def _completeness(directory: Path, files: list[tuple[str, BagSummary]]) -> Completeness | None:
+    """The recorder's verdict stored in a bag of one file; a split bag's counted across its
+    files (a respawned recorder's file knows only its own messages)."""
+    if len(files) == 1:
+        record = files[0][1].metadata.get(RECORD)
+        return Completeness.from_record(record) if record else None
+    try:
+        return count_files([directory / name for name, _ in files])
+    except Exception:   # a file unreadable past its summary: no verdict
+        return None
 
 
 def write_directory_metadata(directory: str | Path) -> DirectoryReport:
@@ -120,8 +144,7 @@ def write_directory_metadata(directory: str | Path) -> DirectoryReport:
     names = sorted(p.name for p in directory.glob('*.mcap') if p.is_file())
     files = []
     for name in names:
-        if not name.endswith(RECOVERED_SUFFIX) and \
-                name[:-len('.mcap')] + RECOVERED_SUFFIX in names:
+        if replaced(name, names):
             report.skipped.append((name, 'replaced by its recovered copy'))
             continue
         try:
@@ -133,8 +156,8 @@ def write_directory_metadata(directory: str | Path) -> DirectoryReport:
     if not files:
         target.unlink(missing_ok=True)
         return report
-    text = yaml.safe_dump(rosbag2_directory_metadata(files), sort_keys=False,
-                          default_flow_style=False)
+    text = yaml.safe_dump(rosbag2_directory_metadata(files, _completeness(directory, files)),
+                          sort_keys=False, default_flow_style=False)
     # Written aside and renamed: a reader never sees half a file.
     partial = target.with_name(f'.{METADATA_FILE}.{os.getpid()}.tmp')
     partial.write_text(text)

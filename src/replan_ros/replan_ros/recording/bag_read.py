@@ -1,8 +1,11 @@
 """A recorded run's bag read back: every message of the chosen topics decoded with rclpy's
-deserializer, by topic, for the analysis of a run, the benchmarks and the node-graph tests."""
+deserializer, by topic, for the analysis of a run, the benchmarks and the node-graph tests.
+A bag directory's files (splits) are read as one; a killed recorder's file is recovered first
+(``bag_open``), saying so in one line on stderr."""
 
 from __future__ import annotations
 
+import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -10,6 +13,7 @@ from rclpy.serialization import deserialize_message
 
 from replan_ros.messages.introspection import message_class
 from replan_ros.recording.bag_io import iter_raw
+from replan_ros.recording.bag_open import readable_files
 
 # The simulator's truth is what the robot did; /odom is what the robot believed (the
 # estimate), compared with the truth. Bags from before the estimator hold the truth on /odom.
@@ -20,11 +24,8 @@ TOPICS = ('/clock', TRUTH_TOPIC, '/odom', '/ground_truth/contacts', '/footholds'
           '/contacts', '/joint_states')
 
 
-def bag_files(bag: Path) -> list[Path]:
-    """The mcap files of ``bag``: the file itself, or a bag folder's files in name order."""
-    if bag.is_file():
-        return [bag]
-    return sorted(bag.glob('*.mcap'))
+def _say(line: str) -> None:
+    print(f'[bag] {line}', file=sys.stderr, flush=True)
 
 
 def read_messages(bag: Path, topics=TOPICS) -> dict[str, list[tuple[int, object]]]:
@@ -34,7 +35,7 @@ def read_messages(bag: Path, topics=TOPICS) -> dict[str, list[tuple[int, object]
     as rosbag2 does; its log_time is the receive time on its sim-time clock."""
     out: dict[str, list] = defaultdict(list)
     classes: dict[str, type] = {}
-    for path in bag_files(bag):
+    for path in readable_files(bag, _say):
         try:
             for schema, channel, message in iter_raw(path, topics):
                 cls = classes.get(schema.name)

@@ -3,10 +3,14 @@ what a killed recorder left (``recover``).
 
 Every finished chunk is written to the OS at once (no Python-side buffering), so a recorder
 killed with SIGKILL leaves a file whose finished chunks ``recover()`` turns into a valid bag.
+A file that cannot be written (full disk, unwritable folder) raises ``BagWriteError`` naming
+the path and the cause; the writer then refuses every further write and ``close`` only closes
+the file, whose finished chunks stay readable (recovered when read: ``bag_open``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import time
@@ -33,6 +37,16 @@ from replan_ros.recording.bag_io import (
 )
 
 # ----------------------------------------------------------------------------- writing
+
+class BagWriteError(Exception):
+    """The bag file cannot be written: one line with the path and the cause."""
+
+    def __init__(self, path: Path, cause: OSError) -> None:
+        reason = cause.strerror or str(cause) or type(cause).__name__
+        super().__init__(f'cannot write {path}: {reason}')
+        self.path = path
+        self.cause = cause
+
 
 class _UnbufferedFile(io.RawIOBase):
     """Write-only file without a Python buffer: what the mcap writer writes reaches the OS at
@@ -105,11 +119,16 @@ class BagWriter:
         if compression not in _COMPRESSION:
             raise ValueError(f'compression must be one of zstd, lz4, none: {compression!r}')
         self.path = Path(path)
-        self._file = _UnbufferedFile(self.path)
+        self.error: BagWriteError | None = None
+        try:
+            self._file = _UnbufferedFile(self.path)
+        except OSError as err:
+            raise BagWriteError(self.path, err) from None
         # The mcap writer closes a chunk itself only past 2x our size: we close it (flush) first.
         self._writer = Writer(_StreamAdapter(self._file), chunk_size=2 * max(chunk_size, 1024),
                               compression=_COMPRESSION[compression])
-        self._writer.start(profile=PROFILE, library=library)
+        with self._guard():
+            self._writer.start(profile=PROFILE, library=library)
         self._chunk_size = max(int(chunk_size), 1024)
         self._chunk_interval = float(chunk_interval)
         self._schemas: dict[str, int] = {}
@@ -122,21 +141,37 @@ class BagWriter:
         self.closed = False
         self._directory_metadata = directory_metadata
         self.directory_metadata_error = ''
-        self._writer.add_metadata('rosbag2', rosbag2_metadata(self.path.name))
+        self.add_metadata('rosbag2', rosbag2_metadata(self.path.name))
+
+    @contextlib.contextmanager
+    def _guard(self):
+        """Turn a failed write into ``BagWriteError``, and refuse writes after one: the
+        mcap writer's state is unknown once a record went out in part."""
+        if self.error is not None:
+            raise self.error
+        try:
+            yield
+        except OSError as err:
+            self.error = BagWriteError(self.path, err)
+            if self._file is not None and not self._file.closed:
+                self._file.close()
+            raise self.error from None
 
     @property
     def bytes_written(self) -> int:
         return self._file.tell()
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
-        self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
+        with self._guard():
+            self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
 
     def add_schema(self, type_name: str, definition: str | None = None) -> int:
         type_name = normalize_type_name(type_name)
         if type_name not in self._schemas:
             text = message_definition(type_name) if definition is None else definition
-            self._schemas[type_name] = self._writer.register_schema(
-                name=type_name, encoding=SCHEMA_ENCODING, data=text.encode())
+            with self._guard():
+                self._schemas[type_name] = self._writer.register_schema(
+                    name=type_name, encoding=SCHEMA_ENCODING, data=text.encode())
         return self._schemas[type_name]
 
     def add_channel(self, topic: str, type_name: str, offered_qos_profiles: str = '',
@@ -146,9 +181,10 @@ class BagWriter:
             return self._channels[topic]
         schema_id = self.add_schema(type_name, definition)
         metadata = {'offered_qos_profiles': offered_qos_profiles, 'topic_type_hash': type_hash}
-        channel_id = self._writer.register_channel(
-            topic=topic, message_encoding=MESSAGE_ENCODING, schema_id=schema_id,
-            metadata=metadata)
+        with self._guard():
+            channel_id = self._writer.register_channel(
+                topic=topic, message_encoding=MESSAGE_ENCODING, schema_id=schema_id,
+                metadata=metadata)
         self._channels[topic] = channel_id
         self._sequence[channel_id] = 0
         return channel_id
@@ -158,9 +194,10 @@ class BagWriter:
         if sequence is None:
             self._sequence[channel_id] += 1
             sequence = self._sequence[channel_id]
-        self._writer.add_message(channel_id=channel_id, log_time=max(int(log_time), 0),
-                                 data=data, publish_time=max(int(publish_time), 0),
-                                 sequence=sequence & 0xFFFFFFFF)
+        with self._guard():
+            self._writer.add_message(channel_id=channel_id, log_time=max(int(log_time), 0),
+                                     data=data, publish_time=max(int(publish_time), 0),
+                                     sequence=sequence & 0xFFFFFFFF)
         self.message_count += 1
         self._pending_bytes += len(data) + 31   # + the message record's own fields
         if self._pending_since is None:
@@ -180,7 +217,8 @@ class BagWriter:
         """Close the open chunk and write it out."""
         if self._pending_since is None:
             return
-        self._writer.flush()
+        with self._guard():
+            self._writer.flush()
         self.chunk_count += 1
         self._pending_bytes = 0
         self._pending_since = None
@@ -190,7 +228,11 @@ class BagWriter:
         if self.closed:
             return
         self.closed = True
-        self._writer.finish()
+        if self.error is not None:      # no summary on a failed file; recovery reads it
+            self._file.close()
+            return
+        with self._guard():
+            self._writer.finish()
         self._file.close()
         if self._directory_metadata:
             try:

@@ -13,6 +13,8 @@ import sys
 from datetime import datetime
 from pathlib import Path
 
+from replan_ros.recording.bag_files import recovered_name
+
 
 def git_output(root: Path, *args: str) -> str:
     """stdout of ``git -C root args``, '' without git or a repository."""
@@ -26,11 +28,17 @@ def git_output(root: Path, *args: str) -> str:
 
 def bag_path(output: str) -> Path:
     """The bag file: ``output`` if it names an .mcap file, else a time-stamped file in the
-    folder ``output`` (default: $REPLAN_ROOT/runs)."""
+    folder ``output`` (default: $REPLAN_ROOT/runs). A name taken (a respawned recorder within
+    the same second, or a given file that exists) gets ``_1``, ``_2``, ...: a killed
+    recorder's file is never overwritten, and the new one sorts after it (a split)."""
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
     target = Path(output) if output else Path(os.environ.get('REPLAN_ROOT', '.'), 'runs')
     if target.suffix != '.mcap':
         target = target / f'replan_{stamp}.mcap'
+    base, number = target, 0
+    while target.exists() or recovered_name(target).exists():
+        number += 1
+        target = base.with_name(f'{base.stem}_{number}.mcap')
     return target.resolve()
 
 

@@ -17,6 +17,7 @@ import argparse
 import sys
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import rclpy
 from mcap.exceptions import McapError
@@ -26,7 +27,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.utilities import remove_ros_args
 
 from replan_ros.messages.introspection import message_class
-from replan_ros.recording.bag_io import check_bag, iter_raw, qos_from_yaml, summarize
+from replan_ros.recording.bag_io import check_bag, qos_from_yaml
+from replan_ros.recording.bag_open import iter_raw_files, readable_files, summarize_files
+from replan_ros.recording.completeness import files_completeness
 
 CLOCK_TOPIC = '/clock'
 
@@ -59,9 +62,10 @@ def replay_qos(offered: str) -> QoSProfile:
 class ReplayNode(Node):
     """Publishers for the replayed topics of one bag."""
 
-    def __init__(self, bag: str, topics: list[str] | None, with_clock: bool) -> None:
+    def __init__(self, files: list[Path], topics: list[str] | None, with_clock: bool) -> None:
         super().__init__('replay')
-        summary = summarize(bag)
+        bag = ', '.join(str(f) for f in files)
+        summary = summarize_files(files)
         wanted = set(topics) if topics else set(summary.topics)
         if with_clock and CLOCK_TOPIC in summary.topics:
             wanted.add(CLOCK_TOPIC)
@@ -109,7 +113,7 @@ def _sleep_until(deadline: float) -> None:
         time.sleep(min(remaining, 0.05))
 
 
-def run_replay(node: ReplayNode, bag: str, rate: float, loop: bool,
+def run_replay(node: ReplayNode, files: list[Path], rate: float, loop: bool,
                log_every: float = 5.0) -> ReplayStats:
     """Publish the bag's messages with their timing; returns how many went out per topic."""
     published = dict.fromkeys(node.publishers_by_topic, 0)
@@ -121,7 +125,7 @@ def run_replay(node: ReplayNode, bag: str, rate: float, loop: bool,
         first_log: int | None = None
         start = time.monotonic()
         next_log = start + log_every
-        for _schema, channel, message in iter_raw(bag, topics):
+        for _schema, channel, message in iter_raw_files(files, topics):
             if not rclpy.ok(context=node.context):
                 break
             if first_log is None:
@@ -138,15 +142,16 @@ def run_replay(node: ReplayNode, bag: str, rate: float, loop: bool,
     return ReplayStats(published, loops, time.monotonic() - wall_start)
 
 
-def format_info(bag: str) -> str:
-    """A ``ros2 bag info``-like text of a bag (summary and metadata records)."""
-    summary = summarize(bag)
+def format_info(files: list[Path]) -> str:
+    """A ``ros2 bag info``-like text of a bag's files (summary and metadata records)."""
+    summary = summarize_files(files)
     duration = (summary.end_ns - summary.start_ns) * 1e-9
-    lines = [f'file:       {bag}',
+    lines = [f'file:       {", ".join(str(f) for f in files)}',
              f'profile:    {summary.profile}   library: {summary.library}',
              f'duration:   {duration:.3f} s   log time {summary.start_ns * 1e-9:.3f} .. '
              f'{summary.end_ns * 1e-9:.3f} s',
              f'messages:   {summary.message_count}',
+             f'counted:    {files_completeness(files).gaps_text()}',
              'topics:']
     width = max((len(t) for t in summary.topics), default=0)
     for topic, info in sorted(summary.topics.items()):
@@ -170,7 +175,7 @@ def format_info(bag: str) -> str:
 def main(args=None):
     argv = remove_ros_args(args if args is not None else sys.argv)[1:]
     parser = argparse.ArgumentParser(prog='replay', description=__doc__.split('\n')[0])
-    parser.add_argument('bag', help='mcap file')
+    parser.add_argument('bag', help='mcap file or bag directory (its files, splits, as one)')
     parser.add_argument('--topics', nargs='+', default=None, help='only these topics')
     parser.add_argument('--rate', type=float, default=1.0, help='playback speed factor')
     parser.add_argument('--loop', action='store_true', help='start over at the end')
@@ -184,11 +189,16 @@ def main(args=None):
     parser.add_argument('--info', action='store_true', help='print the bag summary and exit')
     opts = parser.parse_args(argv)
     try:
-        info = format_info(opts.bag)   # also checks that the bag is readable before init
-        check_bag(opts.bag)            # every chunk: a corrupt one must not end in a traceback
+        # A killed recorder's file is recovered on the way, with one line saying so.
+        files = readable_files(opts.bag, lambda line: print(f'[replay] {line}',
+                                                            file=sys.stderr, flush=True))
+        if not files:
+            raise McapError('no .mcap file')
+        info = format_info(files)      # also checks that the bag is readable before init
+        for path in files:
+            check_bag(path)            # every chunk: a corrupt one must not end in a traceback
     except (McapError, OSError) as err:
-        print(f'replay: cannot read {opts.bag}: {err}\n(if its recorder was killed: '
-              f'python -m replan_ros.recording.bag_recover {opts.bag})', file=sys.stderr)
+        print(f'replay: cannot read {opts.bag}: {err}', file=sys.stderr)
         return 2
     if opts.info:
         print(info)
@@ -199,13 +209,13 @@ def main(args=None):
     rclpy.init(args=args)
     node = None
     try:
-        node = ReplayNode(opts.bag, opts.topics, not opts.no_clock)
+        node = ReplayNode(files, opts.topics, not opts.no_clock)
         node.get_logger().info(
             f'replaying {len(node.publishers_by_topic)} topics of {opts.bag} '
             f'({(node.summary.end_ns - node.summary.start_ns) * 1e-9:.2f} s) at x{opts.rate}')
         wait_for_subscribers(node, opts.wait_subscribers)
         time.sleep(max(opts.delay, 0.0))
-        stats = run_replay(node, opts.bag, opts.rate, opts.loop)
+        stats = run_replay(node, files, opts.rate, opts.loop)
         counts = ', '.join(f'{t}: {n}' for t, n in stats.published.items())
         node.get_logger().info(
             f'done: {sum(stats.published.values())} messages in {stats.wall_duration:.2f} s '

@@ -2,6 +2,9 @@
 
     scripts/rerun.sh BAG [--out DIR] [--tolerance M] [--gui] [--quiet]
 
+BAG: an .mcap file or a bag directory (its files, a respawned recorder's splits, read as one);
+a killed recorder's file is recovered on the way, with one line saying so.
+
 1. From BAG: the inputs (``velocity_setpoint``: the set-point each re-plan used; ``applied_wrench``:
    each external wrench change as applied, both stamped in sim time), the configuration (the
    ``replan_config`` metadata: every node's parameter file and the ``--params`` files of the run)
@@ -40,7 +43,9 @@ from std_msgs.msg import Header
 from replan_ros.launch.graph import NODES
 from replan_ros.messages.stamps import stamp_to_ns, stamp_to_sec
 from replan_ros.params import ConfigError
+from replan_ros.recording.bag_files import bag_files
 from replan_ros.recording.bag_io import check_bag
+from replan_ros.recording.bag_open import iter_raw_files, readable_files
 from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
 INPUT_TOPICS = {'/velocity_setpoint': TwistStamped, '/applied_wrench': WrenchStamped,
@@ -91,35 +96,53 @@ def odom_positions(messages) -> dict[int, np.ndarray]:
     return out
 
 
+_SAID: set[str] = set()
+
+
+def _say(line: str) -> None:
+    """One line on stderr per bag file (a comparison opens a bag more than once)."""
+    path = line.split(':', 1)[0]
+    if path not in _SAID:
+        _SAID.add(path)
+        print(f'[rerun] {line}', file=sys.stderr, flush=True)
+
+
+def bag_files_checked(bag: str | Path) -> list[Path]:
+    """The files of ``bag`` (recovered if its recorder was killed), each read once."""
+    files = readable_files(bag, _say)
+    if not files:
+        raise RerunError(f'cannot read {bag}: no .mcap file')
+    for path in files:
+        try:
+            check_bag(path)     # a truncated or corrupt bag: one line, not a traceback
+        except McapError as err:
+            raise RerunError(f'cannot read {path}: {err}') from None
+    return files
+
+
 def load_run(bag: str | Path) -> RecordedRun:
-    """Inputs, configuration and trajectory of a recorded bag."""
-    try:
-        check_bag(bag)          # a truncated or corrupt bag: one line, not a traceback
-    except McapError as err:
-        raise RerunError(f'cannot read {bag}: {err} (if its recorder was killed: '
-                         f'python -m replan_ros.recording.bag_recover {bag})') from None
+    """Inputs, configuration and trajectory of a recorded bag (a file or a bag directory)."""
+    files = bag_files_checked(bag)
     run = RecordedRun()
     odom: dict[str, list[Odometry]] = {ODOM_TOPIC: [], LEGACY_ODOM_TOPIC: []}
-    with open(bag, 'rb') as stream:
-        reader = make_reader(stream)
-        for record in reader.iter_metadata():
-            if record.name == 'replan_config':
-                run.config_text.update(record.metadata)
-            elif record.name == 'replan_run':
-                run.run_info = dict(record.metadata)
-            elif record.name == 'replan_scenario':
-                run.scenario = dict(record.metadata)
-        topics = [*INPUT_TOPICS, *odom]
-        for _schema, channel, message in reader.iter_messages(topics=topics,
-                                                              log_time_order=True):
-            if channel.topic in odom:
-                odom[channel.topic].append(deserialize_message(message.data, Odometry))
-            elif channel.topic == '/velocity_setpoint':
-                run.setpoints.append(deserialize_message(message.data, TwistStamped))
-            elif channel.topic == '/gait_in_force':
-                run.gaits.append(deserialize_message(message.data, Header))
-            else:
-                run.wrenches.append(deserialize_message(message.data, WrenchStamped))
+    for path in files:          # a split bag: every file holds the run's records
+        with open(path, 'rb') as stream:
+            for record in make_reader(stream).iter_metadata():
+                if record.name == 'replan_config' and not run.config_text:
+                    run.config_text.update(record.metadata)
+                elif record.name == 'replan_run' and not run.run_info:
+                    run.run_info = dict(record.metadata)
+                elif record.name == 'replan_scenario' and not run.scenario:
+                    run.scenario = dict(record.metadata)
+    for _schema, channel, message in iter_raw_files(files, [*INPUT_TOPICS, *odom]):
+        if channel.topic in odom:
+            odom[channel.topic].append(deserialize_message(message.data, Odometry))
+        elif channel.topic == '/velocity_setpoint':
+            run.setpoints.append(deserialize_message(message.data, TwistStamped))
+        elif channel.topic == '/gait_in_force':
+            run.gaits.append(deserialize_message(message.data, Header))
+        else:
+            run.wrenches.append(deserialize_message(message.data, WrenchStamped))
     run.odom = odom_positions(odom[ODOM_TOPIC] or odom[LEGACY_ODOM_TOPIC])
     try:
         run.config_files = list(json.loads(run.run_info.get('config_files', '[]')))
@@ -227,12 +250,10 @@ def stamped_messages(bag: str | Path) -> dict[str, dict[int, bytes]]:
     """topic -> stamp ns -> serialized message (the first of each stamp: a republished tick
     is the same message again) of the ``EXACT_TOPICS`` in ``bag``."""
     out: dict[str, dict[int, bytes]] = {}
-    with open(bag, 'rb') as stream:
-        for _schema, channel, message in make_reader(stream).iter_messages(
-                topics=list(EXACT_TOPICS)):
-            stamp = cdr_header_stamp_ns(message.data)
-            if stamp is not None:
-                out.setdefault(channel.topic, {}).setdefault(stamp, bytes(message.data))
+    for _schema, channel, message in iter_raw_files(readable_files(bag, _say), EXACT_TOPICS):
+        stamp = cdr_header_stamp_ns(message.data)
+        if stamp is not None:
+            out.setdefault(channel.topic, {}).setdefault(stamp, bytes(message.data))
     return out
 
 
@@ -280,11 +301,12 @@ def compare_messages(bag_a: str | Path, bag_b: str | Path) -> MessageComparison:
 
 
 def find_bag(folder: Path) -> Path:
-    """The newest bag in ``folder`` (a run's bag folder)."""
-    bags = sorted(folder.glob('*.mcap'), key=lambda p: p.stat().st_mtime)
-    if not bags:
+    """A run's bag in its bag ``folder``: its one file, or the folder when the recorder was
+    respawned (a split bag, read as one)."""
+    files = bag_files(folder)
+    if not files and not list(folder.glob('*.mcap')):
         raise RerunError(f'no bag (*.mcap) in {folder}')
-    return bags[-1]
+    return files[0] if len(files) == 1 else folder
 
 
 def rerun(bag: Path, out_dir: Path, *, tolerance: float = 0.0, gui: bool = False,

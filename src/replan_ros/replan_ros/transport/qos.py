@@ -5,14 +5,21 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 # Sensor-like streams (joint_states, imu, odom, ground_truth/odom), as REP-2003 asks of a
 # driver: read best effort by our own nodes (SENSOR: the newest sample matters, a lost one is
-# replaced by the next tick and never waited for), published reliable (SENSOR_PUB, same depth),
+# replaced by the next tick and never waited for), published reliable (SENSOR_PUB),
 # so that a subscriber with the default QoS, which is reliable (`ros2 topic echo`, RViz, a
 # `create_subscription(..., 10)`), is compatible and receives them. A reliable writer does not
 # wait for best-effort readers, and with KEEP_LAST it never blocks on a slow reliable one.
 SENSOR = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                     reliability=ReliabilityPolicy.BEST_EFFORT,
                     durability=DurabilityPolicy.VOLATILE)
-SENSOR_PUB = QoSProfile(depth=SENSOR.depth, history=HistoryPolicy.KEEP_LAST,
+# The writers of the per-tick topics keep the last RECORDED_HISTORY samples (4 s of sim
+# time at 250 Hz) for their reliable readers, the recorder's above all: a sample that a busy
+# reader missed in transport is sent again from this history instead of being lost, as long
+# as the reader is less than RECORDED_HISTORY samples behind (docs/recording.md, "No loss").
+# KEEP_LAST: a writer never waits for a reader, so a slow or dead recorder cannot slow or stop
+# the robot; best-effort readers (our nodes' SENSOR) are not affected by the writer's depth.
+RECORDED_HISTORY = 1000
+SENSOR_PUB = QoSProfile(depth=RECORDED_HISTORY, history=HistoryPolicy.KEEP_LAST,
                         reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
 
@@ -49,6 +56,13 @@ CLOCK = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                    reliability=ReliabilityPolicy.RELIABLE,
                    durability=DurabilityPolicy.VOLATILE)
 
+# The publishers of recorded per-tick topics whose readers use the profile on the left: the
+# same profile with the writer history of RECORDED_HISTORY (see SENSOR_PUB). Only the writer's
+# depth differs, which is not part of QoS matching, so every reader stays compatible.
+CONTACTS_PUB = with_depth(CONTACTS, RECORDED_HISTORY)
+COMMAND_PUB = with_depth(COMMAND, RECORDED_HISTORY)
+CLOCK_PUB = with_depth(CLOCK, RECORDED_HISTORY // 5)    # /clock: every 5th tick
+
 # No QoS-event handlers on the topics between our own nodes, whose profiles all come from this
 # module and so cannot mismatch. rclpy turns each handler into a waitable that its executor walks
 # in Python at every wake-up: 134 us per message with them against 71 us without
@@ -56,3 +70,18 @@ CLOCK = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
 # external_wrench) keep rclpy's default handlers, which warn about an incompatible QoS.
 INTERNAL_SUB_EVENTS = SubscriptionEventCallbacks(use_default_callbacks=False)
 INTERNAL_PUB_EVENTS = PublisherEventCallbacks(use_default_callbacks=False)
+
+
+def recorder_qos(offered: list[QoSProfile], depth: int = 0) -> tuple[QoSProfile, bool, bool]:
+    """The recorder's subscription to a topic whose publishers offer ``offered``, and whether
+    it is (reliable, transient local): each only if every publisher is, as rosbag2 does, so it
+    matches them all. ``depth`` 0: KEEP_ALL, every sample is kept until the recorder takes it
+    (the reader's queue never overwrites one); else KEEP_LAST ``depth``."""
+    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+    latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+    profile = QoSProfile(
+        history=HistoryPolicy.KEEP_ALL if depth <= 0 else HistoryPolicy.KEEP_LAST,
+        depth=max(depth, 1),
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+    return profile, reliable, latched
