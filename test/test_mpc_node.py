@@ -156,11 +156,13 @@ def test_bad_input_is_rejected_and_the_node_keeps_going(graph, launcher):
     good = crawl_plan(t0, com, 0.0, feet, 2, np.zeros(2), np.random.default_rng(0), layout=LAYOUT)
     graph.footholds(good)
     assert graph.probe.spin_until(lambda: graph.plans_at(t0), timeout=10.0), launcher.logs()
-    # Two legs in the air: degenerate polygons -> the fallback plan, flagged, not a crash.
+    # Three legs in the air: one stance foot, a degenerate support (two feet are a line
+    # support, a trot's) -> the fallback plan, flagged, not a crash.
     t1 = 2.0
     graph.state(t1)
     broken = crawl_plan(t1, com, 0.0, feet, 2, np.zeros(2), np.random.default_rng(2), layout=LAYOUT)
-    broken.steps[1].liftoff_time = broken.steps[0].liftoff_time
+    for step in broken.steps[1:3]:
+        step.liftoff_time = broken.steps[0].liftoff_time
     graph.footholds(broken)
     assert graph.probe.spin_until(lambda: graph.diag_at(t1), timeout=10.0), launcher.logs()
     d = graph.diag_at(t1)
