@@ -27,7 +27,8 @@ def test_refuses_without_a_terminal(ros_domain):
 @pytest.mark.skipif(shutil.which('tmux') is None, reason='tmux is not installed')
 @pytest.mark.parametrize('quit_key', ['x', 'C-c'])
 def test_keys_in_a_terminal_drive_cmd_vel(probe, ros_domain, tmp_path, quit_key):
-    step_vx = STEP_FRACTIONS[DEFAULT_STEP] * Limits.from_gait_yaml(CONFIG_DIR / 'gait.yaml').vx
+    crawl = CONFIG_DIR / 'gaits' / 'crawl.yaml'
+    step_vx = STEP_FRACTIONS[DEFAULT_STEP] * Limits.from_gait_file(crawl).vx
     received = probe.subscribe(Twist, '/cmd_vel', qos.COMMAND)
     # Our own tmux server (own socket, no user config), so nothing else of the user's is touched.
     tmux = ['tmux', '-L', f'replan-teleop-{os.getpid()}', '-f', '/dev/null']
