@@ -58,6 +58,16 @@ def _wrong_go1(tmp_path):
     return bad, f"robot file {bad}: legs.lf.joints[0]: no joint 'FL_hip_jont' in go1.urdf"
 
 
+def assert_refused_in_one_line(module: str, args: list, domain: int, out, expected: str) -> None:
+    """The tool exits 2 with the one line ``config error: expected`` and starts nothing."""
+    result, wall = _run_tool(module, args, domain, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    lines = (result.stdout + result.stderr).strip().splitlines()
+    assert lines == [f'config error: {expected}'], lines
+    assert not out.exists(), 'no run folder, no logs: nothing was started'
+    assert wall < 15.0
+
+
 @pytest.mark.parametrize('tool', ['launch', 'scenario'])
 @pytest.mark.parametrize('case', ['unknown_name', 'wrong_joint_name'])
 def test_a_wrong_robot_is_refused_in_one_line(tool, case, ros_domain, tmp_path):
@@ -78,12 +88,7 @@ def test_a_wrong_robot_is_refused_in_one_line(tool, case, ros_domain, tmp_path):
         scenario = tmp_path / 'walk.yaml'
         scenario.write_text(f'duration: 2\nrobot: {robot}\n')
         module, args = 'replan_experiments.scenario', [str(scenario), '--out', str(out)]
-    result, wall = _run_tool(module, args, ros_domain, timeout=60)
-    assert result.returncode == 2, result.stdout + result.stderr
-    lines = (result.stdout + result.stderr).strip().splitlines()
-    assert lines == [f'config error: {expected}'], lines
-    assert not out.exists(), 'no run folder, no logs: nothing was started'
-    assert wall < 15.0
+    assert_refused_in_one_line(module, args, ros_domain, out, expected)
 
 
 @pytest.mark.parametrize('tool', ['launch', 'scenario', 'scenario_event'])
@@ -101,12 +106,7 @@ def test_an_unknown_gait_is_refused_in_one_line(tool, ros_domain, tmp_path):
         scenario.write_text('duration: 2\n' + ('gait: pace\n' if tool == 'scenario' else
                                                'events:\n  - {t: 1.0, gait: pace}\n'))
         module, args = 'replan_experiments.scenario', [str(scenario), '--out', str(out)]
-    result, wall = _run_tool(module, args, ros_domain, timeout=60)
-    assert result.returncode == 2, result.stdout + result.stderr
-    lines = (result.stdout + result.stderr).strip().splitlines()
-    assert lines == [f'config error: {expected}'], lines
-    assert not out.exists(), 'no run folder, no logs: nothing was started'
-    assert wall < 15.0
+    assert_refused_in_one_line(module, args, ros_domain, out, expected)
 
 
 def test_scenario_refuses_terrain_set_in_two_places(ros_domain, tmp_path):

@@ -1,11 +1,10 @@
 """Gait files (gait/gait_file.py, config/gaits/)."""
 
 from dataclasses import fields
-from pathlib import Path
 
 import pytest
+from gait_config import CONFIG, LF, LH, RF, RH
 
-from replan_core.common.types import LEGS
 from replan_core.gait.crawl import GaitParams
 from replan_core.gait.gait_file import (
     GaitFileError,
@@ -14,9 +13,6 @@ from replan_core.gait.gait_file import (
     load_gait_file,
     parse_gait,
 )
-
-CONFIG = Path(__file__).resolve().parents[4] / 'config'
-LF, RF, LH, RH = (LEGS.index(n) for n in ('lf', 'rf', 'lh', 'rh'))
 
 
 def test_the_three_gaits_ship():

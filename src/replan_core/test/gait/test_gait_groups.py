@@ -4,12 +4,11 @@
 import math
 from dataclasses import replace
 from itertools import pairwise
-from pathlib import Path
 
 import numpy as np
 import pytest
+from gait_config import CONFIG, LF, LH, RF, RH
 
-from replan_core.common.types import LEGS
 from replan_core.gait.crawl import (
     CrawlSchedule,
     GaitParams,
@@ -19,8 +18,6 @@ from replan_core.gait.crawl import (
 )
 from replan_core.gait.gait_file import load_gait
 
-CONFIG = Path(__file__).resolve().parents[4] / 'config'
-LF, RF, LH, RH = (LEGS.index(n) for n in ('lf', 'rf', 'lh', 'rh'))
 FOOT_Z = 0.02
 
 

@@ -2,10 +2,10 @@
 initial plan, re-plan triggers, forced touchdowns, republished and lost ticks, a new run,
 idle stance and walking off, a foot still in the air, and set-point checks."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
+from gait_config import CONFIG
 
 from replan_core.common.types import BaseState, ContactState
 from replan_core.gait.crawl import GaitParams, is_stand_plan
@@ -288,7 +288,7 @@ def test_each_leg_remembers_the_setpoint_it_was_placed_for_and_when_it_changed()
 
 
 def test_a_trot_replans_at_the_second_touchdown_of_each_pair():
-    params = load_gait('trot', Path(__file__).resolve().parents[4] / 'config').params()
+    params = load_gait('trot', CONFIG).params()
     replanner = GaitReplanner(params, 0.5, 0.3, start_delay=1.0)
     replanner.tick(contacts(0.0))
     plan = plan_now(replanner)
@@ -324,8 +324,7 @@ def swing_contacts(plan):
 
 
 def test_a_gait_switch_waits_for_the_next_replan_and_starts_after_the_last_leg_down():
-    config = Path(__file__).resolve().parents[4] / 'config'
-    crawl, trot = load_gait('crawl', config).params(), load_gait('trot', config).params()
+    crawl, trot = load_gait('crawl', CONFIG).params(), load_gait('trot', CONFIG).params()
     replanner, logs, _ = make()
     replanner.tick(contacts(0.0))
     plan = plan_now(replanner)
@@ -360,8 +359,7 @@ def test_switching_to_the_gait_in_force_changes_nothing():
 
 
 def test_a_setpoint_is_clamped_to_the_widest_gait_of_the_run():
-    config = Path(__file__).resolve().parents[4] / 'config'
-    crawl, trot = load_gait('crawl', config).params(), load_gait('trot', config).params()
+    crawl, trot = load_gait('crawl', CONFIG).params(), load_gait('trot', CONFIG).params()
     v, text = check_setpoint([0.37, 0.0, 0.0], 10.0, [crawl])
     assert v[0] < 0.37 and 'clamped' in text
     v, text = check_setpoint([0.37, 0.0, 0.0], 10.0, [crawl, trot])
