@@ -1,7 +1,7 @@
-"""The crawl stays bit-exact across the gait generalisation (swing groups, line supports).
+"""The crawl plan is bit-exact: general gaits (swing groups, line supports) leave it as it was.
 
-The digests below were printed by this file's ``__main__`` on the code before the gaits
-became data (commit de40a8b): ``python src/replan_core/test/gait/test_crawl_unchanged.py``.
+The digests below are the crawl as it was when gaits were hard-coded. This file's ``__main__``
+prints them: ``python src/replan_core/test/gait/test_crawl_unchanged.py``.
 Each is the SHA-256 of every float and flag of a crawl's ``compute_footholds`` plan, its
 ``stance_phases`` and its MPC support schedule (rows and centres), over a fixed set of inputs.
 A changed digest means the crawl's footholds, phases or polygons changed in some bit.
