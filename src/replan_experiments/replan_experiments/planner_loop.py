@@ -19,7 +19,7 @@ touchdown does on the realistic robot; the strides are stretched for it as the g
 step timing would. ``--base-offset DX DY`` lays the footholds out about a base DX, DY m (body)
 behind the CoM, as on a robot whose CoM is not over the centre of its feet, and measures that
 base (velocities and the feet centre minus it). Used in docs/gait.md ("The way to a new speed
-takes cycles", "Switched on, then off again").
+takes cycles", "Why the CoM offset").
 """
 
 from __future__ import annotations

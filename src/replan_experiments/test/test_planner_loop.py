@@ -74,8 +74,8 @@ def test_a_turning_walk_is_measured_in_the_body_frame():
 def test_a_base_apart_from_the_com_crabs_in_an_in_place_turn():
     """The paper's MPC (position term off), footholds laid out about a base 3.9 cm behind and
     1.5 cm right of the CoM (HyQ's CoM over its base in the standing pose): turning in place,
-    the base crabs sideways over 1 cm/s on average (docs/gait.md, "Switched on, then off
-    again"); with the base at the CoM every cycle moves it under 1 cm/s."""
+    the base crabs sideways over 1 cm/s on average (docs/gait.md, "Why the CoM
+    offset"); with the base at the CoM every cycle moves it under 1 cm/s."""
     turn = [(0.5, np.array([0.0, 0.0, 0.2]))]
     paper = {'mpc': {'position_weight': 0.0, 'position_sway': 0.0}}
     at_com = cycle_velocities(walk('hyq', 'realistic', turn, 30.0, paper), 18.0)
