@@ -1,4 +1,4 @@
-"""Bit-exact runs (issue 28): one scenario run twice gives the same bytes on every topic of the
+"""Bit-exact runs: one scenario run twice gives the same bytes on every topic of the
 run's state and decisions, and both runs end at the scenario's duration, in both profiles.
 ``scripts/scenario.sh --repeat N`` is the check a user runs (docs/ARCHITECTURE.md, "Bit-exact
 runs"); the core's share (no result depends on where the heap put an array) is tested without

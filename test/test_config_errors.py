@@ -1,4 +1,4 @@
-"""Bad configuration stops the start (issue 15): the launcher and the scenario runner check
+"""Bad configuration stops the start: the launcher and the scenario runner check
 every parameter file before anything starts (exit 2, one line), a node started by hand with a
 bad value exits non-zero, read-only parameters refuse run-time changes, and a node that keeps
 dying stops the graph (exit 4)."""
@@ -73,7 +73,7 @@ def assert_refused_in_one_line(module: str, args: list, domain: int, out, expect
 def test_a_wrong_robot_is_refused_in_one_line(tool, case, ros_domain, tmp_path):
     """``--robot solo12`` (no such robot file) or a robot file whose names do not match its
     URDF:
-    one line, exit 2, nothing started (issue 30)."""
+    one line, exit 2, nothing started."""
     if case == 'unknown_name':
         robot, expected = 'solo12', ("unknown robot 'solo12' (known: a1, anymal_b, anymal_c, "
                                      'b1, go1, go2, hyq; or a robot file, docs/robot_files.md)')
@@ -170,8 +170,8 @@ def test_node_started_alone_with_a_misspelt_key_exits_non_zero(launcher, tmp_pat
 
 
 def test_recorder_started_alone_with_a_bad_regex_exits_non_zero(launcher, tmp_path):
-    """The recorder checks its parameters as every node does (until stop 25 it logged a bad
-    regex and recorded everything or nothing)."""
+    """The recorder checks its parameters as every node does: a bad regex must not leave it
+    recording everything or nothing."""
     bad = tmp_path / 'bad.yaml'
     bad.write_text("recorder:\n  ros__parameters:\n    exclude_regex: '^/(tf'\n")
     recorder = launcher.start('recorder_node', params_file=CONFIG_DIR / 'recorder.yaml',

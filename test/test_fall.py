@@ -1,7 +1,7 @@
 """A robot that falls (config/scenarios/knock_over.yaml: a push rolls it over while walking):
 the controller detects the fall from the trunk tilt, reports it (log, /diagnostics ERROR) and
 from then on only damps the joints, so the legs come to rest instead of swinging at their
-torque limits (they did until stop 25). Real nodes over DDS, checked on the bag."""
+torque limits. Real nodes over DDS, checked on the bag."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Faults while walking (issue 15): a killed node, a killed recorder, bad messages, bad files.
+"""Faults while walking: a killed node, a killed recorder, bad messages, bad files.
 
 One graph walks for the whole module (the realistic profile, 0.1 m/s from a stamped set-point;
 sim, gait, mpc, wbc and the recorder as real processes started like the launcher does, without

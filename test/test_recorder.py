@@ -1,4 +1,4 @@
-"""Recorder node and replay tool, as real processes (issue 8).
+"""Recorder node and replay tool, as real processes.
 
 The bags are read back with the ``mcap`` library's reader and ``mcap_ros2``'s CDR decoder, which
 parses the schema text the recorder wrote: a message that decodes to the published values proves
@@ -350,7 +350,7 @@ events:
 
 def test_rerun_of_a_recorded_walk_is_bit_identical(ros_domain, tmp_path):
     """A bag re-run gives the same run: 0 m, every message of the run's state and decisions
-    the same bytes, the same last tick (issue 28)."""
+    the same bytes, the same last tick."""
     env = graph_env(ros_domain)
     scenario = tmp_path / 'walk.yaml'
     scenario.write_text(WALK)

@@ -62,7 +62,7 @@ def test_forward_crawl_keeps_the_commanded_speed(ros_domain, tmp_path):
     assert travelled == pytest.approx(0.15 * 20.0, rel=0.10), metrics['velocity_tracking']
     vx, vy, _ = segment(metrics, 1.0)['achieved']
     assert vx == pytest.approx(0.15, rel=0.10) and abs(vy) < 0.02
-    # Issue 31's target: the steady state (after the first cycle) within 3 % of the set-point
+    # Target: the steady state (after the first cycle) within 3 % of the set-point
     # and sideways drift under 3 % of the speed, the body velocity integrated on the truth.
     steady = achieved_velocity(times, positions, yaws, 5.0, 22.0)
     assert steady[0] == pytest.approx(0.15, rel=0.03), steady
