@@ -510,3 +510,18 @@ def test_plan_follower_swings_both_legs_of_a_pair():
     _, _, stance, swing = follower.references(5.25)
     assert stance.tolist() == [False, True, True, False]
     assert sorted(s.leg for s in swing) == [0, 3]
+
+
+def test_the_tick_bench_tells_an_identical_tick_from_a_changed_one():
+    """``tick_bench --against``: the same closed-loop ticks give the same bytes, and a
+    recording one bit off is found at its tick."""
+    from replan_core.bench.tick_bench import first_difference, run
+    from replan_core.robot.robot_file import default_urdf
+
+    _, first = run(default_urdf(), ticks=60)
+    _, second = run(default_urdf(), ticks=60)
+    assert first_difference(second, first) is None
+    changed = first.copy()
+    changed[42, 3] = np.nextafter(changed[42, 3], np.inf)
+    assert first_difference(second, changed) == 42
+    assert first_difference(second, first[:50]) == 50
