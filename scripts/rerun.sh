@@ -8,4 +8,4 @@
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
-exec python -m replan_ros.tools.rerun "$@"
+exec python -m replan_ros.tools.reproduce "$@"

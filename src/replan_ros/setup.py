@@ -49,7 +49,7 @@ setup(
             'wbc_node = replan_ros.nodes.wbc_node:main',
             'recorder_node = replan_ros.nodes.recorder_node:main',
             'replay = replan_ros.tools.replay:main',
-            'rerun = replan_ros.tools.rerun:main',
+            'rerun = replan_ros.tools.reproduce:main',
             'cmd_vel = replan_ros.tools.cmd_vel:main',
             'push = replan_ros.tools.push:main',
             'topic = replan_ros.tools.topic:main',

@@ -71,7 +71,7 @@ from replan_ros.launch.watch import ScheduledInputs
 from replan_ros.messages.stamps import sec_to_ns, sec_to_stamp, stamp_to_sec
 from replan_ros.messages.wrench import wrench_to_msg
 from replan_ros.params import ConfigError, Source, load_param_file
-from replan_ros.tools.rerun import (
+from replan_ros.tools.reproduce import (
     RerunError,
     compare_messages,
     compare_trajectories,
@@ -344,8 +344,8 @@ def main(argv=None) -> int:
     parser.add_argument('--repeat', type=int, metavar='N', default=1,
                         help='run it N times (OUT/run-1 ... run-N) and compare every run with '
                              'the first: base trajectory and every message of the run\'s state '
-                             'and decisions, byte for byte (rerun.EXACT_TOPICS); exit 0 only if '
-                             'all are bit-identical')
+                             'and decisions, byte for byte (reproduce.EXACT_TOPICS); exit 0 only '
+                             'if all are bit-identical')
     add_robot_option(parser, default=None)
     add_gait_option(parser, default=None)
     add_live_option(parser)
@@ -397,7 +397,7 @@ def main(argv=None) -> int:
 
 def compare_repeats(name: str, outs: list[Path], log=print) -> bool:
     """Compare every run of ``outs`` with the first (base trajectory, every message of
-    ``rerun.EXACT_TOPICS``, the last stamp); True if all are bit-identical."""
+    ``reproduce.EXACT_TOPICS``, the last stamp); True if all are bit-identical."""
     try:
         bags = [find_bag(run_out / 'bag') for run_out in outs]
         first = load_run(bags[0]).odom

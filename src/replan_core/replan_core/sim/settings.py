@@ -1,11 +1,12 @@
-"""The simulated world's settings: the terrains and their default sizes, the joint actuators
-(``ActuatorParams``) and the realistic profile's values. Numpy-free, so that the ROS parameter
-tables read them without loading PyBullet."""
+"""The simulated world's settings: the terrains and their default sizes (``TerrainSettings``),
+the joint actuators (``ActuatorParams``), the world as a whole (``WorldSettings``:
+``SimWorld.from_settings`` builds it) and the realistic profile's values. Numpy-free, so that the
+ROS parameter tables read them without loading PyBullet."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 TERRAINS = ('flat', 'step_down', 'step_up', 'rough')
 TERRAIN_DEFAULTS = {
@@ -41,6 +42,50 @@ class ActuatorParams:
             raise ValueError(f'actuator parameters must be finite and >= 0: {self}')
         if not (math.isfinite(self.torque_limit_scale) and self.torque_limit_scale > 0.0):
             raise ValueError(f'torque_limit_scale must be > 0, got {self.torque_limit_scale}')
+
+
+@dataclass(frozen=True)
+class TerrainSettings:
+    """The ground: its type (one of ``TERRAINS``) and sizes (m; each type reads its own)."""
+
+    kind: str = 'flat'
+    step_x: float = TERRAIN_DEFAULTS['step_x']
+    step_height: float = TERRAIN_DEFAULTS['step_height']
+    step_length: float = TERRAIN_DEFAULTS['step_length']
+    width: float = TERRAIN_DEFAULTS['width']
+    rough_start_x: float = TERRAIN_DEFAULTS['rough_start_x']
+    rough_length: float = TERRAIN_DEFAULTS['rough_length']
+    rough_amplitude: float = TERRAIN_DEFAULTS['rough_amplitude']
+    rough_resolution: float = TERRAIN_DEFAULTS['rough_resolution']
+
+    def __post_init__(self) -> None:
+        if self.kind not in TERRAINS:
+            raise ValueError(f'terrain must be one of {TERRAINS}, got {self.kind!r}')
+
+    def sizes(self) -> dict[str, float]:
+        """The sizes by their ``TERRAIN_DEFAULTS`` names."""
+        return {name: getattr(self, name) for name in TERRAIN_DEFAULTS}
+
+
+@dataclass(frozen=True)
+class WorldSettings:
+    """The simulated world but for the robot's model and names: time steps, spawn pose,
+    ground, contacts, actuators (``SimWorld.from_settings``; the sim node fills it from its
+    parameters). The defaults are the ideal world's."""
+
+    physics_dt: float = 0.001            # s
+    control_period: float = 0.004        # s, a multiple of physics_dt
+    initial_joint_positions: tuple[float, ...] = ()   # rad, JOINT_NAMES order; (): HyQ's pose
+    initial_base_height: float = 0.0     # m, base_link z; 0: feet just touching the ground
+    terrain: TerrainSettings = field(default_factory=TerrainSettings)
+    seed: int = 0                        # of the rough terrain's heights
+    friction: float = 0.8                # foot/ground Coulomb friction coefficient
+    contact_stiffness: float = 0.0       # N/m, of the foot contacts; 0: rigid
+    contact_damping: float = 0.0         # N s/m, with a contact_stiffness
+    contact_threshold: float = 30.0      # N, normal force for contact
+    debounce_ticks: int = 2              # ticks above/below the threshold
+    actuator: ActuatorParams = field(default_factory=ActuatorParams)
+    gui: bool = False                    # open PyBullet's GUI
 
 
 # Suggested values for HyQ (the defaults above are ideal):

@@ -42,7 +42,7 @@ from replan_core.common.types import (
     ContactState,
     JointState,
 )
-from replan_core.sim.settings import TERRAIN_DEFAULTS, TERRAINS, ActuatorParams
+from replan_core.sim.settings import TERRAIN_DEFAULTS, TERRAINS, ActuatorParams, WorldSettings
 from replan_core.sim.urdf_merge import simulator_model
 
 GRAVITY = 9.81                    # m/s^2
@@ -254,6 +254,27 @@ class SimWorld:
         self._begun: int | None = None     # lead steps run by begin_step, None: not begun
         self._force_sum = np.zeros((4, 3))  # foot forces summed over the period's steps, N
         self._normal_sum = np.zeros(4)
+
+    @classmethod
+    def from_settings(cls, urdf_path: str, settings: WorldSettings, *,
+                      joint_names: tuple[str, ...] = JOINT_NAMES,
+                      foot_frames: tuple[str, ...] = FOOT_FRAMES,
+                      foot_offset: np.ndarray | None = None,
+                      foot_radius: float | None = None) -> SimWorld:
+        """The world of ``settings`` around the model at ``urdf_path``; the model's names and
+        foot contact as for the constructor (a robot file's)."""
+        pose = settings.initial_joint_positions
+        return cls(
+            urdf_path, physics_dt=settings.physics_dt, control_period=settings.control_period,
+            initial_joint_positions=np.array(pose, dtype=float) if pose else None,
+            initial_base_height=settings.initial_base_height or None,
+            terrain=settings.terrain.kind, terrain_params=settings.terrain.sizes(),
+            contact_threshold=settings.contact_threshold,
+            debounce_ticks=settings.debounce_ticks, friction=settings.friction,
+            gui=settings.gui, seed=settings.seed, actuator=settings.actuator,
+            contact_stiffness=settings.contact_stiffness,
+            contact_damping=settings.contact_damping, joint_names=joint_names,
+            foot_frames=foot_frames, foot_offset=foot_offset, foot_radius=foot_radius)
 
     # ------------------------------------------------------------------ properties
     @property

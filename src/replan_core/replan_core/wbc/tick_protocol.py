@@ -17,12 +17,21 @@ One tick, as the node drives it::
 A held tick is answered when its plans arrive (``add_footholds`` / ``add_com_plan`` return its
 stamp) or when the caller's timer fires (``wait_timed_out`` returns it); then ``control`` and
 ``answered`` as above.
+
+Two smaller objects keep the rest of the controller side's state, so that the node keeps none:
+``PlanWait`` says, after each call that may hold or release a tick, which one-shot wall-clock
+timer to cancel and which to arm (``plan_timeout``, ``first_plan_timeout``), and how long the
+wait lasted, from times the caller passes in; ``AnsweredTicks`` keeps the estimate published
+for each tick and the commands answered, so that a tick the sim publishes again gets the same
+estimate and command again.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -41,6 +50,9 @@ from replan_core.wbc.settings import ProtocolParams
 
 _NS = 1_000_000_000
 KEEP_PLANS = 8          # plans kept per topic, by stamp (a few re-plans ahead of the ticks)
+# Answered commands kept: the sim republishes only its current tick, so a few cover a command
+# lost on the way while the controller has already answered the next ones.
+KEEP_COMMANDS = 8
 
 # log(level, text): level is 'info', 'warning', 'error' or 'warning_throttled' (a message that
 # may repeat every tick: the caller rate-limits it).
@@ -374,3 +386,105 @@ class ControllerProtocol:
                  f'{math.degrees(p.fall_tilt):.0f} deg): joints damped '
                  f'({p.fall_damping:g} N m s/rad), plans ignored; restart the wbc once the '
                  'robot is upright')
+
+
+@dataclass(frozen=True)
+class WaitChange:
+    """What ``PlanWait.sync`` found: a wait that ended and a timer to arm (either may be
+    absent)."""
+
+    ended: int | None = None      # ns, the held tick whose wait ended; cancel its timer
+    ended_first: bool = False     # that wait was the first tick's (for the planners' start)
+    waited_ns: int = 0            # the ended wait's length on the caller's clock
+    arm: float | None = None      # wall s: arm a one-shot timer for the tick held now
+
+
+class PlanWait:
+    """The wall-clock timeout of the tick ``protocol`` holds for its plans, as state: after
+    every call that may hold or release a tick (``on_tick``, ``add_footholds``,
+    ``add_com_plan``, ``wait_timed_out``) the caller asks ``sync``, cancels the timer of a
+    wait that ended and arms one of ``arm`` s for a new wait; when that timer fires it calls
+    ``timed_out``. Times (``now_ns``) are the caller's monotonic clock; none is read here."""
+
+    def __init__(self, protocol: ControllerProtocol, plan_timeout: float,
+                 first_plan_timeout: float) -> None:
+        self.protocol = protocol
+        self.plan_timeout = plan_timeout              # wall s; may change at run time
+        self.first_plan_timeout = first_plan_timeout  # wall s, the first tick's wait
+        self.stamp: int | None = None   # ns, the held tick a timer is armed for
+        self.first = False              # ... and whether it is the first tick
+        self._since_ns = 0              # the caller's clock when that wait began
+
+    @property
+    def timeout(self) -> float:
+        """Wall s the current wait may last (the first tick's, or a re-plan's)."""
+        return self.first_plan_timeout if self.first else self.plan_timeout
+
+    def sync(self, now_ns: int) -> WaitChange | None:
+        """Follow the protocol's held tick at ``now_ns``: None if it is the one the timer is
+        armed for (or there is none and no timer), else what ended and what to arm."""
+        held = self.protocol.waiting
+        if held == self.stamp:
+            return None
+        ended, ended_first, waited = None, False, 0
+        if self.stamp is not None:     # answered, timed out, or the sim moved on
+            ended, ended_first, waited = self.stamp, self.first, now_ns - self._since_ns
+            self.stamp = None
+        arm = None
+        if held is not None:
+            self.stamp, self.first, self._since_ns = held, self.protocol.waiting_first, now_ns
+            arm = self.timeout
+        return WaitChange(ended, ended_first, waited, arm)
+
+    def timed_out(self) -> int | None:
+        """The armed timer fired: the protocol goes on without the held tick's plans
+        (``ControllerProtocol.wait_timed_out``); the stamp to answer now, or None. ``sync``
+        then reports the wait as ended."""
+        return self.protocol.wait_timed_out(self.timeout)
+
+
+class AnsweredTicks:
+    """What the controller said for each tick, for the sim's republish of one: the estimate
+    published (and the tick's state, until the tick or a later one is answered) and the last
+    ``keep`` commands. The payloads are the caller's (e.g. serialized messages)."""
+
+    def __init__(self, keep: int = KEEP_COMMANDS) -> None:
+        self.keep = keep
+        self.last_estimated: int | None = None   # ns
+        self._states: dict[int, Any] = {}
+        self._estimates: dict[int, Any] = {}
+        self._commands: dict[int, Any] = {}
+
+    def estimate(self, stamp: int) -> Any | None:
+        """The estimate published for tick ``stamp`` (ns), if it is still kept."""
+        return self._estimates.get(stamp)
+
+    def is_new(self, stamp: int) -> bool:
+        """Tick ``stamp`` is later than every tick estimated so far."""
+        return self.last_estimated is None or stamp > self.last_estimated
+
+    def estimated(self, stamp: int, state: Any, estimate: Any) -> None:
+        """Tick ``stamp`` was estimated: its ``state`` (for the protocol) and the
+        ``estimate`` published."""
+        self.last_estimated = stamp
+        self._estimates[stamp] = estimate
+        self._states[stamp] = state
+
+    def state(self, stamp: int) -> Any:
+        """The state of an estimated tick that is not older than the last answered one."""
+        return self._states[stamp]
+
+    def command(self, stamp: int) -> Any | None:
+        """The command answering tick ``stamp``, if it is still kept."""
+        return self._commands.get(stamp)
+
+    def answered(self, stamp: int, command: Any) -> None:
+        """Tick ``stamp`` was answered with ``command``: keep it; older ticks can no longer be
+        answered, so their states and estimates go."""
+        commands = self._commands
+        commands[stamp] = command
+        while len(commands) > self.keep:
+            del commands[min(commands)]
+        for buffer in (self._states, self._estimates):
+            for old in [s for s in buffer if s < stamp]:
+                del buffer[old]

@@ -9,7 +9,12 @@ import pytest
 
 from replan_core.common.types import FOOT_FRAMES, JOINT_NAMES
 from replan_core.robot.model import joint_id, link_frame_id
-from replan_core.sim.settings import ActuatorParams
+from replan_core.sim.settings import (
+    TERRAIN_DEFAULTS,
+    ActuatorParams,
+    TerrainSettings,
+    WorldSettings,
+)
 from replan_core.sim.world import STANDING_POSE, SimWorld
 
 URDF = os.environ.get(
@@ -546,6 +551,48 @@ def test_begin_and_finish_step_are_exactly_step(world_factory, actuator):
         assert not split.begun
         np.testing.assert_array_equal(_world_vector(split), _world_vector(whole))
     assert split.tick == whole.tick == 150
+
+
+def test_from_settings_builds_the_world_of_the_keywords(world_factory):
+    # The sim node builds its world from WorldSettings: the same world, bit for bit, as the
+    # constructor's keywords, spawn pose, terrain, contacts and actuators included.
+    pose = STANDING_POSE + 0.05
+    actuator = ActuatorParams(time_constant=0.003, delay=0.002, coulomb_friction=1.0)
+    settings = WorldSettings(
+        physics_dt=0.0005, control_period=0.004, initial_joint_positions=tuple(pose),
+        initial_base_height=0.7, terrain=TerrainSettings(kind='step_up', step_x=0.3,
+                                                         step_height=0.05),
+        seed=3, friction=0.6, contact_stiffness=1.0e5, contact_damping=600.0,
+        contact_threshold=25.0, debounce_ticks=3, actuator=actuator)
+    built = SimWorld.from_settings(URDF, settings, joint_names=JOINT_NAMES,
+                                   foot_frames=FOOT_FRAMES)
+    keywords = world_factory(
+        physics_dt=0.0005, control_period=0.004, initial_joint_positions=pose,
+        initial_base_height=0.7, terrain='step_up',
+        terrain_params={'step_x': 0.3, 'step_height': 0.05}, seed=3, friction=0.6,
+        contact_stiffness=1.0e5, contact_damping=600.0, contact_threshold=25.0,
+        debounce_ticks=3, actuator=actuator)
+    try:
+        assert built.actuator == actuator and built.control_period == 0.004
+        torques = np.random.default_rng(5).normal(0.0, 20.0, (60, 12))
+        for tau in torques:
+            built.step(tau)
+            keywords.step(tau)
+        np.testing.assert_array_equal(_world_vector(built), _world_vector(keywords))
+    finally:
+        built.close()
+
+
+def test_default_settings_are_the_constructors_defaults(world_factory):
+    built = SimWorld.from_settings(URDF, WorldSettings())
+    try:
+        np.testing.assert_array_equal(_world_vector(built), _world_vector(world_factory()))
+        assert built.actuator == ActuatorParams() and built.control_period == 0.004
+    finally:
+        built.close()
+    assert TerrainSettings().sizes() == TERRAIN_DEFAULTS
+    with pytest.raises(ValueError, match='terrain must be one of'):
+        TerrainSettings(kind='ice')
 
 
 def test_finish_step_rejects_bad_torques_and_goes_on(world_factory):

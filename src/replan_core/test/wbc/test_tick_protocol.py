@@ -1,6 +1,8 @@
 """The controller's per-tick protocol (tick_protocol.ControllerProtocol), with fixed stamps
 and the real controller: every decision the graph tests see through processes (first plans,
-re-plan waits, plan latency, missed re-plans, stale gaps, old plans, stand, stand-up, fall)."""
+re-plan waits, plan latency, missed re-plans, stale gaps, old plans, stand, stand-up, fall);
+the wait's timer (PlanWait) with fixed times, and the answers kept for a republished tick
+(AnsweredTicks)."""
 
 import math
 
@@ -19,7 +21,14 @@ from replan_core.common.types import (
 from replan_core.robot.model import RobotModel
 from replan_core.wbc.controller import WholeBodyController
 from replan_core.wbc.settings import ProtocolParams
-from replan_core.wbc.tick_protocol import KEEP_PLANS, ControllerProtocol
+from replan_core.wbc.tick_protocol import (
+    KEEP_COMMANDS,
+    KEEP_PLANS,
+    AnsweredTicks,
+    ControllerProtocol,
+    PlanWait,
+    WaitChange,
+)
 
 NS = 1_000_000_000
 TICK = 4_000_000                  # ns, 250 Hz
@@ -364,3 +373,77 @@ def test_a_plan_latency_longer_than_the_four_feet_phase_is_reported(wbc, robot):
     assert protocol.plan_stamp == trigger
     assert ('warning_throttled', 'plan latency 0.012 s is longer than the four-feet phase: the '
             f'first swing of the plan stamped {trigger / NS:.3f} s starts late') in logs
+
+
+def test_the_first_wait_arms_first_plan_timeout_and_its_end_is_timed(wbc, robot):
+    protocol, _ = make_protocol(wbc)
+    wait = PlanWait(protocol, plan_timeout=2.0, first_plan_timeout=30.0)
+    assert wait.sync(now_ns=50) is None                   # nothing held, no timer
+    assert not protocol.on_tick(*robot.tick(0))
+    assert wait.sync(now_ns=100) == WaitChange(arm=30.0)
+    assert wait.stamp == 0 and wait.first and wait.timeout == 30.0
+    assert not protocol.on_tick(*robot.tick(0))           # the republish: the same timer
+    assert wait.sync(now_ns=200) is None
+    assert add_pair(protocol, robot, 0) == 0
+    assert wait.sync(now_ns=1_100) == WaitChange(ended=0, ended_first=True, waited_ns=1_000)
+    assert wait.stamp is None and wait.sync(now_ns=1_200) is None
+
+
+def test_a_replan_wait_arms_plan_timeout_as_it_stands_when_the_wait_begins(wbc, robot):
+    protocol, logs = make_protocol(wbc)
+    wait = PlanWait(protocol, plan_timeout=2.0, first_plan_timeout=30.0)
+    add_pair(protocol, robot, 0, steps=2)
+    wait.plan_timeout = 1.5                               # a run-time parameter change
+    held = walk_until_replan(protocol, robot, 0)
+    assert wait.sync(now_ns=7_000) == WaitChange(arm=1.5)
+    assert not wait.first
+    # The timer fires: the protocol goes on with the old plans, and the wait has ended.
+    assert wait.timed_out() == held
+    assert any('not there after 1.5 s' in text for _, text in logs)
+    assert wait.sync(now_ns=9_000) == WaitChange(ended=held, waited_ns=2_000)
+    assert wait.timed_out() is None                       # a late timer: nothing held
+    answer(protocol, held)
+
+
+def test_a_wait_the_sim_moves_on_from_ends_and_a_new_one_is_armed_at_once(wbc, robot):
+    protocol, _ = make_protocol(wbc)
+    wait = PlanWait(protocol, plan_timeout=2.0, first_plan_timeout=30.0)
+    assert not protocol.on_tick(*robot.tick(0))
+    wait.sync(now_ns=0)
+    add_pair(protocol, robot, 0, steps=2)
+    wait.sync(now_ns=10)
+    answer(protocol, 0)
+    held = walk_until_replan(protocol, robot, TICK)
+    assert wait.sync(now_ns=20) == WaitChange(arm=2.0)
+    # The sim free-ran past the held tick: that wait ends; the new tick is not held.
+    assert protocol.on_tick(*robot.tick(held + 10 * TICK))
+    assert wait.sync(now_ns=50) == WaitChange(ended=held, waited_ns=30)
+
+
+def test_answered_ticks_keep_the_estimates_until_answered_and_the_last_commands():
+    ticks = AnsweredTicks()
+    assert ticks.is_new(0) and ticks.estimate(0) is None and ticks.command(0) is None
+    for k in range(3):
+        ticks.estimated(k * TICK, ('state', k), ('estimate', k))
+    assert ticks.last_estimated == 2 * TICK
+    assert not ticks.is_new(2 * TICK) and not ticks.is_new(TICK) and ticks.is_new(3 * TICK)
+    assert ticks.estimate(TICK) == ('estimate', 1) and ticks.state(TICK) == ('state', 1)
+    ticks.answered(TICK, b'command 1')
+    # The republish of an answered tick: the same estimate and command again.
+    assert ticks.estimate(TICK) == ('estimate', 1) and ticks.command(TICK) == b'command 1'
+    assert ticks.state(2 * TICK) == ('state', 2)          # estimated, not answered yet
+    assert ticks.estimate(0) is None                      # older: never answered again
+    with pytest.raises(KeyError):
+        ticks.state(0)
+
+
+def test_answered_ticks_keep_the_newest_commands():
+    ticks = AnsweredTicks()
+    for k in range(KEEP_COMMANDS + 3):
+        ticks.estimated(k * TICK, k, k)
+        ticks.answered(k * TICK, k)
+    assert [k for k in range(KEEP_COMMANDS + 3) if ticks.command(k * TICK) is not None] == \
+        list(range(3, KEEP_COMMANDS + 3))
+    # Only the last answered tick's estimate is left for a republish.
+    assert [k for k in range(KEEP_COMMANDS + 3) if ticks.estimate(k * TICK) is not None] == \
+        [KEEP_COMMANDS + 2]

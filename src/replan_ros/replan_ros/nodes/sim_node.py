@@ -53,10 +53,10 @@ from replan_ros.nodes.node_main import (
 )
 from replan_ros.nodes.sim_outputs import TickOutputs
 from replan_ros.params import (
-    actuator_params,
     declare_node_parameters,
     imu_noise_params,
     joint_sensor_params,
+    world_settings,
 )
 from replan_ros.params.robot import project_root
 from replan_ros.telemetry import diagnostics
@@ -80,34 +80,17 @@ class SimNode(Node):
         p = declare_node_parameters(self, 'sim', on_change=self._on_parameter_change)
         # The robot file's model; its names map to the project's (topics keep those).
         robot = load_node_robot(self, p, default_urdf(project_root()))
-        urdf = robot.urdf
-        terrain_params = {
-            'step_x': p['terrain_step_x'], 'step_height': p['terrain_step_height'],
-            'step_length': p['terrain_step_length'], 'width': p['terrain_width'],
-            'rough_start_x': p['terrain_rough_start_x'],
-            'rough_length': p['terrain_rough_length'],
-            'rough_amplitude': p['terrain_rough_amplitude'],
-            'rough_resolution': p['terrain_rough_resolution']}
-        # 12 values within [-pi, pi] rad (params.SIM)
-        standing = np.array(p['standing_joint_positions'], dtype=float)
-        model_urdf = urdf
-        actuator = actuator_params(p)
+        urdf = model_urdf = robot.urdf
+        # Time steps, spawn pose, terrain, contacts and actuators (params.world_settings).
+        settings = world_settings(p)
         try:
             # The simulated robot: the model, or a copy with a payload and leg mass errors.
             urdf = perturbed_urdf(urdf, payload_mass=p['payload_mass'],
                                   payload_offset=np.array(p['payload_offset'], dtype=float),
                                   leg_mass_error=p['leg_mass_error'], seed=p['noise_seed'],
                                   base_link=robot.root_link)
-            self.world = SimWorld(
-                urdf, physics_dt=p['physics_dt'], control_period=p['control_period'],
-                actuator=actuator, contact_stiffness=p['contact_stiffness'],
-                contact_damping=p['contact_damping'],
-                initial_joint_positions=standing,
-                initial_base_height=p['initial_base_height'] or None,
-                terrain=p['terrain'], terrain_params=terrain_params,
-                contact_threshold=p['contact_threshold'], debounce_ticks=p['debounce_ticks'],
-                friction=p['friction'], gui=p['gui'], seed=p['seed'],
-                joint_names=robot.joints, foot_frames=robot.feet,
+            self.world = SimWorld.from_settings(
+                urdf, settings, joint_names=robot.joints, foot_frames=robot.feet,
                 **robot.foot_contact())
         except Exception as err:   # a missing or malformed URDF (PyBullet, XML, OS errors)
             self.get_logger().fatal(f'cannot load the URDF {urdf!r} ({err}): exiting')

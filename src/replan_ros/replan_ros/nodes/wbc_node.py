@@ -8,9 +8,11 @@ the state estimator (`replan_core.estimation.estimator`) once per tick, lets the
 stamped with the tick and publishes the estimate (`odom`, `contacts`, `contact_events`) while
 the sim steps. A republished tick gets the same estimate and command again. A tick the protocol
 holds for its plans is answered from the plan callbacks, or by a one-shot wall-clock timer
-(`plan_timeout`). After a command, the next `joint_states` are taken straight from their DDS
-queue (`transport.direct_take`) until a tick waits. Every answered tick is timed by phase
-(`telemetry.tick_budget`; docs/ARCHITECTURE.md, "Per-tick budget").
+armed and cancelled as the protocol's ``PlanWait`` says (`plan_timeout`); the estimates and
+commands a republished tick gets again are the protocol's ``AnsweredTicks``. After a command,
+the next `joint_states` are taken straight from their DDS queue (`transport.direct_take`) until
+a tick waits. Every answered tick is timed by phase (`telemetry.tick_budget.PhaseTimer`;
+docs/ARCHITECTURE.md, "Per-tick budget").
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from replan_core.estimation.estimator import StateEstimator
 from replan_core.robot.model import RobotModel
 from replan_core.robot.robot_file import default_urdf
 from replan_core.wbc.controller import WholeBodyController
-from replan_core.wbc.tick_protocol import ControllerProtocol
+from replan_core.wbc.tick_protocol import AnsweredTicks, ControllerProtocol, PlanWait
 from replan_ros.messages.com_plan import com_plan_from_cdr
 from replan_ros.messages.contacts import encode_contact_events
 from replan_ros.messages.footholds import footholds_from_msg
@@ -45,7 +47,7 @@ from replan_ros.params import (
 )
 from replan_ros.params.robot import project_root
 from replan_ros.telemetry import diagnostics
-from replan_ros.telemetry.tick_budget import WBC_PHASES, TickBudget
+from replan_ros.telemetry.tick_budget import WBC_PHASES, PhaseTimer, TickBudget
 from replan_ros.telemetry.wbc_status import ControllerStats
 from replan_ros.transport.direct_take import DirectTake
 from replan_ros.transport.listeners import ListenersGate
@@ -62,7 +64,6 @@ from replan_ros.transport.qos import (
 from replan_ros.transport.stamped_buffer import cdr_header_stamp_ns
 
 _NS = 1_000_000_000
-_KEEP_COMMANDS = 8       # answered commands kept for duplicates of their stamp
 _STATE_WAIT = 0.01       # wall s to wait for the imu / ground truth of a joint_states tick
 
 
@@ -73,8 +74,6 @@ class WbcNode(Node):
         super().__init__('wbc')
         # The parameters and their ranges: params.WBC, estimator.<field> included.
         p = declare_node_parameters(self, 'wbc', on_change=self._on_parameter_change)
-        self.plan_timeout = float(p['plan_timeout'])
-        self.first_plan_timeout = float(p['first_plan_timeout'])
         self.state_estimation = bool(p['state_estimation'])
         self.contact_estimation = bool(p['contact_estimation'])
         # The first command lets the sim move: only once these nodes listen to the estimate.
@@ -95,6 +94,10 @@ class WbcNode(Node):
         # The decisions of every tick (plans, waits, stand, stand-up, fall).
         self.protocol = ControllerProtocol(self.wbc, protocol_params(p),
                                            p['standing_joint_positions'], log=self._log)
+        # The wall-clock timeout of a held tick: which ROS timer to arm or cancel.
+        self.plan_wait = PlanWait(self.protocol, float(p['plan_timeout']),
+                                  float(p['first_plan_timeout']))
+        self._wait_timer = None
         self.period_ns = self.protocol.period_ns
         self.estimator: StateEstimator | None = None
         if self.state_estimation or self.contact_estimation:
@@ -107,23 +110,14 @@ class WbcNode(Node):
                                         f'{p["control_rate"]} Hz)')
                 raise SystemExit(2) from None
 
-        # Each processed tick: stamp (ns) -> (base, joints, contacts), and the (odom, contacts)
-        # messages published for it.
-        self._states: dict[int, tuple] = {}
-        self._state_msgs: dict[int, tuple] = {}
-        self._last_estimated: int | None = None
-        self._commands: dict[int, bytes] = {}    # serialized
-        # The wall-clock timeout of the tick the protocol holds for its plans.
-        self._wait_timer = None
-        self._timer_stamp: int | None = None       # the held tick the timer is for
-        self._timer_first = False                  # it is the first tick
+        # Each estimated tick's (base, joints, contacts) and (odom, contacts) messages, and the
+        # serialized commands answered.
+        self.ticks = AnsweredTicks()
         self._wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.stats = ControllerStats()         # /diagnostics figures over a period
         self.budget = TickBudget(WBC_PHASES)
+        self.timing = PhaseTimer(self.budget)
         self._unpublished: tuple | None = None   # (odom, contacts, events) not yet published
-        self._wait_started_ns = 0          # perf_counter_ns when a tick began to wait for plans
-        self._budget_tick: int | None = None   # the stamp whose phases the budget gathers
-        self._logic_start_ns: int | None = None  # perf_counter_ns the current phase began
 
         self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND_PUB,
                                              event_callbacks=INTERNAL_PUB_EVENTS)
@@ -159,12 +153,13 @@ class WbcNode(Node):
         sources = f'base state from {base_source}, contacts from {contact_source}'
         self.get_logger().info(
             f'wbc ready: {urdf}, mass {self.robot.total_mass:.2f} kg, {sources}, plan latency '
-            f'{self.protocol.latency_ns / _NS:.3f} s, plan_timeout {self.plan_timeout} s')
+            f'{self.protocol.latency_ns / _NS:.3f} s, plan_timeout '
+            f'{self.plan_wait.plan_timeout} s')
 
     def _on_parameter_change(self, name: str, value) -> None:
         """A run-time change of one of the writable parameters (params.WBC)."""
         if name == 'plan_timeout':
-            self.plan_timeout = float(value)
+            self.plan_wait.plan_timeout = float(value)
 
     def _warn(self, text: str) -> None:
         self.get_logger().warning(text, throttle_duration_sec=2.0)
@@ -179,53 +174,48 @@ class WbcNode(Node):
     # ------------------------------------------------------------------------------ inputs
     def _on_joint_states(self, data: bytes, info: dict) -> None:
         """A serialized ``joint_states`` (subscribed raw: messages.joint_state decodes it)."""
-        clock = time.perf_counter_ns
-        t0 = clock()
+        timing = self.timing
+        timing.mark()
         wall0 = time.time_ns()
         stamp = cdr_header_stamp_ns(data)
         if stamp is None:
             self._warn('rejected joint_states: too short for a header')
             return
-        if stamp in self._state_msgs:
+        estimate = self.ticks.estimate(stamp)
+        if estimate is not None:
             # The sim republished a tick we have estimated: the same state and command again
             # (a lost odom, contacts or command heals; the estimator never runs twice).
-            odom_msg, contacts_msg = self._state_msgs[stamp]
+            odom_msg, contacts_msg = estimate
             self.odom_pub.publish(odom_msg)
             self.contacts_pub.publish(contacts_msg)
             self._on_state(stamp)
             return
-        if self._last_estimated is not None and stamp <= self._last_estimated:
+        if not self.ticks.is_new(stamp):
             return                                   # an old stamp: nothing to answer
-        budget = self.budget
-        budget.discard_tick()                        # a tick never answered is not counted
-        self._budget_tick = stamp
-        budget.add_delivery(info, wall0, 'wbc_transport_in', 'wbc_wake')
+        timing.open(stamp)
+        self.budget.add_delivery(info, wall0, 'wbc_transport_in', 'wbc_wake')
         decoded = self.inputs.decoded(joint_state_from_cdr, data, 'joint_states')
         if decoded is None:
             return
         joints = decoded[1]
-        t1 = clock()
+        timing.lap('wbc_decode')
         # The tick's other samples were published before joint_states; should one have been
         # lost (best effort), the sim's republish of the tick brings it again.
         complete = self.inputs.take(stamp, timeout=_STATE_WAIT)
-        t2 = clock()
-        budget.add('wbc_decode', t1 - t0)
-        budget.add('wbc_take', t2 - t1)
+        timing.lap('wbc_take')
         if not complete:
             self._warn(f'tick {stamp / _NS:.3f} s: imu or ground truth missing, waiting for '
                        'the republish')
             return
         base, contacts, odom_msg, contacts_msg = self.inputs.state(stamp, joints)
-        t3 = clock()
+        timing.mark()
         events = encode_contact_events(contacts, stamp)
-        budget.add('wbc_state_msgs', clock() - t3)
+        timing.lap('wbc_state_msgs')
         # Published right after the command (_command), so that the sim steps while they go
         # out; a tick not answered now (held for its plans) publishes them below, before the
         # wait: the planners need this tick's state to make those plans.
         self._unpublished = (odom_msg, contacts_msg, events)
-        self._last_estimated = stamp
-        self._state_msgs[stamp] = (odom_msg, contacts_msg)
-        self._states[stamp] = (base, joints, contacts)
+        self.ticks.estimated(stamp, (base, joints, contacts), (odom_msg, contacts_msg))
         self._on_state(stamp)
         self._publish_estimate()
         if self.protocol.last_answered == stamp:
@@ -238,22 +228,14 @@ class WbcNode(Node):
         """odom, contacts (and contact_events) of the last estimated tick, once."""
         if self._unpublished is None:
             return
-        t0 = time.perf_counter_ns()
+        start = self.timing.clock()
         odom_msg, contacts_msg, events = self._unpublished
         self._unpublished = None
         self.odom_pub.publish(odom_msg)
         self.contacts_pub.publish(contacts_msg)
         if events is not None:
             self.events_pub.publish(events)
-        self.budget.add('wbc_publish_state', time.perf_counter_ns() - t0)
-
-    def _forget_states_before(self, floor: int) -> None:
-        """Drop the inputs and states older than ``floor`` (they can no longer be answered,
-        nor answered again)."""
-        for buffer in (self._states, self._state_msgs):
-            for old in [s for s in buffer if s < floor]:
-                del buffer[old]
-        self.inputs.forget_before(floor)
+        self.timing.add_since('wbc_publish_state', start)
 
     def _on_footholds(self, msg: PointCloud2) -> None:
         plan = self.inputs.decoded(footholds_from_msg, msg, 'footholds')
@@ -275,57 +257,53 @@ class WbcNode(Node):
 
     # ------------------------------------------------------------------------------ ticks
     def _on_state(self, stamp: int) -> None:
-        self._logic_start_ns = time.perf_counter_ns()
-        if stamp in self._commands:                  # duplicate: the same command again
-            self.cmd_pub.publish(self._commands[stamp])
+        self.timing.mark()
+        command = self.ticks.command(stamp)
+        if command is not None:                      # duplicate: the same command again
+            self.cmd_pub.publish(command)
             return
-        answer = self.protocol.on_tick(stamp, *self._states[stamp],
+        answer = self.protocol.on_tick(stamp, *self.ticks.state(stamp),
                                        may_start=self._listeners.ready)
         self._sync_wait()
         if answer:
             self._answer(stamp)
 
     def _sync_wait(self) -> None:
-        """Start or stop the wall-clock timeout of a held tick as the protocol holds one; a
-        wait that ends goes into the budget (a re-plan tick's, not the first tick's, which
-        waits for the planners' start)."""
-        held = self.protocol.waiting
-        if held == self._timer_stamp:
+        """Cancel and arm the wall-clock timer of a held tick as ``PlanWait`` says; a wait
+        that ends goes into the budget (a re-plan tick's, not the first tick's, which waits
+        for the planners' start)."""
+        timing = self.timing
+        change = self.plan_wait.sync(timing.clock())
+        if change is None:
             return
-        if self._timer_stamp is not None:     # answered, timed out, or the sim moved on
-            if self._budget_tick == self._timer_stamp:
-                if self._timer_first:
-                    self._budget_tick = None
+        if change.ended is not None:
+            if timing.counts(change.ended):
+                if change.ended_first:
+                    timing.drop()
                 else:
-                    self.budget.add('wbc_plan_wait',
-                                    time.perf_counter_ns() - self._wait_started_ns)
+                    self.budget.add('wbc_plan_wait', change.waited_ns)
             self.destroy_timer(self._wait_timer)
-            self._wait_timer = self._timer_stamp = None
-        if held is not None:
-            self._budget_logic()
-            self._wait_started_ns = time.perf_counter_ns()
-            self._logic_start_ns = None
-            self._timer_stamp, self._timer_first = held, self.protocol.waiting_first
-            timeout = self.first_plan_timeout if self._timer_first else self.plan_timeout
-            self._wait_timer = self.create_timer(timeout, self._on_wait_timeout,
+            self._wait_timer = None
+        if change.arm is not None:
+            timing.lap('wbc_logic')
+            timing.unmark()
+            self._wait_timer = self.create_timer(change.arm, self._on_wait_timeout,
                                                  clock=self._wall)
 
     def _on_wait_timeout(self) -> None:
-        timeout = self.first_plan_timeout if self._timer_first else self.plan_timeout
-        stamp = self.protocol.wait_timed_out(timeout)
+        stamp = self.plan_wait.timed_out()
         self._sync_wait()
         if stamp is not None:
             self.stats.timed_out()
             self._answer(stamp)
 
     def _answer(self, stamp: int) -> None:
-        if self._logic_start_ns is None:
-            self._logic_start_ns = time.perf_counter_ns()   # answered after a wait
-        self._budget_logic()
+        timing = self.timing
+        if timing.mark_ns is None:
+            timing.mark()                            # answered after a wait
+        timing.lap('wbc_logic')
         result = self.protocol.control(stamp)
-        now = time.perf_counter_ns()
-        self.budget.add('wbc_controller', now - self._logic_start_ns)
-        self._logic_start_ns = now
+        timing.lap('wbc_controller')
         self._command(stamp, result)
         # A stand-up that ended: the base estimate starts over (the protocol adopts plans
         # made from the next tick on).
@@ -336,34 +314,27 @@ class WbcNode(Node):
         """Publish and keep the torques answering tick ``stamp``; the per-tick bookkeeping."""
         msg = encode_torque_command(stamp, result.torque)     # exactly the stamp answered
         self.cmd_pub.publish(msg)
-        counted = self._budget_tick == stamp
+        timing = self.timing
+        counted = timing.counts(stamp)
         if counted:
-            self.budget.add('wbc_command', time.perf_counter_ns() - self._logic_start_ns)
+            timing.lap('wbc_command')
         self._publish_estimate()
         if self.estimator is not None:
             # The next tick's covariance work, while the sim steps (prepare_next), for the
             # stamp's float seconds as the decoders will give them to the estimator.
-            t0 = time.perf_counter_ns()
+            start = timing.clock()
             self.estimator.prepare_next(ns_to_sec(stamp + self.period_ns))
             if counted:
-                self.budget.add('wbc_estimator_next', time.perf_counter_ns() - t0)
+                timing.add_since('wbc_estimator_next', start)
         if counted:
-            self.budget.end_tick()
-            self._budget_tick = None
-        self._logic_start_ns = None
-        self._commands[stamp] = msg
-        while len(self._commands) > _KEEP_COMMANDS:
-            del self._commands[min(self._commands)]
-        self._forget_states_before(stamp)
+            timing.close()
+        timing.unmark()
+        # Older ticks can no longer be answered, nor answered again: their inputs go.
+        self.ticks.answered(stamp, msg)
+        self.inputs.forget_before(stamp)
         self.stats.answered(result)
         if result.fallback:
             self._warn(f'wbc fallback (safe stand torques): {result.message}')
-
-    def _budget_logic(self) -> None:
-        """The protocol's decisions of the tick so far (from _on_state or a wait's end)."""
-        now = time.perf_counter_ns()
-        self.budget.add('wbc_logic', now - self._logic_start_ns)
-        self._logic_start_ns = now
 
     # ------------------------------------------------------------------------------ diagnostics
     def _publish_diagnostics(self) -> None:

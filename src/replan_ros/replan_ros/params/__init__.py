@@ -22,7 +22,9 @@ from replan_ros.params.convert import (
     joint_sensor_params,
     mpc_settings,
     protocol_params,
+    terrain_settings,
     wbc_params,
+    world_settings,
 )
 from replan_ros.params.declare import declare_node_parameters
 from replan_ros.params.files import (
@@ -64,6 +66,6 @@ __all__ = [
     'declare_node_parameters', 'defaults', 'estimator_params', 'gait_params',
     'imu_noise_params', 'joint_sensor_params', 'load_param_file', 'load_yaml', 'mpc_settings',
     'parse_param_doc', 'protocol_params', 'resolve', 'sources_from_argv', 'table',
-    'wbc_params',
+    'terrain_settings', 'wbc_params', 'world_settings',
 ]
 

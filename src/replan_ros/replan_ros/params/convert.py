@@ -2,7 +2,8 @@
 fills any core dataclass field by field (a field without its parameter is an error, so a field
 added to the core cannot miss its table unnoticed), and one function per dataclass says how
 (``gait_params``, ``mpc_settings``, ``wbc_params``, ``protocol_params``, ``estimator_params``,
-``actuator_params``, ``imu_noise_params``, ``joint_sensor_params``). The core's settings modules
+``actuator_params``, ``terrain_settings``, ``world_settings``, ``imu_noise_params``,
+``joint_sensor_params``). The core's settings modules
 it imports are numpy only: importing this module loads none of the core's solvers.
 """
 
@@ -19,7 +20,7 @@ from replan_core.estimation.settings import EstimatorParams
 from replan_core.gait.crawl import GaitParams
 from replan_core.mpc.settings import MpcSettings
 from replan_core.sim.sensors import ImuNoiseParams, JointSensorParams
-from replan_core.sim.settings import ActuatorParams
+from replan_core.sim.settings import ActuatorParams, TerrainSettings, WorldSettings
 from replan_core.wbc.settings import ProtocolParams, WbcParams
 
 
@@ -112,6 +113,23 @@ def actuator_params(values: Mapping[str, Any]) -> ActuatorParams:
     return dataclass_from_params(ActuatorParams, values, names={
         'time_constant': 'actuator_time_constant', 'delay': 'actuator_delay',
         'viscous_damping': 'joint_viscous_damping', 'coulomb_friction': 'joint_coulomb_friction'})
+
+
+def terrain_settings(values: Mapping[str, Any]) -> TerrainSettings:
+    """``TerrainSettings`` of the sim node (``terrain`` and ``terrain_<size>``)."""
+    return dataclass_from_params(TerrainSettings, values, prefix='terrain_',
+                                 names={'kind': 'terrain'})
+
+
+def world_settings(values: Mapping[str, Any]) -> WorldSettings:
+    """``WorldSettings`` of the sim node: its spawn pose is ``standing_joint_positions``, its
+    terrain and actuators as ``terrain_settings`` and ``actuator_params``."""
+    world = dataclass_from_params(
+        WorldSettings, values, fixed=('terrain', 'actuator'),
+        names={'initial_joint_positions': 'standing_joint_positions'},
+        convert={'initial_joint_positions': lambda pose: tuple(float(q) for q in pose)})
+    return dataclasses.replace(world, terrain=terrain_settings(values),
+                               actuator=actuator_params(values))
 
 
 def imu_noise_params(values: Mapping[str, Any]) -> ImuNoiseParams:

@@ -1,11 +1,12 @@
 """The per-node parameter tables: ``SIM``, ``RECORDER`` and ``LIVE_VIEW`` written out, and
 ``GAIT``, ``MPC`` and ``WBC`` (``estimator.<field>`` included), whose defaults come from the
 core's settings (``GaitParams``, ``MpcSettings``, ``WbcParams``, ``ProtocolParams``,
-``EstimatorParams``); the SIM table's terrains, standing pose and actuator defaults are the
-core's too. The core's settings modules are numpy only, so importing the tables loads neither
-pinocchio, proxsuite nor PyBullet. ``TABLES`` maps each node name to its table, ``table`` and
-``defaults`` give one node's specs and default values. The YAML files in ``config/`` only repeat
-values the user is meant to see and change (a unit test checks that they equal these defaults).
+``EstimatorParams``); the SIM table's terrains, standing pose, world (``WorldSettings``) and
+actuator defaults are the core's too. The core's settings modules are numpy only, so importing
+the tables loads neither pinocchio, proxsuite nor PyBullet. ``TABLES`` maps each node name to
+its table, ``table`` and ``defaults`` give one node's specs and default values. The YAML files in
+``config/`` only repeat values the user is meant to see and change (a unit test checks that they
+equal these defaults).
 """
 
 from __future__ import annotations
@@ -19,7 +20,12 @@ from replan_core.common.types import LEGS, STANDING_POSE
 from replan_core.estimation.settings import EstimatorParams
 from replan_core.gait.crawl import CORRECTION_HIPS, GaitParams
 from replan_core.mpc.settings import MpcSettings
-from replan_core.sim.settings import TERRAIN_DEFAULTS, TERRAINS, ActuatorParams
+from replan_core.sim.settings import (
+    TERRAIN_DEFAULTS,
+    TERRAINS,
+    ActuatorParams,
+    WorldSettings,
+)
 from replan_core.wbc.settings import ProtocolParams, WbcParams
 from replan_ros.params.spec import ParamSpec
 
@@ -31,6 +37,7 @@ def _p(name: str, default: Any, description: str, unit: str = '', **kw) -> Param
 
 
 _ACT = ActuatorParams()             # the sim's defaults: the core's settings
+_WORLD = WorldSettings()
 _TER = TERRAIN_DEFAULTS
 _URDF = "robot URDF; '' = $REPLAN_URDF, else <repo>/urdf/hyq.urdf"
 _ROBOT_FILE = _p(
@@ -313,16 +320,16 @@ WBC = (
 SIM = (
     _ROBOT_FILE,
     _p('urdf_path', '', _URDF),
-    _p('physics_dt', 0.001, 'physics step', 's', min=1e-5, max=0.01),
-    _p('control_period', 0.004, 'control tick (a multiple of physics_dt)', 's', min=1e-4,
-       max=0.1),
+    _p('physics_dt', _WORLD.physics_dt, 'physics step', 's', min=1e-5, max=0.01),
+    _p('control_period', _WORLD.control_period, 'control tick (a multiple of physics_dt)', 's',
+       min=1e-4, max=0.1),
     _p('clock_period', 0.02, '/clock period (a multiple of control_period)', 's', min=1e-4,
        max=1.0),
     _p('standing_joint_positions', STANDING_POSE.tolist(),
        'spawn joint angles, JOINT_NAMES order', 'rad', min=-math.pi, max=math.pi, length=12),
-    _p('initial_base_height', 0.0, 'spawn base_link height; 0 = feet touching the ground', 'm',
-       min=0.0, max=3.0),
-    _p('terrain', 'flat', 'terrain', choices=TERRAINS),
+    _p('initial_base_height', _WORLD.initial_base_height,
+       'spawn base_link height; 0 = feet touching the ground', 'm', min=0.0, max=3.0),
+    _p('terrain', _WORLD.terrain.kind, 'terrain', choices=TERRAINS),
     _p('terrain_step_x', _TER['step_x'], 'step_down/step_up: x of the step edge', 'm',
        min=-10.0, max=10.0),
     _p('terrain_step_height', _TER['step_height'], 'step_down: drop, step_up: rise', 'm',
@@ -339,12 +346,13 @@ SIM = (
        'rough: heights uniform in [0, amplitude]', 'm', min=0.0, max=0.5),
     _p('terrain_rough_resolution', _TER['rough_resolution'], 'rough: cell size', 'm',
        min=0.005, max=1.0),
-    _p('seed', 0, 'rough: heightfield seed', min=0, max=_INT_MAX),
-    _p('friction', 0.8, 'foot/ground Coulomb friction coefficient', min=0.0, max=5.0),
-    _p('contact_stiffness', 0.0, 'foot contact stiffness; 0 = rigid (PyBullet)', 'N/m',
-       min=0.0, max=1e9),
-    _p('contact_damping', 0.0, 'foot contact damping (with contact_stiffness)', 'N s/m',
-       min=0.0, max=1e7),
+    _p('seed', _WORLD.seed, 'rough: heightfield seed', min=0, max=_INT_MAX),
+    _p('friction', _WORLD.friction, 'foot/ground Coulomb friction coefficient', min=0.0,
+       max=5.0),
+    _p('contact_stiffness', _WORLD.contact_stiffness,
+       'foot contact stiffness; 0 = rigid (PyBullet)', 'N/m', min=0.0, max=1e9),
+    _p('contact_damping', _WORLD.contact_damping,
+       'foot contact damping (with contact_stiffness)', 'N s/m', min=0.0, max=1e7),
     _p('actuator_time_constant', _ACT.time_constant,
        'first-order lag of the torque loop; 0 = none', 's', min=0.0, max=1.0),
     _p('actuator_delay', _ACT.delay, 'transport delay of the torque command; 0 = none',
@@ -379,9 +387,10 @@ SIM = (
        max=0.9),
     _p('noise_seed', 0, 'seed of the sensor noise and the leg mass errors', min=0,
        max=_INT_MAX),
-    _p('contact_threshold', 30.0, 'normal force for contact', 'N', min=0.0, max=1e4),
-    _p('debounce_ticks', 2, 'ticks the force must stay above/below the threshold', 'ticks',
-       min=1, max=100),
+    _p('contact_threshold', _WORLD.contact_threshold, 'normal force for contact', 'N', min=0.0,
+       max=1e4),
+    _p('debounce_ticks', _WORLD.debounce_ticks,
+       'ticks the force must stay above/below the threshold', 'ticks', min=1, max=100),
     _p('lock_step', True, 'advance one tick per joint_torque_cmd of the current stamp'),
     _p('stop_time', 0.0, 'step no further than the first tick at or after this sim time and '
        'hold there (the state republished as while waiting), so a run of a given duration '
@@ -398,7 +407,7 @@ SIM = (
        min=0.0, max=5000.0, read_only=False),
     _p('real_time_factor', 1.0, 'free-run/damping: sim s per wall s to aim for', min=0.001,
        max=1000.0),
-    _p('gui', False, 'open the PyBullet GUI'),
+    _p('gui', _WORLD.gui, 'open the PyBullet GUI'),
     _p('diagnostics_period', 1.0, '/diagnostics period', 'wall s', min=0.01, max=3600.0),
 )
 

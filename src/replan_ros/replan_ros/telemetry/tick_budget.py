@@ -150,6 +150,55 @@ class TickBudget:
         return LOG_PREFIX + json.dumps({'node': node, **self.summary()})
 
 
+class PhaseTimer:
+    """A node's phases as laps of one clock, for a tick that spans callbacks (the wbc's, held
+    for its plans, is answered from a plan's callback or a timer): which tick the budget
+    gathers (``open``, ``counts``, ``close``), where the current phase began (``mark``) and
+    each phase's end (``lap``: the time since the mark, then a new mark)."""
+
+    def __init__(self, budget: TickBudget, clock=time.perf_counter_ns) -> None:
+        self.budget = budget
+        self.clock = clock
+        self.tick: int | None = None       # the stamp whose phases the budget gathers
+        self.mark_ns: int | None = None    # when the current phase began; None: no phase
+
+    def open(self, stamp: int) -> None:
+        """Gather the phases of tick ``stamp``, anything gathered before forgotten (a tick
+        never answered is not counted)."""
+        self.budget.discard_tick()
+        self.tick = stamp
+
+    def counts(self, stamp: int) -> bool:
+        return self.tick == stamp
+
+    def close(self) -> None:
+        """The counted tick is complete: into the budget."""
+        self.budget.end_tick()
+        self.tick = None
+
+    def drop(self) -> None:
+        """The gathered tick is not to be counted (e.g. the first, held for the planners)."""
+        self.tick = None
+
+    def mark(self) -> int:
+        self.mark_ns = self.clock()
+        return self.mark_ns
+
+    def unmark(self) -> None:
+        self.mark_ns = None
+
+    def lap(self, phase: str) -> int:
+        """The time since the mark into ``phase``; the mark moves to now (returned)."""
+        now = self.clock()
+        self.budget.add(phase, now - self.mark_ns)
+        self.mark_ns = now
+        return now
+
+    def add_since(self, phase: str, start_ns: int) -> None:
+        """The time since ``start_ns`` (this clock) into ``phase``; the mark stays."""
+        self.budget.add(phase, self.clock() - start_ns)
+
+
 def parse_log_line(line: str) -> dict | None:
     """The summary of a ``log_line`` found in ``line`` (a node log line), or None."""
     at = line.find(LOG_PREFIX)

@@ -257,6 +257,8 @@ def _same_types(a, b) -> list[str]:
     ('sim', params.actuator_params, 'replan_core.sim.settings.ActuatorParams'),
     ('sim', params.imu_noise_params, 'replan_core.sim.sensors.ImuNoiseParams'),
     ('sim', params.joint_sensor_params, 'replan_core.sim.sensors.JointSensorParams'),
+    ('sim', params.terrain_settings, 'replan_core.sim.settings.TerrainSettings'),
+    ('sim', params.world_settings, 'replan_core.sim.settings.WorldSettings'),
 ])
 def test_each_core_dataclass_is_filled_from_its_table(node, build, core):
     """The one conversion (dataclass_from_params) fills every field from the table's defaults
@@ -269,6 +271,28 @@ def test_each_core_dataclass_is_filled_from_its_table(node, build, core):
     assert _same_types(built, cls()) == []
     if node == 'mpc':
         assert built.velocity_weight == table_defaults['velocity_weight'] == 300.0
+
+
+def test_the_sims_world_settings_from_its_parameters():
+    """The sim's one conversion: its defaults are the core's world (spawned in the table's
+    standing pose); the terrain, spawn pose and actuators come from their own keys."""
+    import dataclasses as dc
+
+    from replan_core.common.types import STANDING_POSE
+    from replan_core.sim.settings import ActuatorParams, TerrainSettings, WorldSettings
+    values = params.defaults('sim')
+    assert params.world_settings(values) == dc.replace(
+        WorldSettings(), initial_joint_positions=tuple(STANDING_POSE.tolist()))
+    pose = [0.1 * k for k in range(12)]
+    world = params.world_settings({
+        **values, 'terrain': 'rough', 'terrain_rough_amplitude': 0.05, 'terrain_width': 3,
+        'standing_joint_positions': pose, 'initial_base_height': 0.7, 'seed': 4,
+        'actuator_delay': 0.002, 'joint_viscous_damping': 0.1, 'contact_stiffness': 1.0e5})
+    assert world.terrain == TerrainSettings(kind='rough', rough_amplitude=0.05, width=3.0)
+    assert type(world.terrain.width) is float
+    assert world.initial_joint_positions == tuple(pose)
+    assert (world.initial_base_height, world.seed, world.contact_stiffness) == (0.7, 4, 1.0e5)
+    assert world.actuator == ActuatorParams(delay=0.002, viscous_damping=0.1)
 
 
 def test_dataclass_from_params_converts_and_refuses_a_field_without_parameter():

@@ -18,7 +18,7 @@ from replan_ros.recording.bag_open import (
 )
 from replan_ros.recording.bag_writer import BagWriter
 from replan_ros.recording.run_metadata import bag_path
-from replan_ros.tools import replay, rerun
+from replan_ros.tools import replay, reproduce
 
 TICK = 4_000_000
 
@@ -92,9 +92,9 @@ def test_a_respawned_recorder_s_split_is_read_as_one_bag(tmp_path):
     # The tools read the directory as one bag.
     info = replay.format_info(readable_files(tmp_path))
     assert f'{len(stamps)}' in info and 'misses' in info      # the dead recorder's ticks
-    run = rerun.load_run(tmp_path)
+    run = reproduce.load_run(tmp_path)
     assert len(run.odom) == len(stamps)
-    assert rerun.find_bag(tmp_path) == tmp_path
+    assert reproduce.find_bag(tmp_path) == tmp_path
 
 
 def test_a_given_file_name_that_exists_is_never_overwritten(tmp_path):

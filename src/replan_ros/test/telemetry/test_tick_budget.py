@@ -1,12 +1,17 @@
 """TickBudget: phases add up within a tick, ticks are kept in a ring, figures per period and
 for the run, the log line and the /diagnostics keys read back (the tick_budget tool's table:
-replan_experiments' test_tick_table.py)."""
+replan_experiments' test_tick_table.py); PhaseTimer's laps on a clock of fixed times."""
 
 from __future__ import annotations
 
 import pytest
 
-from replan_ros.telemetry.tick_budget import TickBudget, parse_diagnostic_values, parse_log_line
+from replan_ros.telemetry.tick_budget import (
+    PhaseTimer,
+    TickBudget,
+    parse_diagnostic_values,
+    parse_log_line,
+)
 
 
 def test_phases_add_up_within_a_tick_and_missing_ones_count_zero():
@@ -73,3 +78,44 @@ def test_delivery_from_the_message_info():
     values = budget.period_values()
     assert values['tick_transport_mean_ms'] == pytest.approx(300e-6)   # ns -> ms
     assert values['tick_wake_mean_ms'] == pytest.approx(700e-6)
+
+
+class FixedClock:
+    """perf_counter_ns stand-in: each call returns the next of the given times."""
+
+    def __init__(self, *times: int) -> None:
+        self.times = list(times)
+
+    def __call__(self) -> int:
+        return self.times.pop(0)
+
+
+def test_phase_timer_laps_a_counted_tick_across_callbacks():
+    budget = TickBudget(['a', 'b', 'c', 'd'])
+    timer = PhaseTimer(budget, clock=FixedClock(100, 300, 600, 1_000, 1_500, 2_100))
+    budget.add('a', 9_000_000)            # gathered before the tick opens: forgotten
+    assert timer.mark() == 100
+    timer.open(7)
+    assert timer.counts(7) and not timer.counts(8)
+    assert timer.lap('a') == 300          # 200 ns, the mark moves on
+    timer.lap('b')                        # 300 ns
+    timer.unmark()                        # a wait: no phase runs
+    assert timer.mark_ns is None
+    timer.mark()                          # 1 000: the wait ended
+    timer.add_since('d', 900)             # 600 ns, the mark stays
+    timer.lap('c')                        # 2 100 - 1 000
+    timer.close()
+    assert timer.tick is None and budget.ticks == 1
+    phases = budget.summary()['phases']
+    assert [phases[name]['mean_ms'] * 1e6 for name in 'abcd'] == \
+        pytest.approx([200, 300, 1_100, 600])
+
+
+def test_phase_timer_drops_a_tick_not_to_be_counted():
+    budget = TickBudget(['a'])
+    timer = PhaseTimer(budget, clock=FixedClock(0, 10))
+    timer.open(0)
+    timer.mark()
+    timer.lap('a')
+    timer.drop()
+    assert not timer.counts(0) and budget.ticks == 0

@@ -1,4 +1,5 @@
-"""rerun: reading a bag's inputs, configuration and trajectory; comparing trajectories."""
+"""reproduce (scripts/rerun.sh): reading a bag's inputs, configuration and trajectory; comparing
+trajectories."""
 
 import json
 
@@ -10,7 +11,7 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 
 from replan_ros.recording.bag_writer import BagWriter
-from replan_ros.tools.rerun import (
+from replan_ros.tools.reproduce import (
     compare_trajectories,
     load_run,
     report,
