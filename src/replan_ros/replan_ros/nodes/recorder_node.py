@@ -42,7 +42,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 
 from replan_ros.messages.introspection import message_class
 from replan_ros.messages.stamps import ns_to_stamp
-from replan_ros.nodes.node_main import refuse_configuration, run_node
+from replan_ros.nodes.node_main import log_at, refuse_configuration, run_node
 from replan_ros.params import ConfigError, declare_node_parameters
 from replan_ros.params.robot import node_robot
 from replan_ros.recording.bag_files import recovered_name
@@ -363,16 +363,21 @@ class RecorderNode(Node):
         if self._writer is None:
             return
         received, written = totals(self._recorded)
+        # After a failed write the count covers what was written, and finds it complete;
+        # what came after the failure is in no file.
+        verdict = (completeness.gaps_text() if self._failed is None
+                   else 'incomplete: nothing written after the write that failed')
         text = (f'closed {self.path}: {written} of {received} received messages written, '
-                f'{len(self._recorded)} topics, {self._writer.chunk_count} chunks; '
-                f'{completeness.gaps_text()}')
+                f'{len(self._recorded)} topics, {self._writer.chunk_count} chunks; {verdict}')
         if self._writer.directory_metadata_error:
             text += f'; no metadata.yaml: {self._writer.directory_metadata_error}'
         self._say(text)
 
     def _say(self, text: str, error: bool = False) -> None:
         if self.context.ok():
-            (self.get_logger().error if error else self.get_logger().info)(text)
+            # One call site per severity (log_at): after the error line of a full disk, the
+            # closing info line through the same call site raised in rclpy.
+            log_at(self.get_logger(), 'error' if error else 'info', text)
         else:   # after SIGINT/SIGTERM the context is shut down: /rosout is gone
             print(f'[recorder] {text}', file=sys.stderr, flush=True)
 
