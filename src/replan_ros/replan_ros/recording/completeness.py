@@ -18,7 +18,9 @@
 The recorder counts while it writes (``Counter``) and stores the result in the bag as the
 metadata record ``replan_completeness`` (``Completeness.record``); ``bag_dir`` copies it into
 ``metadata.yaml``'s ``custom_data``. ``bag_completeness`` reads it back, or counts the bag's
-messages when no file has it (a killed recorder, a split bag). ``is_complete`` is the verdict.
+messages when no file has it (a killed recorder, a split bag); a file without summary (or its
+recovered copy) is incomplete whatever it holds, since its end is in no file. ``is_complete`` is
+the verdict.
 """
 
 from __future__ import annotations
@@ -29,7 +31,9 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from replan_ros.recording.bag_files import bag_files
+from mcap.reader import make_reader
+
+from replan_ros.recording.bag_files import RECOVERED_SUFFIX, bag_files
 from replan_ros.recording.bag_io import iter_raw, summarize
 
 RECORD = 'replan_completeness'
@@ -100,6 +104,10 @@ class Completeness:
     first_tick_ns: int = 0
     last_tick_ns: int = 0
     topics: dict[str, TopicCount] = field(default_factory=dict)
+    # Files whose recording ended without a summary (a killed recorder, a full disk) or
+    # their recovered copies: what came after their last chunk is in no file, and no count
+    # of the messages that are there can show it.
+    cut: list[str] = field(default_factory=list)
 
     @property
     def ticks(self) -> int:
@@ -115,6 +123,8 @@ class Completeness:
                  f'{"tick" if count.counted_by == "ticks" else "message"}'
                  f'{"s" if count.missing > 1 else ""}'
                  for topic, count in sorted(self.topics.items()) if count.missing]
+        parts += [f'{name} ends early (its recorder was killed or its disk was full)'
+                  for name in self.cut]
         return 'incomplete: ' + ', '.join(parts)
 
     def record(self) -> dict[str, str]:
@@ -263,13 +273,26 @@ class Counter:
 def count_files(files: list[Path]) -> Completeness:
     """Count the messages of ``files`` (one bag, split or recovered) as the recorder does."""
     counter = Counter()
+    cut = [path.name for path in files
+           if path.name.endswith(RECOVERED_SUFFIX) or not _has_summary(path)]
     for path in files:
         try:
             for _schema, channel, message in iter_raw(path):
                 counter.add(channel.topic, message.data, message.sequence)
         except Exception:   # a killed recorder's file: counted as far as it reads
             continue
-    return counter.result()
+    result = counter.result()
+    result.cut = cut
+    result.complete = result.complete and not cut
+    return result
+
+
+def _has_summary(path: Path) -> bool:
+    try:
+        with open(path, 'rb') as stream:
+            return make_reader(stream).get_summary() is not None
+    except Exception:   # truncated or not mcap at all: no summary
+        return False
 
 
 def bag_completeness(bag: str | Path) -> Completeness:
