@@ -30,27 +30,16 @@ def run(urdf: str, ticks: int = 2000, seed: int = 0, quiet: bool = False,
         prepare: bool = True) -> dict[str, float]:
     """Closed-loop crawl for ``ticks`` control ticks; returns timing (s) and accuracy figures.
     ``prepare``: call ``prepare_next`` after each update (timed apart)."""
-    from replan_core.bench.wbc_bench import crawl_plan
+    from replan_core.bench.wbc_bench import closed_loop_crawl
     from replan_core.common.rotations import quaternion_to_matrix
-    from replan_core.estimation.estimator import StateEstimator
-    from replan_core.estimation.settings import EstimatorParams
-    from replan_core.robot.model import RobotModel
     from replan_core.sim.world import SimWorld
-    from replan_core.wbc.controller import PlanFollower, WholeBodyController
 
     rng = np.random.default_rng(seed)
     gyro_bias = np.array([0.002, -0.002, 0.002])       # rad/s
     accel_bias = np.array([0.03, -0.03, 0.03])         # m/s^2
     world = SimWorld(urdf, control_period=DT)
     try:
-        robot = RobotModel(urdf)
-        wbc = WholeBodyController(robot)
-        estimator = StateEstimator(robot, EstimatorParams(), DT)
-        base, joints, contacts = world.base_state(), world.joint_state(), world.contact_state()
-        com0 = robot.com_state(base, joints)[0]
-        cycles = int(np.ceil(ticks * DT / 5.6)) + 1        # 5.6 s per crawl cycle
-        footholds, com_plan = crawl_plan(0.5, contacts.foot_position, com0, cycles=cycles)
-        follower = PlanFollower(footholds, com_plan)
+        wbc, estimator, follower = closed_loop_crawl(world, urdf, ticks, DT)
         wall, cpu, prepare_wall, velocity_errors, edge_offsets = [], [], [], [], []
         previous_velocity = None
         true_edges: list[tuple[int, int]] = []

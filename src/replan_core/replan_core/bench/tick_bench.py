@@ -46,30 +46,19 @@ def _outputs(base, contacts, result, covariance: np.ndarray) -> np.ndarray:
 def run(urdf: str, ticks: int = 3000, seed: int = 0) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Closed-loop crawl of ``ticks`` control ticks; returns the thread CPU times (s) of each
     stage per tick and the outputs (one row per tick, ``_outputs``)."""
-    from replan_core.bench.wbc_bench import crawl_plan
+    from replan_core.bench.wbc_bench import closed_loop_crawl
     from replan_core.common.rotations import quaternion_to_matrix
-    from replan_core.estimation.estimator import StateEstimator
-    from replan_core.estimation.settings import EstimatorParams
-    from replan_core.robot.model import RobotModel
     from replan_core.sim.world import SimWorld
-    from replan_core.wbc.controller import PlanFollower, WholeBodyController
 
     rng = np.random.default_rng(seed)
     world = SimWorld(urdf, control_period=DT)
     times = {stage: np.zeros(ticks) for stage in STAGES}
     rows = []
     try:
-        robot = RobotModel(urdf)
-        wbc = WholeBodyController(robot)
-        estimator = StateEstimator(robot, EstimatorParams(), DT)
-        base, joints, contacts = world.base_state(), world.joint_state(), world.contact_state()
-        com0 = robot.com_state(base, joints)[0]
-        cycles = int(np.ceil(ticks * DT / 5.6)) + 1        # 5.6 s per crawl cycle
-        footholds, com_plan = crawl_plan(0.5, contacts.foot_position, com0, cycles=cycles)
-        follower = PlanFollower(footholds, com_plan)
+        wbc, estimator, follower = closed_loop_crawl(world, urdf, ticks, DT)
         previous_velocity = None
         for tick in range(ticks):
-            base, joints, contacts = world.base_state(), world.joint_state(), world.contact_state()
+            base, joints, _ = world.base_state(), world.joint_state(), world.contact_state()
             rotation = quaternion_to_matrix(base.quaternion)
             accel_world = (np.zeros(3) if previous_velocity is None
                            else (base.linear_velocity - previous_velocity) / DT)

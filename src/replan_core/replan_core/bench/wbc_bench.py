@@ -234,3 +234,22 @@ def main() -> None:
 
 if __name__ == '__main__':
     main()
+
+
+def closed_loop_crawl(world, urdf: str, ticks: int, dt: float):
+    """The closed-loop benches' rig on ``world`` (a ``SimWorld`` standing HyQ): the
+    controller, the estimator (default settings, period ``dt`` s) and a plan follower of a
+    crawl long enough for ``ticks`` control ticks."""
+    from replan_core.estimation.estimator import StateEstimator
+    from replan_core.estimation.settings import EstimatorParams
+    from replan_core.robot.model import RobotModel
+    from replan_core.wbc.controller import PlanFollower, WholeBodyController
+
+    robot = RobotModel(urdf)
+    wbc = WholeBodyController(robot)
+    estimator = StateEstimator(robot, EstimatorParams(), dt)
+    base, joints, contacts = world.base_state(), world.joint_state(), world.contact_state()
+    com0 = robot.com_state(base, joints)[0]
+    cycles = int(np.ceil(ticks * dt / 5.6)) + 1        # 5.6 s per crawl cycle
+    footholds, com_plan = crawl_plan(0.5, contacts.foot_position, com0, cycles=cycles)
+    return wbc, estimator, PlanFollower(footholds, com_plan)

@@ -370,6 +370,14 @@ def report(comparison: Comparison, tolerance: float) -> tuple[str, bool]:
     return text, ok
 
 
+def _print_report(comparison, messages, tolerance: float) -> bool:
+    """Print the trajectory comparison and the messages' verdict; True if within tolerance."""
+    text, ok = report(comparison, tolerance)
+    print(text)
+    print(f'[rerun] messages: {messages.text()}')
+    return ok
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog='rerun.sh', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -394,10 +402,7 @@ def main(argv=None) -> int:
         except (RerunError, OSError) as err:
             print(f'rerun: {err}', file=sys.stderr)
             return 2
-        text, ok = report(comparison, args.tolerance)
-        print(text)
-        print(f'[rerun] messages: {messages.text()}')
-        return 0 if ok else 1
+        return 0 if _print_report(comparison, messages, args.tolerance) else 1
     root = Path(os.environ.get('REPLAN_ROOT', '.'))
     out = args.out or root / 'runs' / f'rerun-{time.strftime("%Y%m%d-%H%M%S")}'
     try:
@@ -411,9 +416,7 @@ def main(argv=None) -> int:
     except (RerunError, OSError) as err:
         print(f'rerun: {err}', file=sys.stderr)
         return 2
-    text, ok = report(comparison, args.tolerance)
-    print(text)
-    print(f'[rerun] messages: {messages.text()}')
+    ok = _print_report(comparison, messages, args.tolerance)
     if code != 0:
         print(f'[rerun] the launcher exited with code {code}', file=sys.stderr)
     return 0 if ok and code == 0 else 1
