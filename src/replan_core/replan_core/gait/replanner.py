@@ -132,7 +132,13 @@ class GaitReplanner:
         params.validate()
         self.next_params = None if params == self.params else params
 
-    def _apply_gait(self, t: float) -> None:
+    def _apply_gait(self, t: float) -> float:
+        """Switch to ``next_params`` at this re-plan; the four-feet phase (s) before its first
+        step: the longer of the two gaits'. The old gait's stance was laid out for its own
+        supports (a crawl's feet are staggered): its four-feet phase is the time it gives the
+        trunk to move between supports, and the new gait's first group needs it too. Without
+        it a crawl-to-trot switch put the first diagonal 9 cm beside HyQ's CoM, and the ZMP
+        held on it pushed the trunk 10 cm sideways (docs/gait.md, "Switching gaits")."""
         old, self.params, self.next_params = self.params, self.next_params, None
         self.schedule = CrawlSchedule(self.params.sequence, groups=self.params.groups)
         if self.last_touchdown_leg is not None:
@@ -145,6 +151,7 @@ class GaitReplanner:
         self.log('info', f'gait switched at t={t:.3f} s: {len(old.swing_groups[0])} to '
                          f'{len(self.params.swing_groups[0])} legs a step, '
                          f'{LEGS[self.schedule.next_leg]} first')
+        return max(old.four_feet_duration, self.params.four_feet_duration)
 
     @property
     def standing(self) -> bool:
@@ -202,8 +209,7 @@ class GaitReplanner:
         request, self.pending = self.pending, None
         cs, initial = request.contacts, request.initial
         t = cs.stamp                       # the very float the controller gets from the stamp
-        if self.next_params is not None:
-            self._apply_gait(t)
+        switch_delay = self._apply_gait(t) if self.next_params is not None else 0.0
         feet = cs.foot_position.copy()
         if self.plan is not None:
             # A foot whose touchdown was forced is still in the air: plan it at ground height.
@@ -235,7 +241,7 @@ class GaitReplanner:
                 # Walking off from a stand, as at the start: the reference trunk stands
                 # through the four-feet phase, so the first strides are partial.
                 delay = (self.start_delay if initial
-                         else self.params.four_feet_duration if was_standing else 0.0)
+                         else self.params.four_feet_duration if was_standing else switch_delay)
                 plan = compute_footholds(setpoint, feet, base.position, yaw, hips,
                                          self.schedule.next_leg, t, self.params, delay=delay,
                                          stride_correction=correction,

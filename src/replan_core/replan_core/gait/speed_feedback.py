@@ -208,9 +208,13 @@ class StepTiming:
 
     ``touchdown(t)`` at every real touchdown while walking; ``restart()`` when the walk
     (re)starts from a stand, so that standing time never counts as a step. ``scale`` is the
-    median of the last ``steps`` touchdown intervals over the planned step period (1.0 until
-    ``steps`` intervals are known), clipped to ``[1 / max_scale, max_scale]``: the median keeps
-    one forced or stumbled touchdown (up to ``max_extension`` late) out of the strides.
+    median of the last ``steps`` touchdown intervals over the planned step period (of those
+    known while fewer: from the first interval on; 1.0 before it), clipped to
+    ``[1 / max_scale, max_scale]``: the median of a full cycle keeps one forced or stumbled
+    touchdown (up to ``max_extension`` late) out of the strides. The first cycle uses what it
+    has: strides laid out for the planned period while the steps come earlier made the first
+    cycle after a walk-off 6-12 % too fast (HyQ, B1, Go2; docs/gait.md, "Response to a
+    set-point change").
     """
 
     def __init__(self, step_period: float, steps: int, max_scale: float = 1.25) -> None:
@@ -240,8 +244,9 @@ class StepTiming:
 
     @property
     def measured_period(self) -> float | None:
-        """s, the median touchdown interval of the last cycle; None until it is full."""
-        if len(self._intervals) < (self._intervals.maxlen or 0):
+        """s, the median touchdown interval of the last cycle (of the intervals known while
+        fewer); None before the first."""
+        if not self._intervals:
             return None
         return float(np.median(self._intervals))
 

@@ -23,6 +23,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import pinocchio as pin
@@ -39,7 +40,7 @@ from replan_core.common.types import (
     JointState,
     Step,
 )
-from replan_core.gait.swing import swing_trajectory
+from replan_core.gait.swing import ground_crossing_fraction, swing_trajectory
 from replan_core.gait.touchdown import StepEvent, StepTracker
 from replan_core.robot.model import GRAVITY, RobotModel
 from replan_core.wbc.settings import WbcParams
@@ -134,6 +135,7 @@ class PlanFollower:
         self.tracker = StepTracker(footholds)      # the touchdown rule comes with the plan
         self.haptic_velocity = haptic_velocity
         self.touchdown_depth = touchdown_depth
+        self._trajectories: dict[int, partial] = {}    # step index -> its swing trajectory
         self._liftoff_position: dict[int, np.ndarray] = {}
         # Trunk yaw reference: a ramp through the plan's yaw at its start and at each planned
         # touchdown. Stepping it at the sensed touchdowns would never turn the robot: each
@@ -182,9 +184,24 @@ class PlanFollower:
             timed = Step(step.leg, liftoff, touchdown, target, step.step_height,
                          step.haptic, step.replan, step.yaw)
             stance[step.leg] = False
-            swing += (swing_reference(timed, start, t, swing_trajectory, self.haptic_velocity),)
+            swing += (swing_reference(timed, start, t, self._trajectory(index, step, start),
+                                      self.haptic_velocity),)
         yaw = float(np.interp(t, self._yaw_times, self._yaw_values))
         return com_ref, yaw, stance, swing
+
+    def _trajectory(self, index: int, step: Step, start: np.ndarray):
+        """The swing trajectory of step ``index``: a haptic swing's horizontal blend ends
+        where its descent meets the foothold's height (``swing.ground_crossing_fraction``),
+        so that the foot lands on its foothold, not short of it; computed once per step."""
+        if not step.haptic or step.touchdown_time <= step.liftoff_time:
+            return swing_trajectory
+        trajectory = self._trajectories.get(index)
+        if trajectory is None:
+            fraction = ground_crossing_fraction(float(start[2]), float(step.target[2]),
+                                                step.step_height, self.touchdown_depth)
+            trajectory = partial(swing_trajectory, horizontal_fraction=fraction)
+            self._trajectories[index] = trajectory
+        return trajectory
 
     def yaw_rate(self, t: float) -> float:
         """Rate of the yaw reference at ``t`` (rad/s): the slope of its ramp there."""

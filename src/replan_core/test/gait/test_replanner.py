@@ -196,7 +196,7 @@ def late_touchdowns(replanner, late: float):
 
 
 @pytest.mark.parametrize('measured', [True, False])
-def test_late_touchdowns_stretch_the_strides_after_one_cycle(measured):
+def test_late_touchdowns_stretch_the_strides_from_the_second_step(measured):
     replanner, _, _ = make(measured_step_period=measured, foothold_correction=False)
     replanner.tick(contacts(0.0))
     plan_now(replanner)
@@ -205,12 +205,12 @@ def test_late_touchdowns_stretch_the_strides_after_one_cycle(measured):
         t = run_until_pending(replanner, round(t + TICK, 6), late_touchdowns(replanner, 0.04))
         scales.append(replanner.stride_time_scale)
         plan = plan_now(replanner)
-    # Steps of 0.75 + 0.04 s (on the tick grid): measured from the fifth touchdown on (four
-    # intervals), never from the start's standing delay.
+    # Steps of 0.75 + 0.04 s (on the tick grid): measured from the second touchdown on (the
+    # first interval), never from the start's standing delay.
     period = replanner.timing.measured_period
     assert period == pytest.approx(0.79, abs=TICK)
     expected = period / 0.75 if measured else 1.0
-    assert scales[:4] == [1.0] * 4 and scales[4:] == [pytest.approx(expected)] * 3
+    assert scales[0] == 1.0 and scales[1:] == [pytest.approx(expected, abs=TICK)] * 6
     # The first stride of the last plan is stretched accordingly (0.1 m/s straight walk).
     step = plan.steps[0]
     stride = step.target[0] - plan.initial_feet[step.leg, 0]
@@ -336,10 +336,13 @@ def test_a_gait_switch_waits_for_the_next_replan_and_starts_after_the_last_leg_d
     plan = plan_now(replanner)
     assert replanner.params == trot and replanner.next_params is None
     # The crawl's first leg (lh) touched down last: the trot's next pair is the one after
-    # lh's, (lf, rh); both lift off together, every foot down at the switch.
+    # lh's, (lf, rh); both lift off together after the crawl's four-feet phase (the trot has
+    # none), in which the trunk moves from the crawl's staggered stance over the diagonals.
     pair = plan.steps[:2]
     assert {s.leg for s in pair} == {0, 3}
-    assert pair[0].liftoff_time == pair[1].liftoff_time >= t
+    assert crawl.four_feet_duration > trot.four_feet_duration == 0.0
+    assert pair[0].liftoff_time == pair[1].liftoff_time == pytest.approx(
+        t + crawl.four_feet_duration)
     assert pair[0].touchdown_time - pair[0].liftoff_time == pytest.approx(trot.swing_duration)
     assert any('gait switched' in text for _, text in logs)
     # The measures over a cycle restart with the new gait's.
@@ -350,6 +353,7 @@ def test_a_gait_switch_waits_for_the_next_replan_and_starts_after_the_last_leg_d
     plan = plan_now(replanner)
     assert replanner.params == crawl
     assert plan.steps[0].liftoff_time != plan.steps[1].liftoff_time
+    assert plan.steps[0].liftoff_time == pytest.approx(t + crawl.four_feet_duration)
 
 
 def test_switching_to_the_gait_in_force_changes_nothing():

@@ -178,10 +178,14 @@ def test_every_stride_of_a_plan_carries_the_correction_in_the_heading_of_its_tou
 # ------------------------------------------------------------------------------ step timing
 def test_step_timing_is_the_median_interval_of_the_last_cycle():
     timing = StepTiming(STEP, 4)
-    for t in (1.75, 2.55, 3.34):          # two intervals: not a cycle yet
-        timing.touchdown(t)
+    timing.touchdown(1.75)                # no interval yet: the planned period
     assert timing.measured_period is None and timing.scale == 1.0
-    for t in (4.14, 4.93):
+    for t in (2.55, 3.34):                # two intervals, 0.80 and 0.79: their median
+        timing.touchdown(t)
+    assert timing.measured_period == pytest.approx(0.795, abs=1e-12)
+    timing.touchdown(4.14)                # 0.80, 0.79, 0.80: median 0.80
+    assert timing.measured_period == pytest.approx(0.80, abs=1e-12)
+    for t in (4.93,):
         timing.touchdown(t)
     # intervals 0.80, 0.79, 0.80, 0.79: median 0.795
     assert timing.measured_period == pytest.approx(0.795, abs=1e-12)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from replan_core.gait.swing import swing_trajectory
+from replan_core.gait.swing import ground_crossing_fraction, swing_trajectory
 
 START = np.array([0.3, 0.2, 0.02])
 TARGET = np.array([0.9, 0.25, 0.05])
@@ -58,3 +58,30 @@ def test_continuous_and_consistent_derivatives():
 def test_apex_above_the_higher_end_when_stepping_down():
     p, _, _ = swing_trajectory(TARGET, START, 0.0, 0.6, 0.08, 0.3)
     assert p[2] == pytest.approx(TARGET[2] + 0.08)
+
+
+@pytest.mark.parametrize('start_z, target_z', [(0.02, 0.02), (0.05, 0.02), (0.02, 0.06)])
+def test_a_haptic_swing_is_over_its_foothold_when_it_meets_its_height(start_z, target_z):
+    """Aimed ``depth`` below the foothold, the descent passes the foothold's height at
+    ``ground_crossing_fraction``; the horizontal blend ended there is then at the foothold's
+    x, y, at rest, and the height is the one the full blend gives."""
+    height, depth, t_lo, t_td = 0.08, 0.015, 1.0, 1.5
+    start = np.array([0.0, 0.0, start_z])
+    aimed = np.array([0.2, -0.05, target_z - depth])
+    fraction = ground_crossing_fraction(start_z, target_z, height, depth)
+    assert 0.5 < fraction < 1.0
+    t = t_lo + fraction * (t_td - t_lo)
+    p, v, a = swing_trajectory(start, aimed, t_lo, t_td, height, t, horizontal_fraction=fraction)
+    assert p[2] == pytest.approx(target_z, abs=1e-9)
+    assert p[:2] == pytest.approx(aimed[:2], abs=1e-12)
+    assert v[:2] == pytest.approx([0.0, 0.0], abs=1e-9)
+    assert a[:2] == pytest.approx([0.0, 0.0], abs=1e-6)
+    full, _, _ = swing_trajectory(start, aimed, t_lo, t_td, height, t)
+    assert p[2] == full[2]
+    assert full[0] < aimed[0] - 1e-3      # the whole-swing blend: still short of it there
+
+
+def test_no_depth_crosses_at_the_touchdown_and_a_bad_fraction_is_refused():
+    assert ground_crossing_fraction(0.02, 0.02, 0.08, 0.0) == 1.0
+    with pytest.raises(ValueError, match='horizontal_fraction'):
+        swing_trajectory(START, TARGET, T_LO, T_TD, H, 0.5 * (T_LO + T_TD), horizontal_fraction=0.0)

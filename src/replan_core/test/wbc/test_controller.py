@@ -512,6 +512,39 @@ def test_plan_follower_swings_both_legs_of_a_pair():
     assert sorted(s.leg for s in swing) == [0, 3]
 
 
+def test_a_haptic_swing_is_over_its_foothold_when_it_reaches_the_foothold_height():
+    """The controller's swing reference of a haptic step aims ``touchdown_depth`` below the
+    foothold; at the fraction of the swing where it passes the foothold's height its x, y are
+    the foothold's, at rest (the foot lands on its foothold, not short of it). Without depth
+    the blend takes the whole swing."""
+    from replan_core.common.types import ComPlan, ContactState, FootholdPlan
+    from replan_core.gait.swing import ground_crossing_fraction
+    from replan_core.wbc.controller import PlanFollower
+
+    feet = np.array([[0.37, 0.32, 0.02], [0.37, -0.32, 0.02], [-0.37, 0.32, 0.02],
+                     [-0.37, -0.32, 0.02]])
+    target = feet[0] + [0.12, 0.03, 0.0]
+    com = ComPlan(5.0, 0.04, np.zeros((201, 3)), np.zeros((201, 3)), np.zeros((201, 3)))
+    down = ContactState(5.1, feet.copy(), np.zeros((4, 3)), np.ones(4, bool),
+                        np.zeros(4, bool), np.zeros(4, bool))
+    for depth in (0.015, 0.0):
+        plan = FootholdPlan(5.0, feet, 0.0, [Step(0, 5.1, 5.6, target, 0.1, True, True, 0.0)])
+        follower = PlanFollower(plan, com, touchdown_depth=depth)
+        follower.update(5.1, down)
+        fraction = ground_crossing_fraction(0.02, 0.02, 0.1, depth)
+        t = 5.1 + fraction * 0.5
+        (swing,) = follower.references(t)[3]
+        if depth:
+            assert 0.8 < fraction < 0.9
+            assert swing.position[2] == pytest.approx(target[2], abs=1e-9)
+            assert swing.position[:2] == pytest.approx(target[:2], abs=1e-12)
+            assert swing.velocity[:2] == pytest.approx([0.0, 0.0], abs=1e-9)
+        else:
+            assert fraction == 1.0
+            (halfway,) = follower.references(5.35)[3]
+            assert halfway.position[0] == pytest.approx(0.5 * (feet[0, 0] + target[0]))
+
+
 def test_the_tick_bench_tells_an_identical_tick_from_a_changed_one():
     """``tick_bench --against``: the same closed-loop ticks give the same bytes, and a
     recording one bit off is found at its tick."""
