@@ -71,7 +71,7 @@ class TerrainSettings:
 class WorldSettings:
     """The simulated world but for the robot's model and names: time steps, spawn pose,
     ground, contacts, actuators (``SimWorld.from_settings``; the sim node fills it from its
-    parameters). The defaults are the ideal world's."""
+    parameters). The defaults are the ideal world's, and SimWorld's keywords' defaults."""
 
     physics_dt: float = 0.001            # s
     control_period: float = 0.004        # s, a multiple of physics_dt

@@ -46,6 +46,7 @@ from replan_core.sim.settings import TERRAIN_DEFAULTS, TERRAINS, ActuatorParams,
 from replan_core.sim.urdf_merge import simulator_model
 
 GRAVITY = 9.81                    # m/s^2
+_DEFAULT = WorldSettings()        # the constructor's defaults
 
 
 class _BulletClient(bullet_client.BulletClient):
@@ -71,15 +72,17 @@ _SPAWN_CONTACT_DISTANCE = 0.002   # m, a foot this close to the ground at spawn 
 class SimWorld:
     """A PyBullet world with one torque-controlled quadruped (DIRECT mode, deterministic)."""
 
-    def __init__(self, urdf_path: str, *, physics_dt: float = 0.001,
-                 control_period: float = 0.004,
+    def __init__(self, urdf_path: str, *, physics_dt: float = _DEFAULT.physics_dt,
+                 control_period: float = _DEFAULT.control_period,
                  initial_joint_positions: np.ndarray | None = None,
                  initial_base_height: float | None = None,
-                 terrain: str = 'flat', terrain_params: dict | None = None,
-                 contact_threshold: float = 30.0, debounce_ticks: int = 2,
-                 friction: float = 0.8, gui: bool = False, seed: int = 0,
-                 actuator: ActuatorParams | None = None,
-                 contact_stiffness: float = 0.0, contact_damping: float = 0.0,
+                 terrain: str = _DEFAULT.terrain.kind, terrain_params: dict | None = None,
+                 contact_threshold: float = _DEFAULT.contact_threshold,
+                 debounce_ticks: int = _DEFAULT.debounce_ticks,
+                 friction: float = _DEFAULT.friction, gui: bool = _DEFAULT.gui,
+                 seed: int = _DEFAULT.seed, actuator: ActuatorParams | None = None,
+                 contact_stiffness: float = _DEFAULT.contact_stiffness,
+                 contact_damping: float = _DEFAULT.contact_damping,
                  joint_names: tuple[str, ...] = JOINT_NAMES,
                  foot_frames: tuple[str, ...] = FOOT_FRAMES,
                  foot_offset: np.ndarray | None = None,

@@ -583,7 +583,7 @@ def test_from_settings_builds_the_world_of_the_keywords(world_factory):
         built.close()
 
 
-def test_default_settings_are_the_constructors_defaults(world_factory):
+def test_default_settings_build_the_constructors_default_world(world_factory):
     built = SimWorld.from_settings(URDF, WorldSettings())
     try:
         np.testing.assert_array_equal(_world_vector(built), _world_vector(world_factory()))
