@@ -16,6 +16,7 @@ from pathlib import Path
 
 import yaml
 
+from replan_core.common.types import GRAVITY
 from replan_experiments.plan import ExperimentError, variant
 from replan_experiments.robot_info import RobotInfo
 
@@ -44,7 +45,6 @@ GAIT_TEST_KEYS = {
 # of the two; lateral = ``lateral_share`` x forward; yaw = forward / (``yaw_legs`` x l).
 SETPOINT_KEYS = {'lateral_share', 'yaw_legs'}
 FORWARD_RULES = ('froude', 'crawl_times')
-GRAVITY = 9.81
 _TEXT_KEYS = {'scenario'}
 _LIST_KEYS = {'levels', 'shares', 'direction'}
 

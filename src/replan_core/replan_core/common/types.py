@@ -19,6 +19,7 @@ JOINTS_PER_LEG: tuple[str, ...] = ('haa', 'hfe', 'kfe')
 JOINT_NAMES: tuple[str, ...] = tuple(
     f'{leg}_{joint}_joint' for leg in LEGS for joint in JOINTS_PER_LEG)
 FOOT_FRAMES: tuple[str, ...] = tuple(f'{leg}_foot' for leg in LEGS)
+GRAVITY = 9.81  # m/s^2, magnitude (pinocchio's model.gravity is (0, 0, -9.81))
 WORLD_FRAME = 'odom'
 BASE_FRAME = 'base_link'
 # HyQ's standing pose (rad, JOINT_NAMES order), as config/sim.yaml: the sim spawns in it when

@@ -36,9 +36,9 @@ import pinocchio as pin
 from scipy.linalg import lapack
 
 from replan_core.common import rotations
-from replan_core.common.types import LEGS, BaseState, ContactState, ImuReading, JointState
+from replan_core.common.types import GRAVITY, LEGS, BaseState, ContactState, ImuReading, JointState
 from replan_core.estimation.settings import EstimatorParams
-from replan_core.robot.model import GRAVITY, RobotModel, unit_quaternion_matrix
+from replan_core.robot.model import RobotModel, unit_quaternion_matrix
 
 N_LEGS = len(LEGS)
 N_STATE = 6 + 3 * N_LEGS        # p_base, v_base, p_foot x 4

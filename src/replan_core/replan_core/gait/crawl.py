@@ -301,7 +301,7 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
                       delay: float = 0.0, stride_correction=None,
                       stride_time_scale: float = 1.0, trend_shift=None,
                       placed_twists=None, placed_until=None,
-                      placed_poses=None) -> FootholdPlan:
+                      placed_poses=None, rest_offset=None) -> FootholdPlan:
     """compFootholds of Algorithm 1: the next ``n`` steps from the actual state at ``start_time``.
 
     velocity_set_point: (vx, vy, wz), body frame, m/s and rad/s; clamped to the limits.
@@ -334,6 +334,9 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         its last mid-stance, and along the new one from this base to its next (feed-forward of
         a set-point change, docs/gait.md, "Response to a set-point change"): the pattern takes
         the new set-point's shape at once, about where the trunk has actually got to since.
+    rest_offset: (2,) m, body frame: added once to each leg's first foothold, the later ones
+        following it (a stopping plan's: where the trunk moving now comes to rest,
+        ``replanner.capture_offset``); None: none.
     Footholds keep each foot's actual height (flat terrain).
     """
     params.validate()
@@ -351,6 +354,8 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
     twist = clamp_velocity(velocity_set_point, params)
     correction = (np.zeros(2) if stride_correction is None
                   else np.asarray(stride_correction, dtype=float).reshape(2))
+    rest_shift = (np.zeros(2) if rest_offset is None
+                  else _rot(base_yaw) @ np.asarray(rest_offset, dtype=float).reshape(2))
     if not (math.isfinite(stride_time_scale) and stride_time_scale > 0):
         raise ValueError(f'stride_time_scale must be finite, > 0, got {stride_time_scale}')
     # ref: the trunk reference in planned time (the steps' yaw); placed: the same reference
@@ -396,7 +401,7 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
             target = (last_xy[leg] + placed.foot(mid, offset) - placed.foot(last_mid[leg], offset)
                       + shift)
         else:
-            target = first_targets[leg] + shift
+            target = first_targets[leg] + shift + rest_shift
         target = _clamp_step(last_xy[leg], target, yaw_td, params)
         last_xy[leg] = target
         last_mid[leg] = mid

@@ -9,6 +9,7 @@ decode it (``adopt``), so that both trackers compare bit-identical times.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -16,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from replan_core.common.rotations import yaw_of
-from replan_core.common.types import LEGS, BaseState, ContactState, FootholdPlan
+from replan_core.common.types import GRAVITY, LEGS, BaseState, ContactState, FootholdPlan
 from replan_core.gait.crawl import (
     CrawlSchedule,
     GaitParams,
@@ -64,6 +65,22 @@ def check_setpoint(values, reject_above: float, gaits: Sequence[GaitParams]
     if np.array_equal(clamped, v):
         return clamped, ''
     return clamped, f'(vx, vy, wz) = {v.tolist()} clamped to {clamped.tolist()}'
+
+
+def capture_offset(base: BaseState, feet: np.ndarray, yaw: float) -> np.ndarray:
+    """(2,) m, body frame: where a trunk moving at ``base``'s velocity comes to rest, from
+    its position now: the capture point of the LIP, v / omega, omega = sqrt(g / h), h the
+    base's height above the mean foot. A stopping plan (zero set-point) shifts its footholds
+    by it: laid out about the base of the re-plan, the last feet were behind the trunk's rest
+    by it (HyQ trotting at 0.37 m/s: 9 cm), and the position term pulled the trunk back over
+    them and then crept for seconds (docs/gait.md, "Idle stance")."""
+    height = float(base.position[2] - np.mean(np.asarray(feet, dtype=float)[:, 2]))
+    if not height > 0.0:
+        return np.zeros(2)
+    omega = math.sqrt(GRAVITY / height)                    # 1/s
+    vx, vy = (float(v) for v in base.linear_velocity[:2])  # m/s, world
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([c * vx + s * vy, -s * vx + c * vy]) / omega
 
 
 class GaitReplanner:
@@ -249,7 +266,10 @@ class GaitReplanner:
                                          trend_shift=trend_shift,
                                          placed_twists=self.placed_twists,
                                          placed_until=self.placed_until,
-                                         placed_poses=self.placed_poses)
+                                         placed_poses=self.placed_poses,
+                                         # stopping: the feet about where the trunk rests
+                                         rest_offset=(None if np.any(twist)
+                                                      else capture_offset(base, feet, yaw)))
                 self._end_before_standing(plan)
                 self._planned_twist = twist
         except ValueError as err:

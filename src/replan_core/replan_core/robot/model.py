@@ -17,9 +17,13 @@ import numpy as np
 import pinocchio as pin
 
 from replan_core.common.rotations import quaternion_to_matrix
-from replan_core.common.types import FOOT_FRAMES, JOINT_NAMES, LEGS, BaseState, JointState
-
-GRAVITY = 9.81  # m/s^2, magnitude; pinocchio's model.gravity is (0, 0, -9.81)
+from replan_core.common.types import (
+    FOOT_FRAMES,
+    JOINT_NAMES,
+    LEGS,
+    BaseState,
+    JointState,
+)
 
 
 def link_frame_id(model: pin.Model, name: str) -> int:

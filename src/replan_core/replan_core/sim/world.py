@@ -36,6 +36,7 @@ from pybullet_utils import bullet_client
 from replan_core.common import rotations
 from replan_core.common.types import (
     FOOT_FRAMES,
+    GRAVITY,
     JOINT_NAMES,
     STANDING_POSE,
     BaseState,
@@ -45,7 +46,6 @@ from replan_core.common.types import (
 from replan_core.sim.settings import TERRAIN_DEFAULTS, TERRAINS, ActuatorParams, WorldSettings
 from replan_core.sim.urdf_merge import simulator_model
 
-GRAVITY = 9.81                    # m/s^2
 _DEFAULT = WorldSettings()        # the constructor's defaults
 
 

@@ -31,6 +31,7 @@ import pinocchio as pin
 from replan_core.common.proxqp import aligned, aligned_empty, proxqp
 from replan_core.common.rotations import yaw_of
 from replan_core.common.types import (
+    GRAVITY,
     LEGS,
     STANDING_POSE,
     BaseState,
@@ -42,7 +43,7 @@ from replan_core.common.types import (
 )
 from replan_core.gait.swing import ground_crossing_fraction, swing_trajectory
 from replan_core.gait.touchdown import StepEvent, StepTracker
-from replan_core.robot.model import GRAVITY, RobotModel
+from replan_core.robot.model import RobotModel
 from replan_core.wbc.settings import WbcParams
 
 N_LEGS = len(LEGS)
