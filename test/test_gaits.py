@@ -92,7 +92,7 @@ def test_hyq_switches_crawl_trot_crawl_trot_at_step_boundaries_and_reruns_bit_ex
         assert contacts[round(t, 3)].all(), (t, contacts[round(t, 3)])
     # A crawl's feet are staggered: the trot's first diagonal passes beside the trunk. The
     # four-feet phase kept at the switch moves the trunk over the diagonals first; without it
-    # the trunk tilted 6 deg and swayed 10 cm in the trot's first second (docs/gait.md).
+    # the trunk tilted 7.2 deg and swayed 10 cm in the trot's first second (docs/gait.md).
     truth = [base_state_from_odom(m) for _, m in messages['/ground_truth/odom']]
     for t, name in switches:
         if name != 'trot':

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from gait_config import CONFIG
 
-from replan_core.common.types import BaseState, ContactState
+from replan_core.common.types import GRAVITY, BaseState, ContactState
 from replan_core.gait.crawl import GaitParams, is_stand_plan
 from replan_core.gait.gait_file import load_gait
 from replan_core.gait.replanner import GaitReplanner, Replan, capture_offset, check_setpoint
@@ -385,7 +385,7 @@ def test_a_stopping_plan_places_the_feet_about_where_the_moving_trunk_comes_to_r
         stop = replanner.plan_pending(base, None, ZERO, 'cmd_vel')
         assert stop is not None and not is_stand_plan(stop)   # steps in place before standing
         stop_plans.append(stop)
-    omega = np.sqrt(9.81 / 0.55)                   # 1/s, the base 0.55 m above the feet
+    omega = np.sqrt(GRAVITY / 0.55)                   # 1/s, the base 0.55 m above the feet
     for still, shifted in zip(*(p.steps for p in stop_plans), strict=True):
         np.testing.assert_allclose(shifted.target[:2] - still.target[:2],
                                    np.array([0.3, -0.1]) / omega, atol=1e-12)
@@ -394,7 +394,7 @@ def test_a_stopping_plan_places_the_feet_about_where_the_moving_trunk_comes_to_r
 def test_capture_offset_is_in_the_body_frame_and_zero_at_rest():
     half_turn = BaseState(0.0, BASE.position.copy(), np.array([0.0, 0.0, 1.0, 0.0]),
                           np.array([0.3, 0.0, 0.0]), np.zeros(3))
-    omega = np.sqrt(9.81 / 0.55)
+    omega = np.sqrt(GRAVITY / 0.55)
     np.testing.assert_allclose(capture_offset(half_turn, FEET, np.pi), [-0.3 / omega, 0.0],
                                atol=1e-12)
     np.testing.assert_array_equal(capture_offset(BASE, FEET, 0.0), np.zeros(2))
