@@ -442,8 +442,7 @@ class StateEstimator:
             m_last, integral, residual = self._observer
             # d/dt (M v)_leg = tau - h + Mdot v + J^T f (leg rows); Mdot v by the difference of
             # M over the tick, so no Coriolis matrix and no acceleration is needed.
-            integral = integral + ((m_rows - m_last) @ v - h_minus_tau[rows] * dt
-                                   + residual * dt)
+            integral = integral + ((m_rows - m_last) @ v - static * dt + residual * dt)
             residual = gain * (momentum - integral)
         self._observer = (m_rows, integral, residual)
         return residual

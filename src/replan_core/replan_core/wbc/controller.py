@@ -29,7 +29,6 @@ import numpy as np
 import pinocchio as pin
 
 from replan_core.common.proxqp import aligned, aligned_empty, proxqp
-from replan_core.common.rotations import yaw_of
 from replan_core.common.types import (
     GRAVITY,
     LEGS,
@@ -412,10 +411,14 @@ class WholeBodyController:
         qp = self._qp
         qp.init(h, g, None, None, self._c, self._l, self._u, lower, upper)
         qp.solve()
-        info = qp.results.info          # each attribute access builds a new wrapper: once
+        results = qp.results            # each attribute access builds a new wrapper: once
+        info = results.info
         status = info.status
-        name = _STATUS_NAMES.get(status, str(status))
-        return qp.results.x.reshape(N_LEGS, 3).copy(), name, int(info.iter)
+        name = _STATUS_NAMES.get(status)
+        if name is None:                # str() of the enum costs ~4 us: only when needed
+            name = str(status)
+        # x is a view of the solver's memory, which the next solve overwrites: a copy.
+        return results.x.reshape(N_LEGS, 3).copy(), name, int(info.iter)
 
     # ------------------------------------------------------------------------------ per tick
     def compute(self, base: BaseState, joints: JointState, contact: np.ndarray,
@@ -468,10 +471,11 @@ class WholeBodyController:
         lwa = pin.LOCAL_WORLD_ALIGNED
         # (4, 3, nv) translational foot Jacobians, world axes: one array, so that the legs'
         # blocks and products below are one call each instead of one per leg.
-        jacobians = np.array([pin.getFrameJacobian(model, data, f, lwa)[:3]
-                              for f in self.robot.foot_frame_ids])
+        foot_ids = self.robot.foot_frame_ids
+        jacobians = np.array([pin.getFrameJacobian(model, data, f, lwa)[:3] for f in foot_ids])
         j_legs = jacobians[self._leg_pick]                  # (4, 3, 3) J_leg, world axes
-        feet = np.array([data.oMf[f].translation for f in self.robot.foot_frame_ids])
+        oMf = data.oMf                  # each data.oMf access builds a new wrapper: once
+        feet = np.array([oMf[f].translation for f in foot_ids])
 
         # Desired CoM acceleration: plan feed-forward + PD on the CoM error (world).
         com_error = com_des - com
@@ -485,7 +489,10 @@ class WholeBodyController:
         omega = np.asarray(base.angular_velocity, dtype=float)
         # Gains are given about the trunk's roll/pitch/yaw axes: Rz diag(k) Rz^T e, done as
         # Rz (k * (Rz^T e)) on floats (3-vectors: numpy's call overhead outweighs the maths).
-        yaw = yaw_of(base.quaternion)
+        # rotations.yaw_of on floats (its arithmetic on numpy scalars costs ~8 us; the same
+        # operations, so the same bits, and the same np.arctan2).
+        qx, qy, qz, qw = values[3:7].tolist()
+        yaw = float(np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)))
         c, s = math.cos(yaw), math.sin(yaw)
         ex, ey, ez = orientation_error.tolist()
         wx, wy, wz = omega.tolist()
@@ -525,7 +532,7 @@ class WholeBodyController:
             foot_velocity = jacobians[i] @ v
             error = np.asarray(ref.position, dtype=float) - feet[i]
             derror = np.asarray(ref.velocity, dtype=float) - foot_velocity
-            swing_error[i] = float(np.linalg.norm(error))
+            swing_error[i] = math.sqrt(error.dot(error))   # np.linalg.norm's own steps
             force = p.swing_kp * error + p.swing_kd * derror
             # Feed-forward: leg inverse dynamics of the reference acceleration minus the
             # velocity-product drift, through a damped inverse of the (3, 3) leg Jacobian.
@@ -543,7 +550,7 @@ class WholeBodyController:
         clipped = np.minimum(np.maximum(torque, self._neg_limit), self._limit)
         saturated = int(np.count_nonzero(clipped != torque))
         self._hold_q = np.asarray(joints.position, dtype=float).copy()
-        self._hold_torque = np.where(np.repeat(stance, 3), clipped, 0.0)
+        self._hold_torque = np.where(stance.repeat(3), clipped, 0.0)
         return WbcResult(
             torque=clipped, forces=forces, com_error=com_error, com_velocity_error=vcom_error,
             orientation_error=orientation_error, swing_error=swing_error, stance=stance,
