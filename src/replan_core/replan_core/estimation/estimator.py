@@ -397,26 +397,39 @@ class StateEstimator:
         jac_t = jac.transpose(0, 2, 1)
         self._force = (jac @ np.linalg.solve(jac_t @ jac + self._eye3_damped, rhs))[..., 0]
         p = self.params
-        fz = self._force[:, 2]
-        raw = np.where(self._contact, fz > p.contact_release_threshold,
-                       fz > p.contact_force_threshold)
-        self._raw = raw
+        # Flags of 4 feet on Python bools and ints: a dozen numpy calls on 4-element arrays
+        # cost more than the logic (the comparisons are the same, so the same flags).
+        release, threshold = p.contact_release_threshold, p.contact_force_threshold
+        contact = self._contact.tolist()
+        raw = [fz > release if was else fz > threshold
+               for fz, was in zip(self._force[:, 2].tolist(), contact, strict=True)]
+        self._raw = np.array(raw)
         if not self.initialized:
             # Spawned standing: no edge. Before the first command no torque acts and no foot
             # shows a force; the robot is on its feet all the same.
-            self._contact = raw.copy() if raw.any() else np.ones(N_LEGS, dtype=bool)
+            self._contact = self._raw.copy() if any(raw) else np.ones(N_LEGS, dtype=bool)
             self._pending = np.zeros(N_LEGS, dtype=int)
             self._touchdown = np.zeros(N_LEGS, dtype=bool)
             self._liftoff = np.zeros(N_LEGS, dtype=bool)
             return
-        # The simulator's debounce (SimWorld._update_contact_flags), on the estimated force.
-        differs = raw != self._contact
-        self._pending = np.where(differs, self._pending + 1, 0)
-        flip = self._pending >= self.params.contact_debounce_ticks
-        self._touchdown = flip & raw
-        self._liftoff = flip & ~raw
-        self._contact = np.where(flip, raw, self._contact)
-        self._pending[flip] = 0
+        # The simulator's debounce (SimWorld._update_contact_flags), on the estimated force: a
+        # flag flips after contact_debounce_ticks (>= 1) ticks in a row of the other raw value.
+        pending = self._pending.tolist()
+        touchdown = [False] * N_LEGS
+        liftoff = [False] * N_LEGS
+        for i in range(N_LEGS):
+            if raw[i] == contact[i]:
+                pending[i] = 0
+                continue
+            pending[i] += 1
+            if pending[i] >= p.contact_debounce_ticks:
+                touchdown[i], liftoff[i] = raw[i], not raw[i]
+                contact[i] = raw[i]
+                pending[i] = 0
+        self._pending = np.array(pending, dtype=int)
+        self._touchdown = np.array(touchdown)
+        self._liftoff = np.array(liftoff)
+        self._contact = np.array(contact)
 
     def _leg_residual(self, q: np.ndarray, v: np.ndarray, h_minus_tau: np.ndarray,
                       dt: float) -> np.ndarray:
