@@ -121,7 +121,8 @@ class StateEstimator:
         base_q[0:3] = p.base_position_noise ** 2 * dt
         base_q[3:6] = p.accel_noise ** 2 * dt
         self._q_diag = np.zeros(N_STATE)
-        self._q_diag[:6] = base_q
+        self._q_diag[:6] = base_q              # the feet's entries: per stance set, below
+        self._q_diags: dict[bytes, np.ndarray] = {}
         self._q_stance3 = np.full((1, 3), p.foot_stance_noise ** 2 * dt)
         self._q_swing3 = np.full((1, 3), p.foot_swing_noise ** 2 * dt)
         self._r_diag[:12] = p.foot_position_noise ** 2      # constant; [12:] set per tick
@@ -493,10 +494,14 @@ class StateEstimator:
     def _predict(self, accel: np.ndarray, dt: float, step: tuple | None = None) -> None:
         """Constant-acceleration step of the base with the IMU; feet random walks. With a
         prepared ``step`` the covariance is left to ``_correct``, which takes the step's."""
-        a_world = self._rot @ accel + _G_WORLD
+        ax, ay, az = (self._rot @ accel + _G_WORLD).tolist()
         x, P = self._x, self._P
-        x[0:3] += x[3:6] * dt + a_world * (0.5 * dt * dt)
-        x[3:6] += a_world * dt
+        # The base's step on floats: the products and sums numpy's elementwise operations did,
+        # one by one and in the same order (numpy fuses none), without six calls on 3-vectors.
+        px, py, pz, vx, vy, vz = x[0:6].tolist()
+        half = 0.5 * dt * dt
+        x[0:6] = (px + (vx * dt + ax * half), py + (vy * dt + ay * half),
+                  pz + (vz * dt + az * half), vx + ax * dt, vy + ay * dt, vz + az * dt)
         stance = self._stance_for_filter()
         x[6:] += (self._roll_velocity * (dt * stance[:, None])).ravel()   # rolling feet
         if step is None:
@@ -507,11 +512,18 @@ class StateEstimator:
         # P := F P F^T with F = I + dt * (dp/dv): a row then a column operation.
         P[0:3, :] += dt * P[3:6, :]
         P[:, 0:3] += dt * P[:, 3:6]
-        q_diag = self._q_diag
-        # (4, 1) flags against (1, 3) noises: the feet's (4, 3) block of the diagonal at once.
-        q_diag[6:].reshape(N_LEGS, 3)[:] = np.where(stance[:, None], self._q_stance3,
-                                                    self._q_swing3)
-        P.ravel()[::N_STATE + 1] += q_diag * (dt / self.dt)     # the diagonal, as a view
+        # The process noise's diagonal of a stance set: 16 sets at most, each built once.
+        key = stance.tobytes()
+        q_diag = self._q_diags.get(key)
+        if q_diag is None:
+            q_diag = self._q_diag.copy()
+            # (4, 1) flags against (1, 3) noises: the feet's (4, 3) block at once.
+            q_diag[6:].reshape(N_LEGS, 3)[:] = np.where(stance[:, None], self._q_stance3,
+                                                        self._q_swing3)
+            self._q_diags[key] = q_diag
+        scale = dt / self.dt
+        # The diagonal, as a view; a product by exactly 1.0 (the usual tick) changes no bit.
+        P.ravel()[::N_STATE + 1] += q_diag if scale == 1.0 else q_diag * scale
 
     def _stance_for_filter(self) -> np.ndarray:
         # A foot whose force already fell under the threshold is free even before the
