@@ -28,9 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from replan_core.common.rotations import yaw_of
+from replan_core.common.types import GRAVITY
 from replan_core.evaluation.metrics import polygon_margin
-
-G = 9.81     # m/s^2
 
 _TOPICS = ('/ground_truth/odom', '/ground_truth/contacts')
 
@@ -92,7 +91,7 @@ def effects_from_states(base: dict, contacts: dict, push_start: float, push_dura
         polygon = np.asarray(c.foot_position)[in_contact, :2]
         b = base[t]
         height = float(b.position[2] - np.asarray(c.foot_position)[in_contact, 2].mean())
-        omega = math.sqrt(G / max(height, 1e-3))
+        omega = math.sqrt(GRAVITY / max(height, 1e-3))
         xy = np.asarray(b.position)[:2]
         point = xy + np.asarray(b.linear_velocity)[:2] / omega
         capture.append(polygon_margin(point, polygon))

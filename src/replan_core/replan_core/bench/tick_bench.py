@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.common.types import ImuReading, JointState
+from replan_core.common.types import GRAVITY, ImuReading, JointState
 from replan_core.robot.robot_file import default_urdf
 
 DT = 0.004                                   # s, control period
-_G_WORLD = np.array([0.0, 0.0, -9.81])       # m/s^2
+_G_WORLD = np.array([0.0, 0.0, -GRAVITY])    # m/s^2
 STAGES = ('estimator', 'plan following', 'controller', 'prepare_next')
 
 

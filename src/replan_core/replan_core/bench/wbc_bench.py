@@ -232,10 +232,6 @@ def main() -> None:
     run(args.urdf, args.cycles, robot=robot)
 
 
-if __name__ == '__main__':
-    main()
-
-
 def closed_loop_crawl(world, urdf: str, ticks: int, dt: float):
     """The closed-loop benches' rig on ``world`` (a ``SimWorld`` standing HyQ): the
     controller, the estimator (default settings, period ``dt`` s) and a plan follower of a
@@ -253,3 +249,7 @@ def closed_loop_crawl(world, urdf: str, ticks: int, dt: float):
     cycles = int(np.ceil(ticks * dt / 5.6)) + 1        # 5.6 s per crawl cycle
     footholds, com_plan = crawl_plan(0.5, contacts.foot_position, com0, cycles=cycles)
     return wbc, estimator, PlanFollower(footholds, com_plan)
+
+
+if __name__ == '__main__':
+    main()

@@ -73,9 +73,11 @@ def capture_offset(base: BaseState, feet: np.ndarray, yaw: float) -> np.ndarray:
     base's height above the mean foot. A stopping plan (zero set-point) shifts its footholds
     by it: laid out about the base of the re-plan, the last feet were behind the trunk's rest
     by it (HyQ trotting at 0.37 m/s: 9 cm), and the position term pulled the trunk back over
-    them and then crept for seconds (docs/gait.md, "Idle stance")."""
+    them and then crept for seconds (docs/gait.md, "Idle stance"). A base not above its
+    feet (fallen, or a NaN in the estimate) has no capture point: zero, the footholds laid out
+    about the base as without it; the fall itself is the estimator's and the graph's to report."""
     height = float(base.position[2] - np.mean(np.asarray(feet, dtype=float)[:, 2]))
-    if not height > 0.0:
+    if not height > 0.0:                                   # also False for NaN
         return np.zeros(2)
     omega = math.sqrt(GRAVITY / height)                    # 1/s
     vx, vy = (float(v) for v in base.linear_velocity[:2])  # m/s, world

@@ -16,8 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from replan_core.common.types import GRAVITY
 
-def lip_matrices(dt: float, com_height: float, gravity: float = 9.81
+
+def lip_matrices(dt: float, com_height: float, gravity: float = GRAVITY
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Discrete model eq. (3): ``x_{k+1} = A x_k + B u_k``, ``z_k = Cz x_k``.
 
@@ -44,7 +46,7 @@ def step(state: np.ndarray, jerk: float | np.ndarray, dt: float) -> np.ndarray:
                      a + jerk * dt])
 
 
-def zmp(state: np.ndarray, com_height: float, gravity: float = 9.81) -> np.ndarray:
+def zmp(state: np.ndarray, com_height: float, gravity: float = GRAVITY) -> np.ndarray:
     """ZMP of eq. (1) from a state (3,) or states (..., 3)."""
     state = np.asarray(state, dtype=float)
     return state[..., 0] - com_height / gravity * state[..., 2]
@@ -93,7 +95,7 @@ class LiftedLip:
         return self.Su[2::3]
 
 
-def lift(n: int, dt: float, com_height: float, gravity: float = 9.81) -> LiftedLip:
+def lift(n: int, dt: float, com_height: float, gravity: float = GRAVITY) -> LiftedLip:
     """Build the lifted prediction eq. (4) and the ZMP prediction eq. (5) for ``n`` samples."""
     if n < 1:
         raise ValueError('the horizon needs at least one sample')

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from replan_core.common.types import GRAVITY
+
 if TYPE_CHECKING:
     from replan_core.mpc.support import SupportSchedule
 
@@ -19,7 +21,7 @@ class MpcSettings:
     dt: float = 0.04                  # s, sampling = constant-jerk interval
     horizon: float = 8.0              # s
     com_height: float = 0.55          # m, above the mean stance foot height (eq. 1)
-    gravity: float = 9.81             # m/s^2
+    gravity: float = GRAVITY          # m/s^2
     jerk_weight: float = 1.0          # R of eq. (6)
     velocity_weight: float = 0.0      # weight of sum |v_k - v_ref|^2; 0 disables the term
     # weight (1/m^2 against R) of sum |p_k - c_k|^2, c_k the centre of the four feet at sample

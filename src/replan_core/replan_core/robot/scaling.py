@@ -20,20 +20,19 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from replan_core.common.types import GRAVITY
 from replan_core.robot.robot_file import RobotFacts
 
-G = 9.81    # m/s^2
-
 SCALES = {
-    'weight': lambda f: f.mass * G,                          # N
-    'leg_weight': lambda f: f.leg_mass * G,                  # N
+    'weight': lambda f: f.mass * GRAVITY,                    # N
+    'leg_weight': lambda f: f.leg_mass * GRAVITY,            # N
     'length': lambda f: f.leg_length,                        # m
-    'time': lambda f: math.sqrt(f.leg_length / G),           # s
-    'speed': lambda f: math.sqrt(G * f.leg_length),          # m/s
-    'rate': lambda f: math.sqrt(G / f.leg_length),           # 1/s
-    'torque': lambda f: f.mass * G * f.leg_length,           # N m
-    'stiffness': lambda f: f.mass * G / f.leg_length,        # N/m
-    'damping': lambda f: f.mass * math.sqrt(G / f.leg_length),   # N s/m
+    'time': lambda f: math.sqrt(f.leg_length / GRAVITY),     # s
+    'speed': lambda f: math.sqrt(GRAVITY * f.leg_length),    # m/s
+    'rate': lambda f: math.sqrt(GRAVITY / f.leg_length),     # 1/s
+    'torque': lambda f: f.mass * GRAVITY * f.leg_length,     # N m
+    'stiffness': lambda f: f.mass * GRAVITY / f.leg_length,  # N/m
+    'damping': lambda f: f.mass * math.sqrt(GRAVITY / f.leg_length),   # N s/m
     # leg_weight / stiffness: how far below the ground a swing must aim for its stiffness to
     # press the foot with the share of the contact threshold (a leg's weight) the reference's does
     'press_depth': lambda f: f.leg_mass * f.leg_length / f.mass,  # m

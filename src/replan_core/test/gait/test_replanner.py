@@ -398,3 +398,14 @@ def test_capture_offset_is_in_the_body_frame_and_zero_at_rest():
     np.testing.assert_allclose(capture_offset(half_turn, FEET, np.pi), [-0.3 / omega, 0.0],
                                atol=1e-12)
     np.testing.assert_array_equal(capture_offset(BASE, FEET, 0.0), np.zeros(2))
+
+
+def test_capture_offset_is_zero_for_a_base_not_above_its_feet():
+    moving = np.array([0.3, 0.2, 0.0])
+    for height in (0.0, -0.1, np.nan):
+        base = BaseState(0.0, np.array([0.0, 0.0, height]), BASE.quaternion.copy(),
+                         moving, np.zeros(3))
+        np.testing.assert_array_equal(capture_offset(base, FEET, 0.0), np.zeros(2))
+    above = BaseState(0.0, np.array([0.0, 0.0, 0.55]), BASE.quaternion.copy(), moving,
+                      np.zeros(3))
+    assert np.all(capture_offset(above, FEET, 0.0) != 0.0)     # the same motion, standing
