@@ -34,5 +34,6 @@ colcon --log-base log test --base-paths src --metas colcon.meta \
 colcon --log-base log test-result --test-result-base build --verbose
 
 echo "test: node-graph tests (pytest test/)"
+# --durations: the slowest tests in every log, to keep the whole run under its 40 minutes.
 python -m pytest test ${marker[@]+"${marker[@]}"} ${extra[@]+"${extra[@]}"} \
-    -o console_output_style=classic -rfE
+    -o console_output_style=classic -rfE --durations=15

@@ -34,7 +34,8 @@ def _sim_and_wbc_running(launcher, probe, **wbc_params) -> list:
     launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml',
                    params={'diagnostics_period': 0.5})
     launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
-                   params={'plan_timeout': 0.5, 'diagnostics_period': 0.5, **wbc_params})
+                   params={'plan_timeout': 0.5, 'first_plan_timeout': 0.5,
+                           'diagnostics_period': 0.5, **wbc_params})
     odoms = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
     diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
     ok = probe.spin_until(lambda: odoms and stamp_to_sec(odoms[-1].header.stamp) >= 2.0,

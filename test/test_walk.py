@@ -53,10 +53,19 @@ def segment(metrics: dict, start: float) -> dict:
     return next(s for s in metrics['velocity_tracking'] if abs(s['start_s'] - start) < 1e-6)
 
 
-def test_forward_crawl_keeps_the_commanded_speed(ros_domain, tmp_path):
-    """0.15 m/s for 20 s: no fall, distance within 10 % of the commanded one."""
-    metrics = run_scenario('forward', tmp_path / 'forward', ros_domain)
-    times, positions, yaws = trajectory(tmp_path / 'forward')
+@pytest.fixture(scope='module')
+def long_walk(ros_domain, tmp_path_factory) -> tuple[Path, dict]:
+    """``long_walk``: 0.15 m/s for 40 s, run once for the two tests below (its first 22 s are
+    ``forward``'s: the same inputs, and runs are bit-exact)."""
+    out = tmp_path_factory.mktemp('walk') / 'long_walk'
+    return out, run_scenario('long_walk', out, ros_domain)
+
+
+def test_forward_crawl_keeps_the_commanded_speed(long_walk):
+    """0.15 m/s: over 20 s no fall, distance within 10 % of the commanded one; the steady
+    speed within 3 %."""
+    out, metrics = long_walk
+    times, positions, yaws = trajectory(out)
     window = (times >= 2.0) & (times <= 22.0)           # 20 s, from one s after the command
     travelled = np.linalg.norm(positions[window][-1, :2] - positions[window][0, :2])
     assert travelled == pytest.approx(0.15 * 20.0, rel=0.10), metrics['velocity_tracking']
@@ -67,20 +76,17 @@ def test_forward_crawl_keeps_the_commanded_speed(ros_domain, tmp_path):
     steady = achieved_velocity(times, positions, yaws, 5.0, 22.0)
     assert steady[0] == pytest.approx(0.15, rel=0.03), steady
     assert abs(steady[1]) < 0.03 * 0.15, steady
-    assert metrics['replans'] >= 25                     # one per touchdown (0.75 s steps)
+    assert metrics['replans'] >= 50                     # one per touchdown (0.75 s steps)
     assert metrics['min_zmp_margin_m'] is not None and metrics['min_zmp_margin_m'] > 0.0
     # The default profile is the realistic robot: the walk above ran on estimated state.
     assert metrics['profile'] == 'realistic'
-    estimator = metrics['estimator']
-    assert estimator['velocity_rmse_mps'] <= 0.05, estimator
-    assert estimator['xy_drift_fraction'] <= 0.05, estimator
     assert metrics['cop_margin_p5_m'] is not None and metrics['touchdown_timing_error_s']
 
 
-def test_estimator_drift_over_a_40_s_walk(ros_domain, tmp_path):
+def test_estimator_drift_over_a_40_s_walk(long_walk):
     """The realistic profile's state estimator over 40 s of walking: xy drift at most 5 % of
     the distance walked, velocity RMSE at most 0.05 m/s, measured against the truth."""
-    metrics = run_scenario('long_walk', tmp_path / 'long_walk', ros_domain)
+    _, metrics = long_walk
     estimator = metrics['estimator']
     assert estimator['path_length_m'] > 5.0, estimator
     assert estimator['xy_drift_fraction'] <= 0.05, estimator

@@ -1,6 +1,6 @@
 """The wbc node as a real process: lock-step answers, standing without plans, re-plan wait.
 
-1. With the real `sim_node` and no gait/mpc: the wbc waits `plan_timeout` for the first plans,
+1. With the real `sim_node` and no gait/mpc: the wbc waits `first_plan_timeout` for the first plans,
    then holds a stable stand, answering every sim tick (the sim advances only on its commands).
 2. The test plays the simulator (exact-stamp states) and the planners: a tick is answered only
    when its three states are there; a due re-plan holds the tick until footholds + com_plan
@@ -52,8 +52,11 @@ def _wbc_status(diags, name: str = 'wbc'):
 def test_wbc_alone_keeps_robot_standing(launcher, probe):
     """Real sim + wbc, no plans: after plan_timeout it stands; 3 s of sim time, robot still up."""
     launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml')
+    # first_plan_timeout: the first command (and with it the sim's check that the wbc reads the
+    # truth, asserted below) 2 s after the wbc is up, time for discovery on a loaded machine.
     launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
-                   params={'plan_timeout': 0.5, 'diagnostics_period': 0.5})
+                   params={'plan_timeout': 0.5, 'first_plan_timeout': 2.0,
+                           'diagnostics_period': 0.5})
     odoms = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
     commands = probe.subscribe(JointStateMsg, 'joint_torque_cmd', COMMAND)
     diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
@@ -246,7 +249,7 @@ def test_estimator_mode_reads_no_ground_truth(launcher, probe):
     launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml')
     launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
                    params={'state_estimation': True, 'contact_estimation': True,
-                           'plan_timeout': 0.5})
+                           'plan_timeout': 0.5, 'first_plan_timeout': 0.5})
     diags = probe.subscribe(DiagnosticArray, '/diagnostics', COMMAND)
     estimates = probe.subscribe(Odometry, 'odom', SENSOR)
     truth = probe.subscribe(Odometry, 'ground_truth/odom', SENSOR)
