@@ -63,7 +63,9 @@ def test_wbc_alone_keeps_robot_standing(launcher, probe):
     ok = probe.spin_until(lambda: odoms and stamp_to_sec(odoms[-1].header.stamp) >= 3.0,
                           timeout=90)
     assert ok, launcher.logs()
-    probe.spin_until(lambda: _wbc_status(diags) is not None, timeout=5)
+    # Both statuses: the sim's comes on its own diagnostics period.
+    probe.spin_until(lambda: _wbc_status(diags) is not None
+                     and _wbc_status(diags, 'sim') is not None, timeout=10)
     heights = [o.pose.pose.position.z for o in odoms]
     final = odoms[-1].pose.pose
     assert min(heights) > 0.57, launcher.logs()
@@ -257,11 +259,16 @@ def test_estimator_mode_reads_no_ground_truth(launcher, probe):
                           timeout=90)
     assert ok, launcher.logs()
     node = probe.node
+
+    def readers_of(topic):
+        return {i.node_name for i in node.get_subscriptions_info_by_topic(topic)}
+    # A reader's node name may come later than the reader itself (_NODE_NAME_UNKNOWN_): once
+    # the wbc's is known on /imu, its readers on the truth would be named too.
+    probe.spin_until(lambda: 'wbc_on_demand' in readers_of('/imu'), timeout=10)
+    assert 'wbc_on_demand' in readers_of('/imu'), readers_of('/imu')
     for topic in ('/ground_truth/odom', '/ground_truth/contacts'):
-        readers = {i.node_name for i in node.get_subscriptions_info_by_topic(topic)}
+        readers = readers_of(topic)
         assert not any(name.startswith('wbc') for name in readers), (topic, readers)
-    readers = {i.node_name for i in node.get_subscriptions_info_by_topic('/imu')}
-    assert 'wbc_on_demand' in readers
     # Only the test reads the truth, not the controller: the sim sends it after the sensors.
     assert probe.spin_until(lambda: _wbc_status(diags, 'sim') is not None, timeout=5)
     assert diagnostics.values_of(_wbc_status(diags, 'sim'))['truth_first'] == 'False'
