@@ -153,11 +153,11 @@ class FakeSimAndPlanners:
         if 'joints' in parts:                       # last, as the sim: the wbc wakes on it
             self.joints_pub.publish(joint_state_to_msg(joints))
 
-    def plans(self, t, steps):
+    def plans(self, t, steps, latency=0.0):
         com = np.array([0.04, 0.015, 0.555])
         n = 50
         position = np.tile(com, (n + 1, 1))
-        plan = FootholdPlan(t, FEET.copy(), 0.0, steps)
+        plan = FootholdPlan(t, FEET.copy(), 0.0, steps, latency=latency)
         self.footholds_pub.publish(footholds_to_msg(plan))
         self.com_pub.publish(com_plan_to_msg(ComPlan(t, 0.04, position, np.zeros((n + 1, 3)),
                                                      np.zeros((n + 1, 3)))))
@@ -224,16 +224,17 @@ def test_exact_stamp_sync_and_replan_wait(launcher, probe):
 
 
 def test_plan_latency_tracks_the_old_plan_then_waits(launcher, probe):
-    """plan_latency 0.02 s (5 ticks): the re-plan tick and the four after it are answered at
-    once on the old plan; the fifth waits for the plans stamped at the touchdown."""
+    """A plan latency of 0.018 s (the plan's, from the gait's plan_latency; 5 ticks): the
+    re-plan tick and the four after it are answered at once on the old plan; the fifth waits
+    for the plans stamped at the touchdown."""
     launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml',
-                   params={'plan_timeout': 30.0, 'plan_latency': 0.018})   # -> 5 ticks
+                   params={'plan_timeout': 30.0})
     sim = FakeSimAndPlanners(probe)
     assert probe.spin_until(sim.connected, timeout=30), launcher.logs()
     probe.spin_for(0.3)
     step = Step(leg=0, liftoff_time=0.1, touchdown_time=0.3, target=FEET[0] + [0.05, 0, 0],
                 step_height=0.05, haptic=True, replan=True, yaw=0.0)
-    sim.plans(0.0, [step])
+    sim.plans(0.0, [step], latency=0.018)                                  # -> 5 ticks
     for k in range(0, 55):
         t = round(k * 0.004, 6)
         sim.state(t, contact=(t < 0.1 or t >= 0.2, True, True, True))

@@ -634,7 +634,7 @@ def _qp_timing(page: Page, data: dict, results: dict) -> None:
              'realistic runs of this page. The paper: ' + _PAPER_QP + ' per QP (2016 hardware). '
              'The '
              'realistic profile\'s planning latency is fixed at the paper\'s 58 ms '
-             '(`wbc.plan_latency`), not at our solve time, so the experiments keep the paper\'s '
+             '(`gait.plan_latency`), not at our solve time, so the experiments keep the paper\'s '
              'delay.', '']
     for name, bench in data.items():
         if 'error' in bench:

@@ -105,6 +105,10 @@ class FootholdPlan:
     # planned swing on, and is forced this long (s) after the planned touchdown.
     min_swing_fraction: float = 0.5
     max_extension: float = 0.3
+    # s of sim time from the trigger until the plan takes effect (the planners' solve time):
+    # the controller tracks the old plan until then, and no step of this plan lifts off
+    # before it, in either tracker (docs/ARCHITECTURE.md, "Re-plan protocol").
+    latency: float = 0.0
 
 
 @dataclass

@@ -90,10 +90,11 @@ class GaitReplanner:
 
     def __init__(self, params: GaitParams, min_swing_fraction: float, max_extension: float,
                  start_delay: float, log: Log = _ignore,
-                 warn: Callable[[str, str], None] = _ignore) -> None:
+                 warn: Callable[[str, str], None] = _ignore, plan_latency: float = 0.0) -> None:
         self.params = params
         self.min_swing_fraction = min_swing_fraction     # travel with each plan (gait/touchdown.py)
         self.max_extension = max_extension               # s
+        self.plan_latency = plan_latency                 # sim s, travels with each plan too
         self.start_delay = max(start_delay, 0.0)         # s, standing before the first step
         self.log = log
         self.warn = warn
@@ -281,6 +282,7 @@ class GaitReplanner:
         # The touchdown rule travels with the plan: the controller applies the same values.
         plan.min_swing_fraction = self.min_swing_fraction
         plan.max_extension = self.max_extension
+        plan.latency = self.plan_latency
         if initial and stand:
             self.log('info', f'initial plan at t={t:.3f} s: standing still until a non-zero '
                              'set-point')

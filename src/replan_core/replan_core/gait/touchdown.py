@@ -9,7 +9,8 @@ Rule (docs/gait.md):
   same planned times form a group that swings together (a trot's diagonal pair,
   ``step_groups``; in a crawl every group is one step). A group's swing starts (lift-off, all
   its legs on one tick) at the first tick t >= max(its planned lift-off, the previous group's
-  actual touchdown tick, i.e. that of its last foot down).
+  actual touchdown tick, i.e. that of its last foot down, the plan's start_time + latency:
+  the tick its plans take effect in the controller).
 - A haptic step ends (touchdown) at the first tick t >= liftoff + min_swing_fraction *
   (touchdown_time - liftoff_time) whose contact flag is set (reason ``contact``), where
   ``liftoff`` is the actual lift-off tick and the duration the planned one; if no contact came,
@@ -94,6 +95,9 @@ class StepTracker:
         self.touchdown_tick: list[float | None] = [None] * len(plan.steps)
         self.touchdown_reason: list[str | None] = [None] * len(plan.steps)
         self.last_time = plan.start_time        # its tick triggered the plan: done already
+        # The controller tracks the old plan until this tick: nothing of this one lifts off
+        # before it, so the gait node's tracker and the controller's agree on every lift-off.
+        self.effective_from = plan.start_time + plan.latency     # s
         self.replan_due = False                 # a replan=True step touched down this tick
         self.events: list[StepEvent] = []       # the events of the last processed tick
 
@@ -135,8 +139,9 @@ class StepTracker:
         return not self.active_steps and self.next_group >= len(self.groups)
 
     def swing_start(self, index: int) -> float:
-        """Time the swing of step ``index`` starts: max(its group's planned lift-off, the
-        previous group's touchdown, i.e. its last foot's).
+        """Time the swing of step ``index`` may start by the plan's steps: max(its group's
+        planned lift-off, the previous group's touchdown, i.e. its last foot's); a first
+        group also waits for ``effective_from``.
 
         Before a foot of the previous group has touched down, its planned touchdown stands in.
         """
@@ -205,7 +210,7 @@ class StepTracker:
             if self.next_group >= len(self.groups):
                 break
             group = self.groups[self.next_group]
-            if t < self.swing_start(group[0]) - TIME_TOLERANCE:
+            if t < max(self.swing_start(group[0]), self.effective_from) - TIME_TOLERANCE:
                 break
             for index in group:
                 self.liftoff_tick[index] = t

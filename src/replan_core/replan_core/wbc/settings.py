@@ -57,7 +57,6 @@ class ProtocolParams:
     """The protocol's settings (the wbc node fills them from its parameters, params.WBC)."""
 
     control_rate: float = 250.0         # Hz, the sim's control tick rate
-    plan_latency: float = 0.0           # sim s from a re-plan trigger to its plans' effect
     plan_max_age: float = 6.0           # sim s: an older plan pair (or one past its end) -> stand
     stale_ticks: int = 3                # control periods between answered ticks -> stale: stand
     missed_replans_to_stand: int = 2    # due re-plans in a row without plans -> stand

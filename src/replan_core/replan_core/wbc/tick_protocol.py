@@ -77,9 +77,10 @@ class ControllerProtocol:
         self.params = params
         self.log = log
         self.period_ns = _ns(1.0 / params.control_rate)
-        # Rounded up to whole ticks (a trigger at t_k takes effect at a tick, never between).
-        self.latency_ns = math.ceil(_ns(params.plan_latency) / self.period_ns - 1e-9) \
-            * self.period_ns
+        # The active plan's latency (FootholdPlan.latency, the gait's ``plan_latency``) in ns,
+        # rounded up to whole ticks: a trigger at t_k takes effect at a tick, never between,
+        # the first tick t >= t_k + latency, as touchdown.StepTracker lifts the new plan off.
+        self.latency_ns = 0
         self.stale_gap_ns = _ns(params.stale_ticks / params.control_rate)
         self.fall_time_ns = _ns(params.fall_time)
         self.standing_pose = np.array(standing_pose, dtype=float)        # rad
@@ -331,10 +332,12 @@ class ControllerProtocol:
             first_liftoff = min((step.liftoff_time for step in footholds.steps), default=None)
             if announced and first_liftoff is not None and first_liftoff < stamp / _NS - 1e-9:
                 self.log('warning_throttled',
-                         f'plan latency {self.latency_ns / _NS:.3f} s is longer than the '
+                         f'plan latency {(stamp - plan_stamp) / _NS:.3f} s is longer than the '
                          'four-feet phase: the first swing of the plan stamped '
                          f'{plan_stamp / _NS:.3f} s starts late')
         self.plan_stamp = plan_stamp
+        self.latency_ns = math.ceil(_ns(footholds.latency) / self.period_ns - 1e-9) \
+            * self.period_ns
         self.missed_replans = 0
         self.missing = ''
         if self.stand is not None:

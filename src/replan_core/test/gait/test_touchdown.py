@@ -273,3 +273,43 @@ def test_crawl_steps_with_equal_times_of_one_leg_are_not_a_group():
     assert step_groups(make_pair_plan().steps) == [[0, 1], [2, 3]]
     same = [plan.steps[0], plan.steps[0]]          # the same leg twice: two steps
     assert step_groups(same) == [[0], [1]]
+
+
+# -- the plan latency -----------------------------------------------------------------------------
+def test_nothing_lifts_off_before_the_plan_takes_effect():
+    plan = make_pair_plan(four_feet=0.0)
+    plan.latency = 0.058                         # takes effect at the first tick >= 0.058 s
+    tr = StepTracker(plan, 0.5, 0.3)
+    assert run(tr, all_down, 14) == []
+    events = tr.update(tick(15), all_down(15))
+    assert [(e.kind, e.leg) for e in events] == [('liftoff', 0), ('liftoff', 3)]
+    # The touchdown window counts from the actual lift-off: 0.060 + 0.5 * 0.3 = 0.210 s.
+    assert run_from(tr, all_down, 16, 52) == []
+    assert [e.kind for e in tr.update(tick(53), all_down(53))] == ['touchdown', 'touchdown']
+
+
+def run_from(tracker, flags_of, k_start, k_end):
+    events = []
+    for k in range(k_start, k_end + 1):
+        events += tracker.update(tick(k), flags_of(k))
+    return events
+
+
+def test_a_tracker_started_when_the_plan_takes_effect_decides_as_one_started_at_its_trigger():
+    """The gait node tracks a plan from its trigger, the controller from the tick it takes
+    effect (it tracks the old plan until then): both must decide every event alike, or the
+    controller meets re-plans it did not expect."""
+    rng = np.random.default_rng(7)
+    flags = rng.random((300, 4)) < 0.4
+    for latency in (0.0, 0.01, 0.058, 0.2):
+        plan = make_pair_plan(four_feet=0.0, swing=0.2)
+        plan.latency = latency
+        gait, wbc = StepTracker(plan, 0.5, 0.3), StepTracker(plan, 0.5, 0.3)
+        effect = int(np.ceil(latency / DT - 1e-9)) or 1      # the controller's first tick
+        for k in range(1, 300):
+            from_trigger = gait.update(tick(k), flags[k])
+            if k >= effect:
+                assert wbc.update(tick(k), flags[k]) == from_trigger, (latency, k)
+                assert wbc.replan_due == gait.replan_due
+            else:
+                assert from_trigger == [], (latency, k)

@@ -72,10 +72,11 @@ def make_protocol(wbc, **settings) -> tuple[ControllerProtocol, list]:
 
 
 def plan_pair(robot, stamp: int, liftoff: float = 0.2, swing: float = 0.2,
-              steps: int = 1) -> tuple[FootholdPlan, ComPlan]:
+              steps: int = 1, latency: float = 0.0) -> tuple[FootholdPlan, ComPlan]:
     """``steps`` non-haptic steps (the first of the left front leg ``liftoff`` s after
     ``stamp``, then one every ``liftoff + swing`` s), each of whose planned touchdowns triggers
-    a re-plan; the CoM held where it is, over 8 s."""
+    a re-plan; the CoM held where it is, over 8 s; the plans of its re-plans take effect
+    ``latency`` s after their trigger."""
     _, base, joints, contacts = robot.tick(stamp)
     t = stamp / NS
     feet = contacts.foot_position.copy()
@@ -85,7 +86,7 @@ def plan_pair(robot, stamp: int, liftoff: float = 0.2, swing: float = 0.2,
                   for k, leg in enumerate((0, 3, 1, 2)[:steps])]
     com, _ = robot.model.com_state(base, joints)
     samples = 201
-    footholds = FootholdPlan(t, feet, 0.0, plan_steps)
+    footholds = FootholdPlan(t, feet, 0.0, plan_steps, latency=latency)
     com_plan = ComPlan(t, 0.04, np.tile(com, (samples, 1)), np.zeros((samples, 3)),
                        np.zeros((samples, 3)))
     return footholds, com_plan
@@ -203,15 +204,16 @@ def test_plans_ready_at_the_replan_tick_are_adopted_without_a_wait(wbc, robot):
 
 
 def test_the_plan_latency_keeps_the_old_plans_for_whole_ticks(wbc, robot):
-    protocol, _ = make_protocol(wbc, plan_latency=0.010)     # 2.5 ticks: 3 ticks
-    assert protocol.latency_ns == 3 * TICK
-    add_pair(protocol, robot, 0)
+    protocol, _ = make_protocol(wbc)
+    assert protocol.latency_ns == 0
+    add_pair(protocol, robot, 0, latency=0.010)     # 2.5 ticks: 3 ticks
     trigger = 100 * TICK
     stamp = 0
     while stamp < trigger:
         assert protocol.on_tick(*robot.tick(stamp))
         answer(protocol, stamp)
         stamp += TICK
+    assert protocol.latency_ns == 3 * TICK          # the active plan's, in whole ticks
     for k in range(3):
         assert protocol.on_tick(*robot.tick(trigger + k * TICK))
         assert protocol.plan_stamp == 0 and protocol.pending == (trigger, trigger + 3 * TICK)
@@ -357,8 +359,8 @@ def test_control_refuses_a_tick_it_was_not_given(wbc, robot):
 
 
 def test_a_plan_latency_longer_than_the_four_feet_phase_is_reported(wbc, robot):
-    protocol, logs = make_protocol(wbc, plan_latency=0.010)
-    add_pair(protocol, robot, 0)
+    protocol, logs = make_protocol(wbc)
+    add_pair(protocol, robot, 0, latency=0.010)
     stamp = 0
     while not protocol.pending:
         assert protocol.on_tick(*robot.tick(stamp))

@@ -17,7 +17,7 @@ FOOTHOLD_DTYPE = np.dtype([('x', '<f8'), ('y', '<f8'), ('z', '<f8'), ('leg', 'u1
                            ('step', '<i4'), ('liftoff_time', '<f8'), ('touchdown_time', '<f8'),
                            ('step_height', '<f8'), ('haptic', 'u1'), ('replan', 'u1'),
                            ('yaw', '<f8'), ('min_swing_fraction', '<f8'),
-                           ('max_extension', '<f8')])
+                           ('max_extension', '<f8'), ('latency', '<f8')])
 
 
 def footholds_to_msg(plan: FootholdPlan) -> PointCloud2:
@@ -25,12 +25,12 @@ def footholds_to_msg(plan: FootholdPlan) -> PointCloud2:
     for leg in range(4):
         p = plan.initial_feet[leg]
         table[leg] = (p[0], p[1], p[2], leg, -1, 0.0, 0.0, 0.0, 0, 0, plan.initial_yaw,
-                      plan.min_swing_fraction, plan.max_extension)
+                      plan.min_swing_fraction, plan.max_extension, plan.latency)
     for i, s in enumerate(plan.steps):
         table[4 + i] = (s.target[0], s.target[1], s.target[2], s.leg, i,
                         s.liftoff_time - plan.start_time, s.touchdown_time - plan.start_time,
                         s.step_height, s.haptic, s.replan, s.yaw, plan.min_swing_fraction,
-                        plan.max_extension)
+                        plan.max_extension, plan.latency)
     return table_to_cloud(header(plan.start_time), table)
 
 
@@ -44,7 +44,8 @@ def footholds_from_msg(msg: PointCloud2) -> FootholdPlan:
     steps_table = table[table['step'] >= 0]
     steps_table = steps_table[np.argsort(steps_table['step'], kind='stable')]
     require_finite(table, ('x', 'y', 'z', 'liftoff_time', 'touchdown_time', 'step_height',
-                            'yaw', 'min_swing_fraction', 'max_extension'), 'footholds')
+                            'yaw', 'min_swing_fraction', 'max_extension', 'latency'),
+                   'footholds')
     if np.any(table['leg'] > 3):
         raise ValueError('footholds table names a leg outside 0..3')
     steps = [Step(leg=int(r['leg']), liftoff_time=t0 + float(r['liftoff_time']),
@@ -58,4 +59,5 @@ def footholds_from_msg(msg: PointCloud2) -> FootholdPlan:
                                               axis=1).astype(float),
                         initial_yaw=float(initial['yaw'][0]), steps=steps,
                         min_swing_fraction=float(initial['min_swing_fraction'][0]),
-                        max_extension=float(initial['max_extension'][0]))
+                        max_extension=float(initial['max_extension'][0]),
+                        latency=float(initial['latency'][0]))

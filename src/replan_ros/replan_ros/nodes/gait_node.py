@@ -127,7 +127,8 @@ class GaitNode(Node):
         # The touchdown rule, re-plan trigger and foothold planning (replan_core.gait.replanner).
         self.replanner = GaitReplanner(
             self.params, float(p['min_swing_fraction']), float(p['max_extension']),
-            float(p['start_delay']), log=self._log, warn=self._warn)
+            float(p['start_delay']), log=self._log, warn=self._warn,
+            plan_latency=float(p['plan_latency']))
         self.unprocessed: deque[ContactState] = deque()
         self.odom = RawStampedBuffer(Odometry, base_state_from_odom, _ODOM_QUEUE)
         steps = ' '.join('+'.join(LEGS[i] for i in group) for group in self.params.swing_groups)

@@ -152,8 +152,7 @@ class WbcNode(Node):
         contact_source = 'joint torques' if self.contact_estimation else 'ground truth'
         sources = f'base state from {base_source}, contacts from {contact_source}'
         self.get_logger().info(
-            f'wbc ready: {urdf}, mass {self.robot.total_mass:.2f} kg, {sources}, plan latency '
-            f'{self.protocol.latency_ns / _NS:.3f} s, plan_timeout '
+            f'wbc ready: {urdf}, mass {self.robot.total_mass:.2f} kg, {sources}, plan_timeout '
             f'{self.plan_wait.plan_timeout} s')
 
     def _on_parameter_change(self, name: str, value) -> None:

@@ -101,6 +101,10 @@ GAIT = (
        'planned swing (sent in footholds: the controller applies the same)', min=0.0, max=1.0),
     _p('max_extension', 0.3, 'haptic swing forced to end this long after its planned '
        'touchdown (sent in footholds)', 's', min=0.0, max=5.0),
+    _p('plan_latency', 0.0, 'from a re-plan trigger until its plans take effect: the '
+       'controller tracks the old plan until the first control tick at or after it, and the '
+       "new plan's first lift-off waits for that tick (sent in footholds)", 'sim s', min=0.0,
+       max=0.99),
     _p('start_delay', 1.0, 'first plan with a set-point already non-zero: stand this long '
        'before the first lift-off', 's', min=0.0, max=60.0),
     _p('idle_stance', _G.idle_stance, 'stand still (all four feet down, no step) until the '
@@ -304,9 +308,6 @@ WBC = (
        "the simulator's ground_truth/odom (ideal)"),
     _p('contact_estimation', False, "true: foot contacts from forces estimated from the joint "
        "torques; false: the simulator's ground_truth/contacts (ideal)"),
-    _p('plan_latency', _P.plan_latency,
-       'from a re-plan trigger until its plans take effect (rounded up to '
-       'control ticks)', 'sim s', min=0.0, max=0.99),
     _p('first_command_waits_for', [], 'nodes that must subscribe to odom, contacts and '
        'contact_events before the first command lets the sim move (the launcher sets the '
        "recorder's, so a bag holds the estimate from t = 0)", kind='str[]'),
