@@ -22,7 +22,9 @@ def quaternion_to_matrix(quaternion: np.ndarray) -> np.ndarray:
 
 def yaw_of(quaternion) -> float:
     """Yaw (rad) of a quaternion (x, y, z, w), ZYX convention."""
-    x, y, z, w = quaternion
+    # On Python floats: the same operations as on numpy scalars, so the same bits, and a
+    # fraction of the cost (it runs in the control tick).
+    x, y, z, w = np.asarray(quaternion, dtype=float).tolist()
     return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
 
 

@@ -29,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from replan_core.common.proxqp import aligned, aligned_empty, proxqp
+from replan_core.common.rotations import yaw_of
 from replan_core.common.types import (
     GRAVITY,
     LEGS,
@@ -489,10 +490,7 @@ class WholeBodyController:
         omega = np.asarray(base.angular_velocity, dtype=float)
         # Gains are given about the trunk's roll/pitch/yaw axes: Rz diag(k) Rz^T e, done as
         # Rz (k * (Rz^T e)) on floats (3-vectors: numpy's call overhead outweighs the maths).
-        # rotations.yaw_of on floats (its arithmetic on numpy scalars costs ~8 us; the same
-        # operations, so the same bits, and the same np.arctan2).
-        qx, qy, qz, qw = values[3:7].tolist()
-        yaw = float(np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)))
+        yaw = yaw_of(values[3:7])
         c, s = math.cos(yaw), math.sin(yaw)
         ex, ey, ez = orientation_error.tolist()
         wx, wy, wz = omega.tolist()
