@@ -336,7 +336,9 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
         the new set-point's shape at once, about where the trunk has actually got to since.
     rest_offset: (2,) m, body frame: added once to each leg's first foothold, the later ones
         following it (a stopping plan's: where the trunk moving now comes to rest,
-        ``replanner.capture_offset``); None: none.
+        ``replanner.capture_offset``); None: none. A stopping plan corrects each first
+        foothold about its hip in full (below ``correction_threshold`` too): the feet come to
+        rest about the trunk.
     Footholds keep each foot's actual height (flat terrain).
     """
     params.validate()
@@ -391,7 +393,8 @@ def compute_footholds(velocity_set_point, initial_feet: np.ndarray, base_positio
     previous = _previous_references(placed_twists, placed_until, placed_poses, twist, placed,
                                     stride_time_scale, params)
     first_targets = _first_footholds(timing, feet, hips_xy, placed, previous, params,
-                                     sway_free=trend_shift is not None)
+                                     sway_free=trend_shift is not None,
+                                     stopping=rest_offset is not None)
     for j, (leg, liftoff, touchdown, mid) in zip(step_of, timing, strict=True):
         offset = hip_offsets[leg] + stance[leg]
         _, yaw_td = ref.pose(touchdown)
@@ -451,7 +454,7 @@ def _previous_references(placed_twists, placed_until, placed_poses, twist: np.nd
 def _first_footholds(timing: list[tuple[int, float, float, float]], feet: np.ndarray,
                      hips_xy: np.ndarray, placed: ReferenceTrajectory,
                      previous: list[ReferenceTrajectory], params: GaitParams,
-                     sway_free: bool) -> dict[int, np.ndarray]:
+                     sway_free: bool, stopping: bool = False) -> dict[int, np.ndarray]:
     """The first foothold (xy, world) of each leg in ``timing`` ((leg, lift-off, touchdown,
     mid-stance) per step), before the velocity feedback's shift: the foot's actual position
     plus one stride (along ``previous[leg]`` back to its last mid-stance, along ``placed`` on
@@ -477,6 +480,11 @@ def _first_footholds(timing: list[tuple[int, float, float, float]], feet: np.nda
                      - targets[leg])
     if not params.foothold_correction:
         return targets
+    if stopping:
+        # Coming to rest, the feet go about the hips whatever the pattern's common offset:
+        # kept, the trunk stood that far off the centre of its feet and the stand plan moved
+        # it there after the stop (B1's walking trot: 4 cm sideways over 1.2 s).
+        return {leg: targets[leg] + gaps[leg] for leg in targets}
     if sway_free:
         # The shape of the pattern about the sway-free hips at every step; the whole pattern
         # only beyond the threshold (a push): a smaller common offset is the trunk lagging

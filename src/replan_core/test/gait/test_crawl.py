@@ -337,6 +337,25 @@ def test_correction_threshold_keeps_small_deviations_foot_relative():
             np.testing.assert_allclose(first[leg].target[:2], expected, atol=TOL)
 
 
+def test_a_stopping_plan_puts_the_feet_about_the_hips_below_the_threshold_too():
+    # Coming to rest (a rest offset given), the 5 cm common offset that a walking plan keeps
+    # foot-relative goes: the feet land about the hips, shifted by the rest offset.
+    params = GaitParams()
+    feet = standing_feet(params)
+    push = np.array([0.0, 0.05])
+    base = np.array([push[0], push[1], HEIGHT])
+    hips = hips_of(params, push, 0.0)
+    rest = np.array([0.02, -0.01])
+    for rest_offset, about_hips in ((None, False), (rest, True)):
+        plan = compute_footholds((0.0, 0.0, 0.0), feet, base, 0.0, hips, 2, 10.0, params,
+                                 rest_offset=rest_offset)
+        first, _ = legs_first_last(plan)
+        for leg in range(4):
+            expected = (hips[leg, :2] + params.stance_offsets[leg] + rest if about_hips
+                        else feet[leg, :2])
+            np.testing.assert_allclose(first[leg].target[:2], expected, atol=TOL)
+
+
 def test_sway_free_correction_restores_the_pattern_and_leaves_a_small_common_offset():
     # About sway-free hips (the trunk's trend), every first foothold goes back to its place in
     # the pattern: one foot 6 cm off it is put back. An offset common to all four feet below the
