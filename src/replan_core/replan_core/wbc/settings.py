@@ -26,7 +26,7 @@ class WbcParams:
     weight_force: float = 1.0       # QP weight of the linear (force) rows, 1/N^2
     weight_moment: float = 10.0     # QP weight of the angular (moment) rows, 1/(N m)^2
     regularization: float = 1e-4    # QP weight of |f|^2: spreads the load, keeps H definite
-    haptic_velocity: float = 0.15   # m/s, descent of a haptic swing foot after planned touchdown
+    haptic_velocity: float = 1.0    # m/s, descent of a haptic swing foot after planned touchdown
     # m, a haptic swing aims this far below its foothold: the foot lags its reference by ~1-2
     # cm, and a swing that ends exactly at ground level meets the ground late (the re-plan
     # follows the sensed touchdown, so every step would take longer than planned). A
