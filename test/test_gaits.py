@@ -1,6 +1,6 @@
 """Gaits beyond the crawl end to end: every robot trots from its robot file and the trot file
-alone, and HyQ switches gait while walking (config/scenarios/<robot>_trot.yaml,
-gait_switch.yaml; docs/gait.md, "Gait files").
+alone, HyQ switches gait while walking (config/scenarios/<robot>_trot.yaml,
+gait_switch.yaml; docs/gait.md, "Gait files") and trots blindly down a step.
 
 Checked on the simulator's truth, as test_walk.py does: the trot's steady forward speed at a
 Froude number of 0.02 within 5 % of the set-point, then, after a stop, the robot standing
@@ -11,6 +11,7 @@ same bag bit for bit.
 
 from __future__ import annotations
 
+import json
 import subprocess
 
 import numpy as np
@@ -117,3 +118,38 @@ def test_hyq_switches_crawl_trot_crawl_trot_at_step_boundaries_and_reruns_bit_ex
                            timeout=900)
     assert rerun.returncode == 0 and 'bit-identical' in rerun.stdout, (rerun.stdout,
                                                                          rerun.stderr[-3000:])
+
+
+# HyQ trotting at its Froude 0.02 speed onto a blind step down of 0.15 of its leg (0.696 m),
+# 2 leg lengths ahead (the robots page's trot step down, docs/robots.md).
+TROT_STEP_DOWN = """name: hyq_trot_step_down
+duration: 8.0
+robot: hyq
+gait: trot
+events:
+  - {t: 0.5, cmd_vel: [0.37, 0.0, 0.0]}
+terrain: {type: step_down, step_height: 0.1044, step_x: 1.392}
+"""
+
+
+def test_hyq_trots_down_a_blind_step_and_every_plan_is_announced(ros_domain, tmp_path):
+    """The late foot finds the lower ground by its haptic descent before the next pair's
+    support is due (docs/gait.md, "Blind step down in a trot"); the gait node and the wbc
+    track every plan alike with the plan latency of the realistic profile, so the wbc adopts
+    no plan its own touchdown rule did not announce (docs/ARCHITECTURE.md, re-plan protocol)."""
+    scenario = tmp_path / 'hyq_trot_step_down.yaml'
+    scenario.write_text(TROT_STEP_DOWN)
+    out = tmp_path / 'run'
+    done = subprocess.run(
+        [str(REPO_ROOT / 'scripts' / 'scenario.sh'), str(scenario), '--no-plots', '--quiet',
+         '--out', str(out)],
+        env=graph_env(ros_domain), capture_output=True, text=True, timeout=600)
+    text = done.stdout + done.stderr
+    assert done.returncode == 0, text
+    metrics = json.loads((out / 'metrics.json').read_text())
+    assert metrics['completed'] and metrics['profile'] == 'realistic', text
+    assert metrics['fell'] is False, (metrics['fall_reason'], text)
+    _, positions, _ = trajectory(out)
+    assert positions[-1, 0] > 1.392 + 0.5, positions[-1]       # the whole trunk past the edge
+    wbc_log = (out / 'logs' / 'wbc.log').read_text()
+    assert 'adopted plans stamped' not in wbc_log, wbc_log[-3000:]
