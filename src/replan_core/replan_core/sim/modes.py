@@ -48,8 +48,8 @@ class SimModes:
         self.free_ref = (wall, 0)                   # (wall s, tick) where free-running began
         self.damping_since = 0.0                    # sim s the last damping mode began
         # The command of the held tick came: nothing is waited for any more, so the tick is
-        # not republished (each republish had the controller answer it again, and the bag's
-        # last tick held one to three copies by the wall time the launcher took to stop).
+        # not republished (the controller answers each republish again, so the last tick
+        # would be recorded as many times as republish periods pass before the stop).
         self.held_answered = False
 
     def holding(self, now_ns: int) -> bool:

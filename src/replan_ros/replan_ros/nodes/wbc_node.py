@@ -233,8 +233,8 @@ class WbcNode(Node):
     def _publish_estimate(self) -> None:
         """odom, contacts (and contact_events) of the last estimated tick, once. Held back
         until the nodes of ``first_command_waits_for`` listen and are matched: a sample
-        published before a reader matched never reaches it, and whether the bag held the
-        estimate of t = 0 depended on when the recorder matched. The sim republishes the tick
+        published before a reader matched never reaches it, so whether the bag holds the
+        estimate of t = 0 would depend on when the recorder matched. The sim republishes the tick
         it waits at, which brings the estimate back here; the first command waits for the
         same listeners, so the estimate of every answered tick goes out."""
         if self._unpublished is None or not self._listeners.ready():
