@@ -139,19 +139,31 @@ def test_lock_step_one_tick_per_command(launcher, probe):
 
 
 def test_stop_time_holds_at_its_tick(launcher, probe):
-    """With stop_time the sim steps to the first tick at or after it and no further: commands
-    for that tick are not stepped, its state is republished, the robot is not damped."""
+    """With stop_time the sim steps to the first tick at or after it and no further: that tick
+    goes out with /clock (off the clock grid too), is republished until its command comes and
+    not after, commands for it are not stepped, the robot is not damped."""
     start_sim(launcher, stop_time=0.01, command_timeout=0.5)   # on no tick: holds at 0.012
     driver = Driver(probe)
     assert driver.wait_ready(), launcher.logs()
     torques = np.linspace(-5.0, 5.0, 12)
     stamps = [driver.step(torques) for _ in range(3)]
     assert stamps[-1] == 3 * TICK_NS
+
+    def held_copies() -> int:
+        return len([m for m in driver.joints if stamp_to_ns(m.header.stamp) == stamps[-1]])
+
+    # Tick 3 is off the 5-tick clock grid: the held tick's own /clock says where it stopped.
+    assert probe.spin_until(lambda: stamps[-1] in {stamp_to_ns(c.clock) for c in driver.clock},
+                            2.0), launcher.logs()
+    assert probe.spin_until(lambda: held_copies() >= 3, 5.0), launcher.logs()  # not answered
+    driver.send(stamps[-1], torques)
+    probe.spin_for(0.3)                           # a republish in flight may still come
+    answered = held_copies()
     for _ in range(10):                           # past command_timeout (0.5 wall s)
         driver.send(stamps[-1], torques)
         probe.spin_for(0.1)
     assert driver.latest_ns() == stamps[-1], launcher.logs()
-    assert len([m for m in driver.joints if stamp_to_ns(m.header.stamp) == stamps[-1]]) >= 3
+    assert held_copies() == answered, launcher.logs()      # answered: no more republishes
     assert probe.spin_until(lambda: driver.sim_status() is not None and values_of(
         driver.sim_status())['holding_at_stop_time'] == 'True', 5.0), launcher.logs()
     status = driver.sim_status()

@@ -91,10 +91,12 @@ def test_wbc_alone_keeps_robot_standing(launcher, probe):
 
 def test_first_command_waits_for_listeners_then_starts_anyway(launcher, probe):
     """A node of first_command_waits_for that never subscribes to one of the estimate's topics
-    (a recorder excluding it) delays the first command by first_command_wait_timeout, then the
-    wbc starts with a warning naming that node and topic: the run never hangs."""
+    (a recorder excluding it) delays the first estimate and command by
+    first_command_wait_timeout, then the wbc starts with a warning naming that node and topic:
+    the run never hangs."""
     odom_sub = probe.subscribe(Odometry, 'odom', SENSOR)
     probe.subscribe(PointCloud2, 'contacts', CONTACTS)        # contact_events: not subscribed
+    probe.subscribe(JointStateMsg, 'joint_torque_cmd', COMMAND)
     launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml')
     wbc = launcher.start('wbc_node', params_file=CONFIG_DIR / 'wbc.yaml', params={
         'plan_timeout': 0.5, 'first_plan_timeout': 0.5, 'first_command_waits_for': ['test_probe'],
@@ -109,7 +111,9 @@ def test_first_command_waits_for_listeners_then_starts_anyway(launcher, probe):
     # must still wait at t = 0.
     assert probe.spin_until(lambda: truth, timeout=8.0), launcher.logs()
     probe.spin_for(0.5)
-    assert all(stamp_to_ns(o.header.stamp) == 0 for o in [*truth, *odom_sub]), launcher.logs()
+    assert all(stamp_to_ns(o.header.stamp) == 0 for o in truth), launcher.logs()
+    # The estimate waits for the same listeners as the first command.
+    assert not odom_sub, launcher.logs()
     assert probe.spin_until(
         lambda: truth and stamp_to_sec(truth[-1].header.stamp) >= 0.5, timeout=60), \
         launcher.logs()

@@ -47,6 +47,10 @@ class SimModes:
         self.last_command_wall = wall               # wall s (monotonic)
         self.free_ref = (wall, 0)                   # (wall s, tick) where free-running began
         self.damping_since = 0.0                    # sim s the last damping mode began
+        # The command of the held tick came: nothing is waited for any more, so the tick is
+        # not republished (the controller answers each republish again, so the last tick
+        # would be recorded as many times as republish periods pass before the stop).
+        self.held_answered = False
 
     def holding(self, now_ns: int) -> bool:
         """At or after ``stop_time``: no more steps."""
@@ -77,6 +81,7 @@ class SimModes:
         if stamp_ns == now_ns:
             self.last_command_wall = wall        # alive: no damping mode
             if self.holding(now_ns):
+                self.held_answered = True
                 return ALIVE, None
             return STEP, self.set_mode(LOCK_STEP, wall, tick, sim_time)
         if self.mode == DAMPING and stamp_ns < now_ns:
@@ -98,8 +103,9 @@ class SimModes:
 
     @property
     def waits_for_command(self) -> bool:
-        """The sim waits at its current tick (republishing it) for a command."""
-        return self.mode in (WAITING, LOCK_STEP)
+        """The sim waits at its current tick (republishing it) for a command; not once the
+        held tick at ``stop_time`` has its command."""
+        return self.mode in (WAITING, LOCK_STEP) and not self.held_answered
 
     @property
     def free_running(self) -> bool:

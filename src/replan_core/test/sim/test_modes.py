@@ -71,8 +71,11 @@ def test_at_stop_time_it_holds_and_never_damps():
     modes.command(0, 0, 100.0, 0, 0.0)
     assert modes.command(TICK, TICK, 100.1, 1, 0.004) == (STEP, None)
     assert not modes.holding(TICK) and modes.holding(2 * TICK) and modes.holding(3 * TICK)
+    assert modes.waits_for_command                               # held, not answered yet
     assert modes.command(2 * TICK, 2 * TICK, 100.2, 2, 0.008) == (ALIVE, None)
     assert modes.last_command_wall == 100.2                      # alive
+    # Answered: nothing to heal, so no republish (the controller would answer it again).
+    assert not modes.waits_for_command
     assert modes.watchdog(2 * TICK, 200.0, 2, 0.008) is None      # held: no damping
     assert modes.mode == LOCK_STEP
 

@@ -90,9 +90,9 @@ class ClockWatch:
             self._commands = OnDemandSubscriptions(self.node)
             self._commands.subscribe(JointState, '/joint_torque_cmd', END_COMMAND_QOS,
                                      self._on_command)
-        self.node.create_subscription(
-            Clock, '/clock', self._on_clock,
-            QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+        # Reliable: the held tick's /clock, which ends the run, is sent once (the sim no longer
+        # republishes a held tick that was answered), so it must not be lost.
+        self.node.create_subscription(Clock, '/clock', self._on_clock, qos.CLOCK)
         self.plan_stamps: set[tuple[int, int]] = set()
         self.start_position: tuple[float, float] | None = None
         self.position: tuple[float, float] | None = None

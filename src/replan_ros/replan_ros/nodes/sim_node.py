@@ -191,7 +191,10 @@ class SimNode(Node):
         budget.add('sim_physics', time.perf_counter_ns() - t1)
         self.rtf.stepped(time.monotonic(), self.world.time)
         self.outputs.sense()
-        self.outputs.publish_state(timed=True)
+        # The tick it holds at goes out with /clock even off the clock grid: the launcher ends
+        # the run once /clock says stop_time, and the held tick is not republished once
+        # answered (modes.SimModes.waits_for_command).
+        self.outputs.publish_state(timed=True, with_clock=self.modes.holding(self.now_ns))
         if self.modes.mode == LOCK_STEP:
             self._begin_next()
 

@@ -76,11 +76,6 @@ class WbcNode(Node):
         p = declare_node_parameters(self, 'wbc', on_change=self._on_parameter_change)
         self.state_estimation = bool(p['state_estimation'])
         self.contact_estimation = bool(p['contact_estimation'])
-        # The first command lets the sim move: only once these nodes listen to the estimate.
-        self._listeners = ListenersGate(self, ('odom', 'contacts', 'contact_events'),
-                                        p['first_command_waits_for'],
-                                        float(p['first_command_wait_timeout']))
-
         # The robot file's model; its names map to the project's (topics keep those).
         robot = load_node_robot(self, p, default_urdf(project_root()))
         urdf = robot.urdf
@@ -117,7 +112,8 @@ class WbcNode(Node):
         self.stats = ControllerStats()         # /diagnostics figures over a period
         self.budget = TickBudget(WBC_PHASES)
         self.timing = PhaseTimer(self.budget)
-        self._unpublished: tuple | None = None   # (odom, contacts, events) not yet published
+        # (stamp, odom, contacts, events) of the last estimated tick, not yet published
+        self._unpublished: tuple | None = None
 
         self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND_PUB,
                                              event_callbacks=INTERNAL_PUB_EVENTS)
@@ -129,6 +125,12 @@ class WbcNode(Node):
                                                   event_callbacks=INTERNAL_PUB_EVENTS)
         self.events_pub = self.create_publisher(PointCloud2, 'contact_events', CONTACTS_PUB,
                                                 event_callbacks=INTERNAL_PUB_EVENTS)
+        # The first command lets the sim move: only once these nodes listen to the estimate
+        # and the commands, and only then is the estimate published (_publish_estimate).
+        self._listeners = ListenersGate(
+            self, {'odom': self.odom_pub, 'contacts': self.contacts_pub,
+                   'contact_events': self.events_pub, 'joint_torque_cmd': self.cmd_pub},
+            p['first_command_waits_for'], float(p['first_command_wait_timeout']))
         # One wake-up per tick, on joint_states: the sim publishes the imu (and, to a controller
         # that reads it, the truth) before them, so they are queued by then, and are taken from
         # their queues (on_demand.py; waited for up to _STATE_WAIT if late).
@@ -183,10 +185,14 @@ class WbcNode(Node):
         estimate = self.ticks.estimate(stamp)
         if estimate is not None:
             # The sim republished a tick we have estimated: the same state and command again
-            # (a lost odom, contacts or command heals; the estimator never runs twice).
-            odom_msg, contacts_msg = estimate
-            self.odom_pub.publish(odom_msg)
-            self.contacts_pub.publish(contacts_msg)
+            # (a lost odom, contacts or command heals; the estimator never runs twice). An
+            # estimate held back for the listeners goes out now if they are there.
+            if self._unpublished is not None and self._unpublished[0] == stamp:
+                self._publish_estimate()
+            elif self._unpublished is None:
+                odom_msg, contacts_msg = estimate
+                self.odom_pub.publish(odom_msg)
+                self.contacts_pub.publish(contacts_msg)
             self._on_state(stamp)
             return
         if not self.ticks.is_new(stamp):
@@ -213,7 +219,7 @@ class WbcNode(Node):
         # Published right after the command (_command), so that the sim steps while they go
         # out; a tick not answered now (held for its plans) publishes them below, before the
         # wait: the planners need this tick's state to make those plans.
-        self._unpublished = (odom_msg, contacts_msg, events)
+        self._unpublished = (stamp, odom_msg, contacts_msg, events)
         self.ticks.estimated(stamp, (base, joints, contacts), (odom_msg, contacts_msg))
         self._on_state(stamp)
         self._publish_estimate()
@@ -224,11 +230,16 @@ class WbcNode(Node):
             self._direct_states.run(lambda: self.protocol.waiting is None)
 
     def _publish_estimate(self) -> None:
-        """odom, contacts (and contact_events) of the last estimated tick, once."""
-        if self._unpublished is None:
+        """odom, contacts (and contact_events) of the last estimated tick, once. Held back
+        until the nodes of ``first_command_waits_for`` listen and are matched: a sample
+        published before a reader matched never reaches it, so whether the bag holds the
+        estimate of t = 0 would depend on when the recorder matched. The sim republishes the tick
+        it waits at, which brings the estimate back here; the first command waits for the
+        same listeners, so the estimate of every answered tick goes out."""
+        if self._unpublished is None or not self._listeners.ready():
             return
         start = self.timing.clock()
-        odom_msg, contacts_msg, events = self._unpublished
+        _stamp, odom_msg, contacts_msg, events = self._unpublished
         self._unpublished = None
         self.odom_pub.publish(odom_msg)
         self.contacts_pub.publish(contacts_msg)

@@ -13,6 +13,11 @@
   sequence numbers is a lost message; a number that drops starts a new writer (a respawned
   node, a second publisher). Messages before the recorder subscribed, or after its last take,
   are not seen.
+- The controller's estimate (``ESTIMATE_TOPICS``), which the sequence count cannot see before
+  the recorder subscribed: when the bag holds the controller's commands from its first
+  (``/joint_torque_cmd`` numbered from 1), each estimate topic must hold the tick of that first
+  command too (the controller publishes a tick's estimate before or with its command); the
+  ticks from the first command to the estimate's first are missing.
 - Topics with several publishers (``/diagnostics``, ``/rosout``) are not counted.
 
 The recorder counts while it writes (``Counter``) and stores the result in the bag as the
@@ -42,6 +47,8 @@ TICK_TOPICS = frozenset({'/imu', '/joint_states', '/ground_truth/odom', '/ground
 DIAGNOSTICS = '/diagnostics'
 SHARED_TOPICS = frozenset({DIAGNOSTICS, '/rosout', '/parameter_events'})
 SIM_STATUS = 'sim'            # the sim's status name on /diagnostics
+COMMANDS = '/joint_torque_cmd'
+ESTIMATE_TOPICS = ('/odom', '/contacts')
 MAX_GAPS = 20                 # gaps listed per topic (all are counted)
 MAX_TICKS = 50_000_000        # more ticks than this between two stamps: not a tick stream
 MAX_WRITERS = 64              # runs of sequence numbers followed per topic
@@ -204,6 +211,8 @@ class Counter:
         self.shared: set[str] = set(SHARED_TOPICS)
         self.sim_time_ns = 0      # the sim's own report: its sim_time (6 digits) ...
         self.sim_ticks = 0        # ... and its count of ticks done (exact)
+        # The first message of the controller's commands and estimate: (stamp ns, sequence).
+        self.firsts: dict[str, tuple[int | None, int]] = {}
 
     def add(self, topic: str, data: bytes, sequence: int) -> None:
         written = self.written
@@ -216,6 +225,8 @@ class Counter:
                     ticks = self.ticks[topic] = _Ticks()
                 ticks.add(stamp)
         elif topic not in self.shared:
+            if topic not in self.firsts and (topic == COMMANDS or topic in ESTIMATE_TOPICS):
+                self.firsts[topic] = (_stamp_ns(data), sequence)
             numbers = self.sequences.get(topic)
             if numbers is None:
                 numbers = self.sequences[topic] = _Sequence()
@@ -266,8 +277,26 @@ class Counter:
                 out.topics[topic] = TopicCount(self.written[topic], 'sequence',
                                                sequence.missing,
                                                [list(g) for g in sequence.gaps])
+        self._add_estimate_head(out, period)
         out.complete = not any(count.missing for count in out.topics.values())
         return out
+
+    def _add_estimate_head(self, out: Completeness, period: int) -> None:
+        """The estimate's ticks from the controller's first command on that the bag lacks at
+        its start (published before the recorder subscribed: no sequence gap shows them)."""
+        command = self.firsts.get(COMMANDS)
+        if command is None or command[0] is None or command[1] != 1:
+            return          # not the controller's first command: its start is not in the bag
+        first_command = command[0]
+        for topic in ESTIMATE_TOPICS:
+            first = self.firsts.get(topic)
+            count = out.topics.get(topic)
+            if first is None or first[0] is None or count is None or first[0] <= first_command:
+                continue
+            step = period or first[0] - first_command
+            count.missing += max(round((first[0] - first_command) / step), 1)
+            if len(count.gaps) < MAX_GAPS:
+                count.gaps.insert(0, [first_command, first[0] - step])
 
 
 def count_files(files: list[Path]) -> Completeness:

@@ -8,15 +8,21 @@ import time
 
 
 class ListenersGate:
-    """``ready()`` is True once every node of ``nodes`` subscribes to each of ``topics`` of
-    ``node``, or ``timeout`` wall s after the first call: then it warns which node does not
-    listen to which topic (a recorder told to leave one out, or one that died): a graph never
-    waits forever."""
+    """``ready()`` is True once every node of ``nodes`` subscribes to each topic of
+    ``publishers`` (topic -> the node's publisher on it) and that publisher has matched every
+    subscription the graph lists on its topic, or ``timeout`` wall s after the first call: then
+    it warns which node does not listen to which topic (a recorder told to leave one out, or one
+    that died): a graph never waits forever.
 
-    def __init__(self, node, topics: tuple[str, ...], nodes, timeout: float,
+    Both, because the graph lists a reader as soon as it is discovered, and the writer matches
+    it a moment later (Fast DDS calls the participant's listener before it pairs the endpoints):
+    a sample published in between does not reach that reader, and a volatile writer never sends
+    it again."""
+
+    def __init__(self, node, publishers: dict, nodes, timeout: float,
                  timeout_name: str = 'first_command_wait_timeout') -> None:
         self._node = node
-        self._topics = topics
+        self._publishers = dict(publishers)
         self._nodes = set(nodes)
         self._timeout = float(timeout)                  # wall s
         self._timeout_name = timeout_name               # the parameter, for the warning
@@ -26,27 +32,40 @@ class ListenersGate:
     def missing(self) -> list[str]:
         """'<node> on <topic>' for each subscription still missing."""
         found = []
-        for topic in self._topics:
+        for topic in self._publishers:
             readers = {info.node_name for info in self._node.get_subscriptions_info_by_topic(
                 self._node.resolve_topic_name(topic))}
             found += [f'{name} on {topic}' for name in sorted(self._nodes - readers)]
         return found
 
+    def unmatched(self) -> list[str]:
+        """The topics whose publisher has not yet matched every reader the graph lists."""
+        return [topic for topic, publisher in self._publishers.items()
+                if publisher.get_subscription_count()
+                < self._node.count_subscribers(self._node.resolve_topic_name(topic))]
+
     def ready(self) -> bool:
         if self._open:
             return True
         missing = self.missing()
+        unmatched = [] if missing else self.unmatched()
         logger = self._node.get_logger()
-        if missing:
+        if missing or unmatched:
             now = time.monotonic()
             if self._deadline is None:
                 self._deadline = now + self._timeout
             if now < self._deadline:
                 return False
-            logger.warning(
-                f'no subscription of {", ".join(missing)} after {self._timeout_name} '
-                f'({self._timeout:g} s): starting anyway; a bag misses these topics or their '
-                'first samples')
+            if missing:
+                logger.warning(
+                    f'no subscription of {", ".join(missing)} after {self._timeout_name} '
+                    f'({self._timeout:g} s): starting anyway; a bag misses these topics or '
+                    'their first samples')
+            else:
+                logger.warning(
+                    f'a reader of {", ".join(unmatched)} not matched after '
+                    f'{self._timeout_name} ({self._timeout:g} s): starting anyway; it may miss '
+                    'the first samples')
         else:
             logger.info(f'{sorted(self._nodes)} listen: starting')
         self._open = True

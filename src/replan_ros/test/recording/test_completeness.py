@@ -99,6 +99,35 @@ def test_the_controller_s_per_tick_topics_count_against_its_own_sequence():
     assert result.complete and result.topics['/odom'].counted_by == 'sequence'
 
 
+def test_an_estimate_without_the_tick_of_the_controller_s_first_command_is_incomplete():
+    """The estimate of t = 0 published before the recorder subscribed shows no sequence gap
+    (the count starts wherever the bag's first number is): the controller's first command
+    (number 1) says which tick the estimate must start at."""
+    counter = Counter()
+    _ticks(counter, '/joint_states', range(100))
+    for k in range(100):
+        counter.add('/joint_torque_cmd', _odom(k * TICK), k + 1)
+        if k:                                # odom of t = 0 before the recorder: number 1
+            counter.add('/odom', _odom(k * TICK), k + 1)
+        counter.add('/contacts', _odom(k * TICK), k + 3)   # republished twice: 3 is t = 0
+    result = counter.result()
+    assert not result.complete
+    assert result.topics['/odom'].missing == 1 and result.topics['/odom'].gaps == [[0, 0]]
+    assert result.topics['/contacts'].missing == 0
+    assert result.gaps_text() == 'incomplete: /odom misses 1 message'
+
+
+def test_the_estimate_is_not_held_to_commands_whose_start_the_bag_lacks():
+    """A recorder started next to a running graph: its first command is not number 1, so
+    where the estimate starts says nothing."""
+    counter = Counter()
+    for k in range(50, 100):
+        counter.add('/joint_torque_cmd', _odom(k * TICK), k + 1)
+        if k > 52:
+            counter.add('/odom', _odom(k * TICK), k + 1)
+    assert counter.result().complete
+
+
 def test_a_new_writer_and_shared_topics_are_not_gaps():
     counter = Counter()
     for n in (1, 2, 3, 1, 2):               # the publisher respawned: its count starts again
