@@ -106,30 +106,28 @@ def run_node(make_node: Callable[[], Node], args=None, *,
     """Run one node in this process. An exception of ``one_line_errors`` (e.g. the live view's
     port taken) is printed as one line ``[label] error`` and ends the process with code 1; a
     node that refuses its configuration exits by itself (SystemExit 2, replan_ros.params).
-    With ``drain`` (the recorder, which runs a little behind the graph under load), SIGINT and
-    SIGTERM first call ``drain(node)`` until it returns 0 for ``DRAIN_QUIET`` s (at most
-    ``DRAIN_LIMIT`` s), then destroy the node: rclpy's own handlers would shut the context
-    down at once and lose what is still queued."""
+    SIGINT and SIGTERM stop the node between two callbacks, never inside one: rclpy's own
+    handlers shut the context down at once, so a publish still to come in the callback that
+    was running failed (the wbc publishes a tick's estimate right after its command, and the
+    launcher stops the graph as soon as it sees the command of the stop tick: the bag held the
+    last estimate or not by that race). With ``drain`` (the recorder, which runs a little behind
+    the graph under load), ``drain(node)`` is then called until it returns 0 for
+    ``DRAIN_QUIET`` s (at most ``DRAIN_LIMIT`` s) before the node is destroyed."""
     stop: list[int] = []
-    if drain is None:
-        rclpy.init(args=args)
-    else:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, lambda signum, _frame: stop.append(signum))
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, _frame: stop.append(signum))
     node = None
     profiler = _profiler(label or getattr(make_node, '__name__', 'node'))
     try:
         node = make_node()
         if profiler is not None:
             profiler.enable()
-        if drain is None:
-            rclpy.spin(node)
-        else:
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-            while not stop and rclpy.ok():
-                executor.spin_once(timeout_sec=0.1)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while not stop and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        if drain is not None:
             quiet_since = time.monotonic()
             end = quiet_since + DRAIN_LIMIT
             while time.monotonic() < end and time.monotonic() - quiet_since < DRAIN_QUIET:
