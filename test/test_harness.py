@@ -60,9 +60,14 @@ def test_a_process_left_on_a_domain_is_found_and_killed(reserve_domain):
     environment (as a script's graph inherits it) is found by it, and killed."""
     domain = reserve_domain()
     before = set(domain_processes(domain))
-    stray = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'],
-                             env=graph_env(domain), start_new_session=True)
+    # It says when it runs: until then it may be between exec calls (the venv's python
+    # re-executes itself once), when /proc shows no command line and no environment.
+    stray = subprocess.Popen([sys.executable, '-c',
+                              'import time; print("up", flush=True); time.sleep(60)'],
+                             env=graph_env(domain), start_new_session=True,
+                             stdout=subprocess.PIPE, text=True)
     try:
+        assert stray.stdout.readline() == 'up\n'
         assert stray.pid in domain_processes(domain)
         assert parent_pid(stray.pid) == os.getpid()
         # What the per-test check keeps: this process's own children (a module's graph).
@@ -77,3 +82,4 @@ def test_a_process_left_on_a_domain_is_found_and_killed(reserve_domain):
     finally:
         if stray.poll() is None:
             stray.kill()
+        stray.stdout.close()

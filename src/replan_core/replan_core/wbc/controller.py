@@ -130,7 +130,8 @@ class PlanFollower:
     """
 
     def __init__(self, footholds: FootholdPlan, com_plan: ComPlan,
-                 haptic_velocity: float = 0.15, touchdown_depth: float = 0.0) -> None:
+                 haptic_velocity: float = WbcParams.haptic_velocity,
+                 touchdown_depth: float = 0.0) -> None:
         self.footholds = footholds
         self.com_plan = com_plan
         self.tracker = StepTracker(footholds)      # the touchdown rule comes with the plan
@@ -222,7 +223,7 @@ class StandHold:
     """
 
     def __init__(self, t: float, com: np.ndarray, yaw: float, contacts: ContactState,
-                 haptic_velocity: float = 0.15) -> None:
+                 haptic_velocity: float = WbcParams.haptic_velocity) -> None:
         self.start_time = t
         self.com = np.array(com, dtype=float)
         self.yaw = float(yaw)

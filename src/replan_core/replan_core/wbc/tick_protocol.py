@@ -77,10 +77,6 @@ class ControllerProtocol:
         self.params = params
         self.log = log
         self.period_ns = _ns(1.0 / params.control_rate)
-        # The active plan's latency (FootholdPlan.latency, the gait's ``plan_latency``) in ns,
-        # rounded up to whole ticks: a trigger at t_k takes effect at a tick, never between,
-        # the first tick t >= t_k + latency, as touchdown.StepTracker lifts the new plan off.
-        self.latency_ns = 0
         self.stale_gap_ns = _ns(params.stale_ticks / params.control_rate)
         self.fall_time_ns = _ns(params.fall_time)
         self.standing_pose = np.array(standing_pose, dtype=float)        # rad
@@ -187,6 +183,17 @@ class ControllerProtocol:
         return ' and '.join(missing) or 'footholds/com_plan'
 
     # ------------------------------------------------------------------------------ ticks
+    @property
+    def latency_ns(self) -> int:
+        """The active plan's latency (FootholdPlan.latency, the gait's ``plan_latency``) in ns,
+        rounded up to whole ticks: a trigger at t_k takes effect at a tick, never between, the
+        first tick t >= t_k + latency, as touchdown.StepTracker lifts the new plan off; 0
+        without a plan."""
+        if self.follower is None:
+            return 0
+        return math.ceil(_ns(self.follower.footholds.latency) / self.period_ns - 1e-9) \
+            * self.period_ns
+
     @property
     def mode(self) -> str:
         """'fallen', 'stand_up', 'stand' or 'plan'."""
@@ -336,8 +343,6 @@ class ControllerProtocol:
                          'four-feet phase: the first swing of the plan stamped '
                          f'{plan_stamp / _NS:.3f} s starts late')
         self.plan_stamp = plan_stamp
-        self.latency_ns = math.ceil(_ns(footholds.latency) / self.period_ns - 1e-9) \
-            * self.period_ns
         self.missed_replans = 0
         self.missing = ''
         if self.stand is not None:

@@ -107,9 +107,9 @@ def run_node(make_node: Callable[[], Node], args=None, *,
     port taken) is printed as one line ``[label] error`` and ends the process with code 1; a
     node that refuses its configuration exits by itself (SystemExit 2, replan_ros.params).
     SIGINT and SIGTERM stop the node between two callbacks, never inside one: rclpy's own
-    handlers interrupt the callback that is running, so a publish still to come in it would
-    not happen (the wbc publishes a tick's estimate right after its command, and the launcher
-    stops the graph as soon as it sees the command of the stop tick: the bag would hold the
+    handlers shut the context down at once, so a publish still to come in the callback that
+    was running failed (the wbc publishes a tick's estimate right after its command, and the
+    launcher stops the graph as soon as it sees the command of the stop tick: the bag held the
     last estimate or not by that race). With ``drain`` (the recorder, which runs a little behind
     the graph under load), ``drain(node)`` is then called until it returns 0 for
     ``DRAIN_QUIET`` s (at most ``DRAIN_LIMIT`` s) before the node is destroyed."""
