@@ -36,7 +36,14 @@ from typing import Any
 import numpy as np
 
 from replan_core.common.rotations import yaw_of
-from replan_core.common.types import BaseState, ComPlan, ContactState, FootholdPlan, JointState
+from replan_core.common.types import (
+    LEGS,
+    BaseState,
+    ComPlan,
+    ContactState,
+    FootholdPlan,
+    JointState,
+)
 from replan_core.wbc.controller import (
     JointStandUp,
     PlanFollower,
@@ -193,6 +200,18 @@ class ControllerProtocol:
             return 0
         return math.ceil(_ns(self.follower.footholds.latency) / self.period_ns - 1e-9) \
             * self.period_ns
+
+    @property
+    def swinging_legs(self) -> np.ndarray:
+        """(4,) bool: the legs in swing after the last processed tick (lifted off by the
+        touchdown rule, not yet down); none while standing, fallen or without a plan. The
+        estimator anchors none of them (``StateEstimator.update``)."""
+        legs = np.zeros(len(LEGS), dtype=bool)
+        if self.follower is not None and self.stand is None and self.fallen is None:
+            tracker = self.follower.tracker
+            for index in tracker.active_steps:
+                legs[tracker.plan.steps[index].leg] = True
+        return legs
 
     @property
     def mode(self) -> str:

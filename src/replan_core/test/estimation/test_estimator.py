@@ -182,6 +182,74 @@ def test_leg_lift_edges_follow_the_simulator(world, robot):
     assert velocity_rmse(log) < 0.03
 
 
+class _StuckTorques:
+    """Two estimators fed the same samples, in which lf's measured torques stay at their last
+    value before ``t_lift`` (a swinging leg whose load seems to stay: its estimated force keeps
+    above the release threshold). ``update`` gives the first, told the legs the controller
+    swings, and keeps the second's base (not told) in ``blind``."""
+
+    def __init__(self, aware: StateEstimator, blind: StateEstimator, t_lift: float,
+                 t_down: float) -> None:
+        self.aware, self.blind, self.t_lift, self.t_down = aware, blind, t_lift, t_down
+        self.stuck, self.blind_log = None, []
+
+    def update(self, imu, joints):
+        swinging = np.zeros(4, dtype=bool)
+        if self.t_lift < imu.stamp < self.t_down:
+            swinging[0] = True
+            effort = joints.effort.copy()
+            effort[0:3] = self.stuck
+            joints = JointState(joints.stamp, joints.position, joints.velocity, effort)
+        else:
+            self.stuck = joints.effort[0:3].copy()
+        self.blind_log.append(self.blind.update(imu, joints))
+        return self.aware.update(imu, joints, swinging)
+
+
+def test_a_swinging_leg_anchors_nothing_whatever_force_it_shows(world, robot):
+    """lf lifted 8 cm and moved 10 cm forward and back while its measured torques stay those of
+    its stance: the estimator told that the controller swings lf keeps the base velocity
+    within 3 cm/s; one not told takes the moving foot for an anchor and the base velocity
+    follows the foot."""
+    t_lift, t_down = 1.6, 2.4
+    pair = _StuckTorques(StateEstimator(robot, EstimatorParams(), DT),
+                         StateEstimator(robot, EstimatorParams(), DT), t_lift, t_down)
+    com0 = initial_com(world, robot)
+    feet0 = world.contact_state().foot_position.copy()
+    goal = com0.copy()
+    goal[:2] += 0.6 * (feet0[[1, 2, 3], :2].mean(axis=0) - com0[:2])
+    omega = 2 * np.pi * 2.5
+
+    def reference(t, base, contact):
+        s = min(t / 1.5, 1.0)
+        com_ref = (com0 + (goal - com0) * s**3 * (10 - 15 * s + 6 * s * s), np.zeros(3),
+                   np.zeros(3))
+        stance, swing = np.ones(4, bool), ()
+        if t_lift <= t < t_down:
+            rise = min((t - t_lift) / 0.1, 1.0)
+            offset = np.array([0.1 * np.sin(omega * (t - t_lift)), 0.0, 0.08 * rise])
+            velocity = np.array([0.1 * omega * np.cos(omega * (t - t_lift)), 0.0, 0.0])
+            stance[0] = False
+            swing = (SwingReference(0, feet0[0] + offset, velocity, np.zeros(3)),)
+        return com_ref, 0.0, stance, swing
+
+    log = run(world, robot, pair, reference, 2.4)
+    swung = [k for k, (t, *_) in enumerate(log) if t_lift + 0.1 <= t < t_down - 0.01]
+    assert all(not log[k][2].contact[0] for k in swung)          # truly free ...
+    assert all(pair.blind_log[k][1].contact[0] for k in swung)   # ... and shown loaded
+
+    def worst(bases):
+        return max(np.linalg.norm(bases[k].linear_velocity - log[k][1].linear_velocity)
+                   for k in swung)
+
+    aware = worst([entry[3] for entry in log])
+    blind = worst([base for base, _ in pair.blind_log])
+    print(f'\nlf swinging with its stance torques: base velocity error at most {aware:.3f} m/s '
+          f'(told), {blind:.3f} m/s (not told)')
+    assert aware < 0.03                                           # m/s
+    assert blind > 5 * aware
+
+
 class _Pair:
     """Two estimators fed the same samples; ``update`` returns the first's result and keeps
     the second's estimated forces in ``other_forces``."""

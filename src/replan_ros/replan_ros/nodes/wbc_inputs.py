@@ -87,13 +87,14 @@ class TickInputs:
                           timeout=timeout)
         return all(stamp in buffer for buffer in self._needed)
 
-    def state(self, stamp: int, joints) -> tuple:
+    def state(self, stamp: int, joints, swinging) -> tuple:
         """(base, contacts, odom message, contacts message) of the tick: estimated (the
-        estimator runs once) or the truth as it came."""
+        estimator runs once; ``swinging``, the legs the controller swings, anchor nothing) or
+        the truth as it came."""
         estimate = None
         if self.estimator is not None:
             t0 = time.perf_counter_ns()
-            estimate = self.estimator.update(self.imu[stamp], joints)
+            estimate = self.estimator.update(self.imu[stamp], joints, swinging)
             self.budget.add('wbc_estimator', time.perf_counter_ns() - t0)
         if self.state_estimation:
             base = estimate[0]

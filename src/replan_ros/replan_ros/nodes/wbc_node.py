@@ -212,7 +212,8 @@ class WbcNode(Node):
             self._warn(f'tick {stamp / _NS:.3f} s: imu or ground truth missing, waiting for '
                        'the republish')
             return
-        base, contacts, odom_msg, contacts_msg = self.inputs.state(stamp, joints)
+        base, contacts, odom_msg, contacts_msg = self.inputs.state(stamp, joints,
+                                                                   self.protocol.swinging_legs)
         timing.mark()
         events = encode_contact_events(contacts, stamp)
         timing.lap('wbc_state_msgs')
