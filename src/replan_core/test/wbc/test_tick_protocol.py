@@ -224,6 +224,28 @@ def test_the_plan_latency_keeps_the_old_plans_for_whole_ticks(wbc, robot):
     assert protocol.plan_stamp == trigger and protocol.pending is None
 
 
+def test_the_swinging_legs_are_those_lifted_off_and_not_yet_down(wbc, robot):
+    """What the estimator is told to anchor nothing on: the leg of the step in swing, from
+    the tick of its lift-off to its touchdown; none before the first plan and once fallen."""
+    protocol, _ = make_protocol(wbc, fall_time=0.004)
+    assert not protocol.swinging_legs.any()                # no plan yet
+    add_pair(protocol, robot, 0)                           # lf lifts off at 0.2 s, down at 0.4
+    seen = {}
+    stamp = 0
+    while stamp < 100 * TICK:
+        assert protocol.on_tick(*robot.tick(stamp))
+        seen[stamp] = protocol.swinging_legs.copy()
+        answer(protocol, stamp)
+        stamp += TICK
+    assert not any(seen[k * TICK].any() for k in range(50))
+    assert all(seen[k * TICK].tolist() == [True, False, False, False] for k in range(50, 100))
+    assert not protocol.on_tick(*robot.tick(100 * TICK))   # touched down: held for plans
+    assert not protocol.swinging_legs.any()
+    for k in range(101, 103):                              # tilted: fallen, nothing swings
+        protocol.on_tick(*robot.tick(k * TICK, roll=1.2))
+    assert protocol.mode == 'fallen' and not protocol.swinging_legs.any()
+
+
 def test_missed_replans_go_on_with_the_old_plans_then_stand(wbc, robot):
     protocol, logs = make_protocol(wbc, missed_replans_to_stand=2)
     add_pair(protocol, robot, 0, steps=2)
