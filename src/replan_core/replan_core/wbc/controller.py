@@ -127,6 +127,12 @@ class PlanFollower:
     swing reference starts at the foot position sensed at the actual lift-off tick; a haptic
     swing keeps its planned duration from the actual lift-off, then descends (haptic mode); a
     non-haptic one lands at its planned touchdown time (the tracker ends it there).
+
+    A foot of a group (a trot's pair) that touched down and lost its contact again while the
+    rest of its group is still in the air bounced: it carries nothing, and as a stance leg the
+    force distribution would push it through the air. Until its contact is back or its group
+    is complete it descends again from where it touched down (haptic mode, from the tick it
+    lost its contact). A crawl's group is one foot: complete at its touchdown, never held.
     """
 
     def __init__(self, footholds: FootholdPlan, com_plan: ComPlan,
@@ -139,6 +145,8 @@ class PlanFollower:
         self.touchdown_depth = touchdown_depth
         self._trajectories: dict[int, partial] = {}    # step index -> its swing trajectory
         self._liftoff_position: dict[int, np.ndarray] = {}
+        self._touchdown_position: dict[int, np.ndarray] = {}
+        self._bounced: dict[int, float] = {}   # step index -> tick (s) its foot lost contact
         # Trunk yaw reference: a ramp through the plan's yaw at its start and at each planned
         # touchdown. Stepping it at the sensed touchdowns would never turn the robot: each
         # touchdown brings a new plan that starts from the actual (not yet turned) yaw.
@@ -154,7 +162,26 @@ class PlanFollower:
             if event.kind == 'liftoff':
                 self._liftoff_position[event.step] = np.array(
                     contacts.foot_position[event.leg], dtype=float)
+            elif event.reason == 'contact' and not event.completes_group:
+                self._touchdown_position[event.step] = np.array(
+                    contacts.foot_position[event.leg], dtype=float)
+        if events or self._touchdown_position:
+            self._update_bounced(t, contacts.contact)
         return events
+
+    def _update_bounced(self, t: float, contact) -> None:
+        """The landed feet of the groups still in the air that have lost their contact
+        (class docstring), with the tick each lost it."""
+        tracker = self.tracker
+        airborne_groups = {tracker.group_of[i] for i in tracker.active_steps}
+        for index in list(self._touchdown_position):
+            if tracker.group_of[index] not in airborne_groups:
+                del self._touchdown_position[index]
+                self._bounced.pop(index, None)
+            elif contact[tracker.plan.steps[index].leg]:
+                self._bounced.pop(index, None)
+            else:
+                self._bounced.setdefault(index, t)
 
     @property
     def replan_due(self) -> bool:
@@ -188,6 +215,11 @@ class PlanFollower:
             stance[step.leg] = False
             swing += (swing_reference(timed, start, t, self._trajectory(index, step, start),
                                       self.haptic_velocity),)
+        for index, lost in self._bounced.items():
+            leg = self.footholds.steps[index].leg
+            stance[leg] = False
+            swing += (haptic_reference(self._touchdown_position[index], lost, t,
+                                       self.haptic_velocity, leg),)
         yaw = float(np.interp(t, self._yaw_times, self._yaw_values))
         return com_ref, yaw, stance, swing
 

@@ -558,3 +558,45 @@ def test_the_tick_bench_tells_an_identical_tick_from_a_changed_one():
     changed[42, 3] = np.nextafter(changed[42, 3], np.inf)
     assert first_difference(second, changed) == 42
     assert first_difference(second, first[:50]) == 50
+
+
+def test_a_foot_of_a_pair_that_bounces_off_searches_again_where_it_touched_down():
+    """A trot's pair: LF touches down, loses its contact while RH is still in the air and is
+    out of the force distribution, descending again from its touchdown point (it drifted in
+    between); back in contact it stands. A foot that loses its contact after its pair is
+    complete is left to the force distribution, as a crawl's foot always is."""
+    from replan_core.common.types import ComPlan, ContactState, FootholdPlan
+    from replan_core.wbc.controller import PlanFollower
+
+    feet = np.array([[0.37, 0.32, 0.02], [0.37, -0.32, 0.02], [-0.37, 0.32, 0.02],
+                     [-0.37, -0.32, 0.02]])
+    steps = [Step(leg, 5.1, 5.4, feet[leg] + [0.1, 0.0, 0.0], 0.08, True, True, 0.0)
+             for leg in (0, 3)]
+    plan = FootholdPlan(5.0, feet, 0.0, steps)
+    com = ComPlan(5.0, 0.04, np.zeros((201, 3)), np.zeros((201, 3)), np.zeros((201, 3)))
+    follower = PlanFollower(plan, com, haptic_velocity=1.0)
+
+    def tick(t, contact, lf_at):
+        at = feet.copy()
+        at[0] = lf_at
+        follower.update(t, ContactState(t, at, np.zeros((4, 3)), np.array(contact),
+                                        np.zeros(4, bool), np.zeros(4, bool)))
+        return follower.references(t)
+
+    landed = feet[0] + [0.1, 0.0, -0.05]
+    tick(5.1, [True] * 4, feet[0])
+    _, _, stance, _ = tick(5.3, [True, True, True, False], landed)
+    assert stance.tolist() == [True, True, True, False]
+    _, _, stance, swing = tick(5.32, [False, True, True, False], landed + [0.01, 0.0, 0.005])
+    assert stance.tolist() == [False, True, True, False]
+    lf = next(s for s in swing if s.leg == 0)
+    assert lf.position == pytest.approx(landed, abs=1e-12)      # from where it touched down
+    _, _, stance, swing = tick(5.34, [False, True, True, False], landed + [0.02, 0.0, 0.005])
+    lf = next(s for s in swing if s.leg == 0)
+    assert lf.position == pytest.approx(landed + [0.0, 0.0, -0.02], abs=1e-12)
+    assert lf.velocity == pytest.approx([0.0, 0.0, -1.0])
+    _, _, stance, _ = tick(5.36, [True, True, True, False], landed + [0.0, 0.0, -0.01])
+    assert stance.tolist() == [True, True, True, False]              # down again: stands
+    tick(5.38, [False, True, True, False], landed)
+    _, _, stance, swing = tick(5.40, [False, True, True, True], landed)
+    assert follower.replan_due and stance.all() and swing == ()      # the pair is complete
