@@ -33,7 +33,7 @@ DEFAULT_DOMAIN_BASE = 150      # the node tests reserve 2..101 (test/harness.py)
 _SHAPING = ('src/replan_core/replan_core/**/*.py', 'src/replan_ros/replan_ros/**/*.py',
             'src/replan_experiments/replan_experiments/**/*.py',
             'config/*.yaml', 'config/profiles/**/*', 'config/scenarios/**/*',
-            'config/robots/**/*', 'urdf/**/*')
+            'config/robots/**/*', 'config/gaits/**/*', 'urdf/**/*')
 _NOT_SHAPING = ('config/experiments.yaml', 'replan_experiments/page.py',
                 'replan_experiments/page_plots.py',
                 'replan_experiments/claims.py', 'replan_experiments/plan.py',

@@ -70,10 +70,9 @@ def run(urdf: str, ticks: int = 3000, seed: int = 0) -> tuple[dict[str, np.ndarr
                                   joints.velocity + 0.02 * rng.normal(size=12),
                                   joints.effort + 0.5 * rng.normal(size=12))
             t0 = time.thread_time()
-            swinging = np.zeros(4, dtype=bool)     # as the node: the follower's swing legs
-            for index in follower.tracker.active_steps:
-                swinging[follower.tracker.plan.steps[index].leg] = True
-            estimate, estimated_contacts = estimator.update(imu, measured, swinging)
+            # As the node: the follower's swing legs.
+            estimate, estimated_contacts = estimator.update(imu, measured,
+                                                            follower.tracker.in_swing)
             t1 = time.thread_time()
             t = world.time
             # The plans follow the sensed flags, as in the node: the estimator's.

@@ -539,7 +539,7 @@ class StateEstimator:
         # whose estimated force stayed above the release threshold for a few ticks, taken as
         # one of the two anchors, dragged the base velocity by its swing (0.8 m/s in 40 ms
         # on ANYmal C), and that wrong velocity made the observer show forces on the swinging
-        # feet (docs/realism.md, "Contact estimation").
+        # feet (docs/realism.md, "position and velocity").
         return self._contact & self._raw & ~self._swinging
 
     def _correct(self, qd_meas: np.ndarray, omega_body: np.ndarray,

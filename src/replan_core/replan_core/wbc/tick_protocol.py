@@ -206,12 +206,9 @@ class ControllerProtocol:
         """(4,) bool: the legs in swing after the last processed tick (lifted off by the
         touchdown rule, not yet down); none while standing, fallen or without a plan. The
         estimator anchors none of them (``StateEstimator.update``)."""
-        legs = np.zeros(len(LEGS), dtype=bool)
         if self.follower is not None and self.stand is None and self.fallen is None:
-            tracker = self.follower.tracker
-            for index in tracker.active_steps:
-                legs[tracker.plan.steps[index].leg] = True
-        return legs
+            return self.follower.tracker.in_swing
+        return np.zeros(len(LEGS), dtype=bool)
 
     @property
     def mode(self) -> str:

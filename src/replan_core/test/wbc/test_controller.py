@@ -583,19 +583,21 @@ def test_a_foot_of_a_pair_that_bounces_off_searches_again_where_it_touched_down(
                                         np.zeros(4, bool), np.zeros(4, bool)))
         return follower.references(t)
 
-    landed = feet[0] + [0.1, 0.0, -0.05]
+    landed = feet[0] + np.array([0.1, 0.0, -0.05])
     tick(5.1, [True] * 4, feet[0])
     _, _, stance, _ = tick(5.3, [True, True, True, False], landed)
     assert stance.tolist() == [True, True, True, False]
-    _, _, stance, swing = tick(5.32, [False, True, True, False], landed + [0.01, 0.0, 0.005])
+    drifted = landed + np.array([0.01, 0.0, 0.005])
+    _, _, stance, swing = tick(5.32, [False, True, True, False], drifted)
     assert stance.tolist() == [False, True, True, False]
     lf = next(s for s in swing if s.leg == 0)
     assert lf.position == pytest.approx(landed, abs=1e-12)      # from where it touched down
-    _, _, stance, swing = tick(5.34, [False, True, True, False], landed + [0.02, 0.0, 0.005])
+    drifted = landed + np.array([0.02, 0.0, 0.005])
+    _, _, stance, swing = tick(5.34, [False, True, True, False], drifted)
     lf = next(s for s in swing if s.leg == 0)
-    assert lf.position == pytest.approx(landed + [0.0, 0.0, -0.02], abs=1e-12)
+    assert lf.position == pytest.approx(landed + np.array([0.0, 0.0, -0.02]), abs=1e-12)
     assert lf.velocity == pytest.approx([0.0, 0.0, -1.0])
-    _, _, stance, _ = tick(5.36, [True, True, True, False], landed + [0.0, 0.0, -0.01])
+    _, _, stance, _ = tick(5.36, [True, True, True, False], landed + np.array([0.0, 0.0, -0.01]))
     assert stance.tolist() == [True, True, True, False]              # down again: stands
     tick(5.38, [False, True, True, False], landed)
     _, _, stance, swing = tick(5.40, [False, True, True, True], landed)
