@@ -45,6 +45,7 @@ from replan_experiments.robots_plan import (
     ROBOT_KEYS,
     RobotsPlan,
     froude_number,
+    gait_fast_doc,
     gait_plan,
     gait_turn_doc,
     gait_walk_doc,
@@ -275,7 +276,8 @@ def planned_runs(plan: RobotsPlan) -> int:
         push = tests['push']
         return len(tests['step_down']['shares']) + len(push['levels']) * push['phases']
     per_robot = len(ROBOT_KEYS) + 2 + ladders(plan.tests)
-    per_robot += sum(2 + ladders(g['tests']) for g in plan.gaits.values())
+    per_robot += sum(2 + ('fast' in g['tests']) + ladders(g['tests'])
+                     for g in plan.gaits.values())
     return per_robot * len(plan.robots)
 
 
@@ -333,6 +335,9 @@ def measure_gait(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
                  'push': None, 'step_down': []}
     with ThreadPoolExecutor(2) as pool:
         turn_future = pool.submit(runner.run, gait_turn_doc(turn_base, info, plan))
+        fast_future = (pool.submit(runner.run, gait_fast_doc(
+            runner.scenario(tests['fast']['scenario']), info, plan)) if 'fast' in tests
+            else None)
         walk = runner.run(gait_walk_doc(walk_base, info, plan), True)
         walks_on_flat = walk.ok and not walk.fell
         if walks_on_flat:
@@ -342,12 +347,17 @@ def measure_gait(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
         turn = turn_future.result()
     row['walk'] = {**_run_row(walk), 'axes': gait_axes(walk, tests['walk']['steady_cycles'])}
     row['turn'] = {**_run_row(turn), 'axes': gait_axes(turn, tests['turn']['steady_cycles'])}
+    fast = fast_future.result() if fast_future else None
+    if fast is not None:
+        row['fast'] = {**_run_row(fast), 'froude': tests['fast']['froude'],
+                       'axes': gait_axes(fast, tests['fast']['steady_cycles'])}
     begin, end = quiet_window(info, plan, walk_start(walk_base))
     standing = None
     if walks_on_flat and (walk.folder / 'bag').exists():
         standing = cached_stand_measures(walk.folder, begin)
     row['standing'] = {'window_s': [begin, end], **(standing or {})}
-    made = [walk, turn] + [runner.results[s['run']] for s in row['step_down']]
+    made = [walk, turn] + ([fast] if fast else []) + [runner.results[s['run']]
+                                                      for s in row['step_down']]
     if row['push']:
         made += [runner.results[p['run']] for level in row['push']['levels']
                  for p in level['phases']]

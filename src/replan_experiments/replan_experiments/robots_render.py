@@ -371,6 +371,9 @@ def gait_table(robots: dict, gait: str) -> list[str]:
              *[share_cell(rows_of[n].get('turn'), 'lateral', 'm/s') for n in names]],
             ['yaw achieved, % of set-point',
              *[share_cell(rows_of[n].get('turn'), 'yaw', 'rad/s') for n in names]],
+            *([[f'forward at Froude number {fast[0]["froude"]:g}, % of set-point',
+                *[share_cell(rows_of[n].get('fast'), 'forward', 'm/s') for n in names]]]
+              if (fast := [r['fast'] for r in rows_of.values() if r.get('fast')]) else []),
             ['largest lateral push survived at every phase (dv = impulse / mass)',
              *[push_cell(rows_of[n]['push'], rows_of[n]['skipped']) for n in names]],
             ['blind step down crossed (share of leg length)',
@@ -412,7 +415,11 @@ def gait_section(meta: dict, robots: dict, gait: str) -> list[str]:
         f'{push["push_duration"]:g} s, levels {push["levels"]} m/s) and blind step downs '
         f'(shares {step["shares"]}, edge {step["step_x_legs"]:g} leg lengths ahead, one after '
         'the other up to the first not crossed) as the crawl\'s, walking forward at the '
-        'gait\'s set-point; not run if the walk falls.', '',
+        'gait\'s set-point; not run if the walk falls.'
+        + (f' One run walks forward from standing at the speed of Froude number '
+           f'{tests["fast"]["froude"]:g}, sqrt({tests["fast"]["froude"]:g} g l), for '
+           f'{tests["fast"]["forward_cycles"]} cycles (the last {tests["fast"]["steady_cycles"]} '
+           'whole cycles).' if 'fast' in tests else ''), '',
         *gait_table(robots, gait), '']
 
 

@@ -238,9 +238,17 @@ def test_a_gait_is_measured_walking_turning_pushed_and_down_a_ladder_of_steps(tm
     assert row['push']['survived_dv'] == 0.3 and row['push']['phases'] == 2
     assert len(row['falls']) == 1 and '_trot_step_down_0.1-' in row['falls'][0]
     assert all(d['gait'] == 'trot' and d['name'].startswith('go1_trot_') for d in runner.docs)
-    assert len(runner.docs) == row['runs'] == 2 + 2 + 2
+    assert len(runner.docs) == row['runs'] == 2 + 1 + 2 + 2
     walk = next(d for d in runner.docs if d['name'] == 'go1_trot_walk')
     assert row['standing']['window_s'][1] == walk['duration']          # the run's end
+    # The fast walk: forward at Froude 0.05 from standing, its whole cycles measured.
+    fast = next(d for d in runner.docs if d['name'] == 'go1_trot_fast')
+    speed = fast['events'][0]['cmd_vel'][0]
+    assert speed ** 2 / (9.81 * info.leg_length_m) == pytest.approx(0.05, rel=0.01)
+    assert fast['duration'] == pytest.approx(
+        fast['events'][0]['t'] + trot.tests['fast']['forward_cycles'] * info.cycle_s, abs=1e-4)
+    assert row['fast']['froude'] == 0.05
+    assert row['fast']['axes']['forward']['share'] == pytest.approx(0.97)
 
 
 def test_a_gait_whose_walk_falls_is_not_pushed_or_stepped_down(tmp_path):
@@ -256,11 +264,11 @@ def test_a_gait_whose_walk_falls_is_not_pushed_or_stepped_down(tmp_path):
 def test_planned_runs_count_every_gait():
     plan = load_robots_plan(PLAN, quick=True, only=['go1'])
     # crawl: 3 walks + stand + response + 1 share + 1 push; each gait: walk, turn, 1 share,
-    # 1 push
-    assert planned_runs(plan) == 7 + 4 + 4
+    # 1 push; the trot's fast walk
+    assert planned_runs(plan) == 7 + 5 + 4
     full = load_robots_plan(PLAN)
     assert planned_runs(full) == planned_runs(replace(full, gaits={})) + 7 * (
-        2 + 3 + 2 + 2 + 1 + 1)
+        2 + 1 + 3 + 2 + 2 + 1 + 1)
 
 
 def test_a_gaits_achieved_is_the_mean_of_its_last_whole_cycles():

@@ -94,6 +94,10 @@ def _mutated(tmp_path: Path, change) -> Path:
     (lambda d: d['gaits'].update(crawl=d['gaits']['trot']), 'gaits.crawl: the crawl'),
     (lambda d: d['gaits']['walking_trot']['full'].update(jump={}),
      'gaits.walking_trot.full.jump: unknown test'),
+    (lambda d: d['gaits']['trot']['full']['fast'].pop('froude'),
+     'gaits.trot.full.fast.froude: missing'),
+    (lambda d: d['gaits']['trot']['full']['fast'].update(steady_cycles=10),
+     'gaits.trot.full.fast.steady_cycles: must be fewer'),
 ])
 def test_a_bad_plan_is_one_line_naming_the_file_and_the_key(tmp_path, change, key):
     path = _mutated(tmp_path, change)
