@@ -35,5 +35,8 @@ colcon --log-base log test-result --test-result-base build --verbose
 
 echo "test: node-graph tests (pytest test/)"
 # --durations: the slowest tests in every log, to keep the whole run under its 40 minutes.
-python -m pytest test ${marker[@]+"${marker[@]}"} ${extra[@]+"${extra[@]}"} \
+# Two modules at a time (-n 2, a module's tests in one worker: its fixtures are shared): each
+# worker reserves its own ROS_DOMAIN_ID (test/harness.py), so their graphs never meet.
+# `-- -n 0` runs them one at a time.
+python -m pytest test -n 2 --dist loadfile ${marker[@]+"${marker[@]}"} ${extra[@]+"${extra[@]}"} \
     -o console_output_style=classic -rfE --durations=15
