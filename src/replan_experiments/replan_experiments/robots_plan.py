@@ -356,13 +356,19 @@ def froude_number(speed: float, leg_length: float) -> float:
     return speed * speed / (GRAVITY * leg_length)
 
 
+def froude_speed(froude: float, leg_length: float) -> float:
+    """m/s, the speed of Froude number ``froude`` for a leg of ``leg_length`` m:
+    sqrt(froude g l), ``froude_number``'s inverse."""
+    return math.sqrt(froude * GRAVITY * leg_length)
+
+
 def gait_setpoints(rule: dict, info: RobotInfo, crawl_forward: float) -> dict[str, float]:
     """A robot's set-points in a gait from the plan's rule (``SETPOINT_KEYS``,
     ``FORWARD_RULES``): forward at the Froude number ``froude`` of its leg length, or
     ``crawl_times`` its crawl forward set-point; lateral a share of it; yaw forward over
     ``yaw_legs`` leg lengths. m/s and rad/s to the millimetre (milliradian)."""
     leg = info.leg_length_m
-    forward = (math.sqrt(rule['froude'] * GRAVITY * leg) if 'froude' in rule
+    forward = (froude_speed(rule['froude'], leg) if 'froude' in rule
                else rule['crawl_times'] * crawl_forward)
     return {'forward': round(forward, 3), 'lateral': round(rule['lateral_share'] * forward, 3),
             'yaw': round(forward / (rule['yaw_legs'] * leg), 3)}
@@ -395,7 +401,7 @@ def gait_walk_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
 def fast_setpoint(info: RobotInfo, plan: RobotsPlan) -> float:
     """m/s, the forward set-point of the gait's ``fast`` test: the speed of its Froude number
     for the robot's leg length, to the millimetre."""
-    return round(math.sqrt(plan.tests['fast']['froude'] * GRAVITY * info.leg_length_m), 3)
+    return round(froude_speed(plan.tests['fast']['froude'], info.leg_length_m), 3)
 
 
 def gait_fast_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:

@@ -491,9 +491,10 @@ def test_the_wbc_bench_crawls_another_robot(name):
     assert figures['advance_m'] > 0.5 * robot.crawl['step_length']
 
 
-def test_plan_follower_swings_both_legs_of_a_pair():
-    """A trot's pair: both legs swing from their own lift-off points, the others stand."""
-    from replan_core.common.types import ComPlan, ContactState, FootholdPlan
+def _pair_follower(**kwargs):
+    """A trot's pair LF + RH lifting off at 5.1 s, 0.1 m forward, down at 5.4 s: the standing
+    feet and the PlanFollower of that plan (``kwargs`` to it)."""
+    from replan_core.common.types import ComPlan, FootholdPlan
     from replan_core.wbc.controller import PlanFollower
 
     feet = np.array([[0.37, 0.32, 0.02], [0.37, -0.32, 0.02], [-0.37, 0.32, 0.02],
@@ -502,7 +503,14 @@ def test_plan_follower_swings_both_legs_of_a_pair():
              for leg in (0, 3)]
     plan = FootholdPlan(5.0, feet, 0.0, steps)
     com = ComPlan(5.0, 0.04, np.zeros((201, 3)), np.zeros((201, 3)), np.zeros((201, 3)))
-    follower = PlanFollower(plan, com)
+    return feet, PlanFollower(plan, com, **kwargs)
+
+
+def test_plan_follower_swings_both_legs_of_a_pair():
+    """A trot's pair: both legs swing from their own lift-off points, the others stand."""
+    from replan_core.common.types import ContactState
+
+    feet, follower = _pair_follower()
     down = ContactState(5.1, feet.copy(), np.zeros((4, 3)), np.ones(4, bool),
                         np.zeros(4, bool), np.zeros(4, bool))
     events = follower.update(5.1, down)
@@ -565,16 +573,9 @@ def test_a_foot_of_a_pair_that_bounces_off_searches_again_where_it_touched_down(
     out of the force distribution, descending again from its touchdown point (it drifted in
     between); back in contact it stands. A foot that loses its contact after its pair is
     complete is left to the force distribution, as a crawl's foot always is."""
-    from replan_core.common.types import ComPlan, ContactState, FootholdPlan
-    from replan_core.wbc.controller import PlanFollower
+    from replan_core.common.types import ContactState
 
-    feet = np.array([[0.37, 0.32, 0.02], [0.37, -0.32, 0.02], [-0.37, 0.32, 0.02],
-                     [-0.37, -0.32, 0.02]])
-    steps = [Step(leg, 5.1, 5.4, feet[leg] + [0.1, 0.0, 0.0], 0.08, True, True, 0.0)
-             for leg in (0, 3)]
-    plan = FootholdPlan(5.0, feet, 0.0, steps)
-    com = ComPlan(5.0, 0.04, np.zeros((201, 3)), np.zeros((201, 3)), np.zeros((201, 3)))
-    follower = PlanFollower(plan, com, haptic_velocity=1.0)
+    feet, follower = _pair_follower(haptic_velocity=1.0)
 
     def tick(t, contact, lf_at):
         at = feet.copy()
