@@ -102,6 +102,7 @@ def _summary(result: RunResult, **extra) -> dict:
     timing = m.get('touchdown_timing_error_s') or {}
     row.update(pitch_peak_mean_deg=pitch.get('mean'), pitch_peak_max_deg=pitch.get('max'),
                touchdown_timing_median_abs_s=timing.get('median_abs'),
+               touchdown_timing_mean_s=timing.get('mean'),
                max_pitch_deg=(math.degrees(m['max_pitch_rad'])
                               if m.get('max_pitch_rad') is not None else None))
     row.update(extra)

@@ -44,7 +44,7 @@ PRIMARY_MEASURES = {
     'replan_window': {'steady_error_mps', 'linear_error_mps', 'cop_margin_p5_m',
                       'cop_zmp_deviation_rms_m', 'fell'},
     'haptic': {'pitch_peak_max_deg', 'pitch_peak_mean_deg', 'touchdown_timing_median_abs_s',
-               'fell', 'crossed'},
+               'touchdown_timing_mean_s', 'fell', 'crossed'},
     'velocity_term': {'rise_time_s', 'swing_travel_share', 'backward_travel_m',
                       'stride_length_m', 'fell'},
     'sustained_push': {'capture_margin_p5_m', 'capture_margin_min_m', 'trunk_shift_max_m',
