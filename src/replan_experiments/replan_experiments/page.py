@@ -525,9 +525,8 @@ def _haptic(page: Page, rows: list[dict], results, world: str = 'realistic') -> 
                      'largest touchdown pitch peak (deg)',
                      spread(values(runs, 'pitch_peak_max_deg'), 2), len(runs), '', '')
             page.row('haptic', f'{terrain.replace("_", " ")}, {mode}{suffix}',
-                     'touchdown timing error, mean (ms; negative: early)',
-                     spread(values(runs, 'touchdown_timing_mean_s'), 1, 1000.0),
-                     len(runs), '', '')
+                     'touchdown timing error, mean (ms; negative: early)', spread(values(
+                         runs, 'touchdown_timing_mean_s'), 1, 1000.0), len(runs), '', '')
         verdict, p = compare_paired(off, on, 'pitch_peak_mean_deg', ('seed',), 'higher')
         big_off, big_on = values(off, 'pitch_peak_max_deg'), values(on, 'pitch_peak_max_deg')
         verdict_max, p_max = compare_paired(off, on, 'pitch_peak_max_deg', ('seed',), 'higher')
@@ -665,8 +664,8 @@ def _qp_timing(page: Page, data: dict, results: dict) -> None:
 
 
 def _fastest_crawl(page: Page, data: dict, _all) -> None:
-    rows = data['runs'] if isinstance(data, dict) else data
-    bound = data.get('step_length_bound') if isinstance(data, dict) else None
+    rows, bound = (data['runs'], data.get('step_length_bound')) if isinstance(data, dict) else (
+        data, None)
     held = [r for r in rows if r['ok'] and not r['fell'] and r.get('achieved')]
     best = max(held, key=lambda r: r['achieved'][0]) if held else None
     page.row('beyond the paper', 'fastest crawl, 30 s', 'speed achieved without a fall (m/s)',
@@ -678,10 +677,8 @@ def _fastest_crawl(page: Page, data: dict, _all) -> None:
                 f'{r["setpoint"]:.2f} m/s ' + ('fell' if r['fell'] else
                                               f'held (achieved {r["achieved"][0]:.3f})'
                                               if r.get('achieved') else 'failed')
-                for r in rows) + '. The paper doubled the speed of its earlier static planner '
-            '(its reference [4]: the trunk kept still while a leg swings); that planner is not '
-            'built here, so the claim has no baseline and no verdict: these runs give the '
-            'fastest crawl this planner holds, a figure to compare other planners with.')
+                for r in rows) + '. The paper doubled the speed of its static planner ([4]: the '
+            'trunk still while a leg swings), which is not built here: no baseline, no verdict.')
     if bound and best:
         text += (f' The speed stops growing near {bound["speed_mps"]:.3f} m/s: each leg steps '
                  f'once per crawl cycle ({bound["cycle_s"]:.2f} s) and the gait clamps a step '
