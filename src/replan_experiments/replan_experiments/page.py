@@ -126,14 +126,14 @@ def replace_block(readme: Path, begin: str, end: str, block: str) -> bool:
 
 
 def fill_readme(readme: Path, results: dict, meta: dict) -> bool:
-    """Write the verdict table (``findings.readme_table``) between the results markers of
-    ``readme``, with the page's date and plan hash; False (nothing written) without the
-    markers or without verdicts."""
+    """The verdict table (``findings.readme_table``) between the results markers of ``readme``,
+    linking the page; False (nothing written) without the markers or without verdicts."""
     verdicts = page_verdicts(results, meta)
     if not verdicts:
         return False
-    block = (f'The pre-registered verdicts of docs/results.md ({meta["date"]}, plan hash '
-             f'{meta["preregistration"]["hash"]}; generated):\n\n' + readme_table(verdicts))
+    block = ('The pre-registered verdicts of [docs/results.md](docs/results.md) (generated; '
+             'the page names the revision, plan and runs they come from):\n\n'
+             + readme_table(verdicts))
     return replace_block(readme, README_BEGIN, README_END, block)
 
 

@@ -284,6 +284,7 @@ def test_readme_block_is_filled_between_its_markers(tmp_path):
     text = readme.read_text()
     assert text.startswith('# X\n\nbefore\n<!-- results:begin -->\nThe pre-registered')
     assert '| without haptic touchdown the pitch is disturbed (V.A, VI) | holds |' in text
+    assert prereg['hash'] not in text     # the page names the plan, the README links it
     assert 'OLD TABLE' not in text and text.endswith('<!-- results:end -->\nafter\n')
     readme.write_text('no markers\n')
     assert not fill_readme(readme, results, _meta(prereg))
