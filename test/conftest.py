@@ -7,25 +7,23 @@
 - ``probe``: a test-side rclpy node on the session domain (``probe.node``, ``spin_until``,
   ``collect``, ``subscribe``, ``wait_for_topics``).
 - ``reserve_domain``: reserve one more domain inside a test (for isolation tests).
-- ``quick_experiments``: ``scripts/experiments.sh --quick`` made once per session with the
-  local runner (test_experiments.py checks it, test_ray.py compares the Ray runs with it).
+- ``ray_temp``: a short folder of its own for a Ray cluster's session files.
 """
 
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 
 import pytest
 from harness import (
     CONFIG_DIR,
     DomainReservation,
-    ExperimentsCall,
     Launcher,
     Probe,
     descends_from,
     domain_processes,
-    experiments,
-    graph_env,
     reap_leftovers,
 )
 
@@ -128,10 +126,10 @@ def probe(ros_domain):
     test_probe.close()
 
 
-@pytest.fixture(scope='session')
-def quick_experiments(ros_domain, tmp_path_factory) -> ExperimentsCall:
-    """The quick plan, one run at a time on the session domain (as CI runs it), made once:
-    it takes minutes, and two test modules need it."""
-    out = tmp_path_factory.mktemp('quick') / 'experiments'
-    return experiments(['--quick', '--domain-base', str(ros_domain), '--quiet'], out,
-                       graph_env(ros_domain))
+@pytest.fixture
+def ray_temp():
+    """Ray's session folder: short (its socket paths must stay under 108 characters) and the
+    test's own."""
+    folder = tempfile.mkdtemp(prefix='ray', dir='/tmp')
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
