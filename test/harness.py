@@ -25,6 +25,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from replan_ros.launch.domain import claim
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO_ROOT / 'config'
 # Domain ids that map to valid DDS ports on Linux, below the ones a user picks by hand (0, 42).
@@ -36,13 +38,16 @@ class DomainReservation:
     """Holds a ROS_DOMAIN_ID for as long as this object lives, by binding a local port.
 
     Two test runs on one machine never get the same domain: the second bind fails and the next
-    id is tried.
+    id is tried. A domain whose claim another graph holds (replan_ros/launch/domain.py: a
+    user's script) is skipped too; the test's scripts claim the domain themselves.
     """
 
     def __init__(self) -> None:
         ids = list(_DOMAIN_RANGE)
         random.Random(os.getpid()).shuffle(ids)
         for domain_id in ids:
+            if not _unclaimed(domain_id):
+                continue
             sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
             try:
                 sock.bind(('127.0.0.1', _LOCK_PORT_BASE + domain_id))
@@ -56,6 +61,15 @@ class DomainReservation:
 
     def release(self) -> None:
         self._socket.close()
+
+
+def _unclaimed(domain_id: int) -> bool:
+    """Whether no graph holds ``domain_id``'s claim now."""
+    fd = claim(domain_id)
+    if fd is None:
+        return False
+    os.close(fd)
+    return True
 
 
 def graph_env(domain_id: int) -> dict[str, str]:

@@ -13,6 +13,7 @@ import time
 from geometry_msgs.msg import TwistStamped
 from harness import REPO_ROOT, graph_env
 
+from replan_ros.launch.domain import HELD_ENV, claim
 from replan_ros.transport.qos import SCHEDULE
 
 
@@ -152,3 +153,30 @@ def test_no_respawn_stops_the_others_and_exits_non_zero(ros_domain, tmp_path):
         assert not any(_pid_alive(pid) for pid in pids.values()), launch.output
     finally:
         launch.stop()
+
+
+def test_a_second_graph_on_a_claimed_domain_is_refused_in_one_line(ros_domain, tmp_path):
+    """Two graphs on one domain mix their topics without an error; started at once, the sim's
+    check for a second /clock comes too late. A script that starts a graph claims its domain
+    first (replan_ros/launch/domain.py) and refuses one that is held, before any node starts;
+    a script started by the holder (REPLAN_DOMAIN_HELD) runs on it."""
+    fd = claim(ros_domain)
+    assert fd is not None, f'domain {ros_domain} held by another graph'
+    try:
+        refused = subprocess.run(
+            [str(REPO_ROOT / 'scripts' / 'scenario.sh'), str(REPO_ROOT / 'config' / 'scenarios'
+             / 'stand.yaml'), '--out', str(tmp_path / 'refused')],
+            env=graph_env(ros_domain), capture_output=True, text=True, timeout=60)
+        assert refused.returncode == 3, refused.stdout + refused.stderr
+        lines = refused.stderr.strip().splitlines()
+        assert len(lines) == 1 and f'another graph runs on ROS_DOMAIN_ID {ros_domain}' in lines[0]
+        assert 'started' not in refused.stdout and not (tmp_path / 'refused').exists()
+        held = subprocess.run(
+            [str(REPO_ROOT / 'scripts' / 'launch.sh'), '--duration', '0.5',
+             '--run-dir', str(tmp_path / 'held')],
+            env={**graph_env(ros_domain), HELD_ENV: str(ros_domain)}, capture_output=True,
+            text=True, timeout=120)
+        assert held.returncode == 0, held.stdout[-2000:] + held.stderr[-2000:]
+        assert 'reached 0.5 s of sim time' in held.stdout, held.stdout[-2000:]
+    finally:
+        os.close(fd)

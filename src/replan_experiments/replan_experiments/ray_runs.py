@@ -20,7 +20,6 @@ import socket
 import subprocess
 import sys
 import tempfile
-import time
 import warnings
 from pathlib import Path
 
@@ -31,9 +30,9 @@ from replan_experiments.runs import (
     code_fingerprint,
     git_revision,
 )
+from replan_ros.launch.domain import domain_slot
 
 GRAPH_SLOT = 'graph_slot'      # Ray custom resource: process graphs a node runs at once
-DOMAIN_POOL = 16               # ROS_DOMAIN_IDs a node hands out, from the caller's base up
 # A run whose worker or node dies is made again by Ray (a system failure); a run is never
 # retried for an exception of ours: that is a bug to see, not to hide.
 MAX_RETRIES = 3
@@ -104,28 +103,6 @@ def work_folder(base: Path | None = None):
             yield folder
         finally:
             shutil.rmtree(folder, ignore_errors=True)
-
-
-@contextlib.contextmanager
-def domain_slot(base: int, folder: Path | None = None):
-    """A ROS_DOMAIN_ID of this machine's pool (``base`` .. ``base + DOMAIN_POOL - 1``, within
-    232) that no other task holds: the first whose lock file in ``folder`` (default
-    /tmp/replan-ray-domains) is free. Yields (domain, fd): the caller lets the scenario process
-    inherit fd, so that a graph orphaned by a killed worker keeps its domain until it is
-    gone."""
-    folder = folder or Path(tempfile.gettempdir()) / 'replan-ray-domains'
-    folder.mkdir(exist_ok=True)
-    domains = range(base, min(base + DOMAIN_POOL, 233))
-    while True:
-        for domain in domains:
-            with open(folder / f'{domain}.lock', 'a') as handle:
-                try:
-                    fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                except BlockingIOError:
-                    continue
-                yield domain, handle.fileno()       # closing the file releases the lock
-                return
-        time.sleep(0.5)     # every domain taken (other callers with the same base): wait
 
 
 @contextlib.contextmanager

@@ -410,8 +410,8 @@ def _arguments(argv) -> argparse.Namespace:
     parser.add_argument('--domain-base', type=int,
                         default=int(os.environ.get('REPLAN_EXPERIMENTS_DOMAIN',
                                                    DEFAULT_DOMAIN_BASE)),
-                        help='ROS_DOMAIN_ID of the first job (the others follow; default '
-                             f'{DEFAULT_DOMAIN_BASE})')
+                        help='each run takes the first ROS_DOMAIN_ID from here up that no '
+                             f'graph holds (default {DEFAULT_DOMAIN_BASE})')
     parser.add_argument('--fresh', action='store_true', help='make every run again')
     parser.add_argument('--render', action='store_true',
                         help='no run: the page and the README\'s table again from '

@@ -20,6 +20,7 @@ from pathlib import Path
 import yaml
 
 from replan_experiments.plan import ExperimentError
+from replan_ros.launch.domain import domain_slot
 from replan_ros.launch.param_files import DEFAULT_ROBOT
 
 DEFAULT_DOMAIN_BASE = 150      # the node tests reserve 2..101 (test/harness.py)
@@ -46,7 +47,9 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_experiments/page.py',
                 'replan_experiments/robots_plan.py', 'replan_experiments/robot_info.py',
                 'replan_experiments/robots_render.py',
                 'replan_experiments/page_status.py',
-                'replan_experiments/benchmarks/', 'replan_experiments/planner_loop.py')
+                'replan_experiments/benchmarks/', 'replan_experiments/planner_loop.py',
+                # Which domain a graph runs on, never what it does (one graph per domain).
+                'replan_ros/launch/domain.py')
 
 
 def code_fingerprint(root: Path, robot: str | None = None) -> str:
@@ -208,8 +211,8 @@ class Runner:
         self._robot_codes: dict[str, str] = {}
         self.lock_file = lock_file
         self.fresh, self.progress = fresh, progress
-        self.slots = [domain_base + i for i in range(jobs)]
-        self.free = threading.Condition()
+        self.domain_base = domain_base
+        self.slots = threading.BoundedSemaphore(jobs)     # runs at once
         self.results: dict[str, RunResult | threading.Event] = {}
         self.lock = threading.Lock()
         self.failures: list[str] = []
@@ -314,24 +317,20 @@ class Runner:
         """Make the run of ``folder/input.yaml`` on this machine, on a free ROS_DOMAIN_ID;
         its output (metrics.json, output.log, the bag if ``bag``) in ``folder``; returns the
         exit code."""
-        with self.free:
-            while not self.slots:
-                self.free.wait()
-            domain = self.slots.pop()
-        if self.progress:
-            self.progress.update(started=1)
-        try:
+        with self.slots, domain_slot(self.domain_base) as (domain, fd):
+            if self.progress:
+                self.progress.update(started=1)
             env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
             env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-            with open(folder / 'output.log', 'w') as output, self.machine_lock():
-                return subprocess.run(
-                    [sys.executable, '-m', 'replan_experiments.scenario',
-                     str(folder / 'input.yaml'), '--out', str(folder),
-                     *self.scenario_options(bag)],
-                    env=env, stdout=output, stderr=subprocess.STDOUT, timeout=3600).returncode
-        finally:
-            with self.free:
-                self.slots.append(domain)
-                self.free.notify()
-            if self.progress:
-                self.progress.update(finished=1)
+            try:
+                # The graph keeps the domain's claim (fd) if this process is killed.
+                with open(folder / 'output.log', 'w') as output, self.machine_lock():
+                    return subprocess.run(
+                        [sys.executable, '-m', 'replan_experiments.scenario',
+                         str(folder / 'input.yaml'), '--out', str(folder),
+                         *self.scenario_options(bag)],
+                        env=env, stdout=output, stderr=subprocess.STDOUT, pass_fds=(fd,),
+                        timeout=3600).returncode
+            finally:
+                if self.progress:
+                    self.progress.update(finished=1)

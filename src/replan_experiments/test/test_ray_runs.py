@@ -1,66 +1,15 @@
 """The parts of the Ray runner that need no cluster (replan_experiments/ray_runs.py): the
-per-machine pool of ROS_DOMAIN_IDs, the refusal of other code, the run folder sent back and
-the clean-up of a killed worker's folder. The runs on a real cluster: test/test_ray.py."""
+refusal of other code, the run folder sent back and the clean-up of a killed worker's folder
+(its pool of ROS_DOMAIN_IDs: replan_ros/test/launch/test_domain.py). The runs on a real
+cluster: test/test_ray.py."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
-import threading
-import time
 from pathlib import Path
 
-from replan_experiments.ray_runs import (
-    DOMAIN_POOL,
-    domain_slot,
-    mismatch,
-    read_back,
-    work_folder,
-)
-
-
-def test_two_holders_on_one_machine_never_share_a_domain(tmp_path):
-    with domain_slot(150, tmp_path) as (first, _), domain_slot(150, tmp_path) as (second, _):
-        assert first == 150 and second == 151
-    with domain_slot(150, tmp_path) as (again, _):
-        assert again == 150                  # released on leaving
-
-
-def test_the_pool_stops_at_domain_232(tmp_path):
-    with domain_slot(232, tmp_path) as (domain, _):
-        assert domain == 232
-    assert DOMAIN_POOL >= 8
-
-
-def test_a_full_pool_waits_for_a_domain(tmp_path):
-    got = []
-
-    def second():
-        with domain_slot(232, tmp_path) as (domain, _):
-            got.append((domain, time.monotonic()))
-
-    with domain_slot(232, tmp_path):
-        thread = threading.Thread(target=second)
-        thread.start()
-        time.sleep(0.3)
-        released = time.monotonic()
-    thread.join(timeout=5)
-    assert got and got[0][0] == 232 and got[0][1] >= released
-
-
-def test_a_child_that_inherits_the_lock_keeps_the_domain(tmp_path):
-    """A graph orphaned by a killed worker holds its domain until it is gone."""
-    with domain_slot(150, tmp_path) as (domain, fd):
-        child = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(3)'],
-                                 pass_fds=(fd,))
-    try:
-        with domain_slot(150, tmp_path) as (other, _):
-            assert other != domain
-    finally:
-        child.kill()
-        child.wait()
-    with domain_slot(150, tmp_path) as (after, _):
-        assert after == domain
+from replan_experiments.ray_runs import mismatch, read_back, work_folder
 
 
 def test_other_code_is_refused_in_one_line():
