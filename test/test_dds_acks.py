@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 
@@ -82,3 +83,63 @@ def test_every_sample_is_acknowledged_within_the_limit(ros_domain):
     # chance only (about one in three).
     assert all(acked for acked, _ in rounds), rounds
     assert 'received 500' in out, out
+
+
+_STOPPING_WRITER = '''
+import json, sys, time
+import rclpy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Header
+from replan_ros.nodes.node_main import wait_for_acks
+rclpy.init()
+node = rclpy.create_node('acks_stopping_writer')
+pub = node.create_publisher(Header, sys.argv[1], QoSProfile(
+    depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE))
+while pub.get_subscription_count() == 0:
+    time.sleep(0.05)
+time.sleep(0.5)
+print('writing', flush=True)
+sys.stdin.readline()                   # the test has stopped the reader, or not
+for _ in range(100):
+    pub.publish(Header())
+start = time.monotonic()
+acked = wait_for_acks(node)
+print(json.dumps([acked, time.monotonic() - start]), flush=True)
+'''
+
+
+def _stop_writer(topic: str, reader: subprocess.Popen, freeze: bool) -> tuple[bool, float]:
+    """A node's stop (``node_main.wait_for_acks`` before its writers go) after 100 samples,
+    with the reader alive or stopped (SIGSTOP) before they are sent."""
+    writer = subprocess.Popen([sys.executable, '-c', _STOPPING_WRITER, topic],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert writer.stdout.readline().strip() == 'writing'
+        if freeze:
+            os.kill(reader.pid, signal.SIGSTOP)
+        writer.stdin.write('go\n')
+        writer.stdin.flush()
+        out, _ = writer.communicate(timeout=60)
+    finally:
+        if freeze:
+            os.kill(reader.pid, signal.SIGCONT)
+        if writer.poll() is None:
+            writer.kill()
+    acked, waited = json.loads(out.strip().splitlines()[-1])
+    return acked, waited
+
+
+def test_a_stopping_node_waits_for_its_readers_but_not_for_a_stopped_one(ros_domain):
+    """A node's last samples reach a live reader before its writers go (the bag's tail); a
+    reader that no longer answers holds the stop at most ACK_LIMIT (1 s), not the reader's own
+    life (30 s here)."""
+    topic = f'acks_stop_{os.getpid()}'
+    reader = _start_reader(topic, 30.0)
+    try:
+        acked, _ = _stop_writer(topic, reader, freeze=False)
+        assert acked
+        acked, waited = _stop_writer(topic, reader, freeze=True)
+        assert not acked and waited >= 0.9
+    finally:
+        reader.kill()
+        reader.wait()

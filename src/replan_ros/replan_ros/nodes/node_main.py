@@ -12,6 +12,7 @@ from collections.abc import Callable
 from typing import NoReturn
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -98,6 +99,21 @@ def stop_if_domain_shared(node: Node, own_topic: str) -> None:
 
 DRAIN_QUIET = 0.3     # s without anything drained: done
 DRAIN_LIMIT = 10.0    # s, longest drain before the node is destroyed anyway
+ACK_LIMIT = 1.0       # s, longest wait for the readers' acknowledgements at the stop
+
+
+def wait_for_acks(node: Node, limit: float = ACK_LIMIT) -> bool:
+    """Wait until the reliable readers of every writer of ``node`` have acknowledged all its
+    samples, at most ``limit`` s in all; False if they did not. A writer destroyed at once
+    never sends again a sample lost in transport in its last heartbeat period (100 ms), and its
+    reader holds every later one until then: the bag lost the topic's tail (docs/recording.md,
+    "The end of a run")."""
+    end = time.monotonic() + limit
+    for publisher in list(node.publishers):
+        remaining = end - time.monotonic()
+        if remaining <= 0.0 or not publisher.wait_for_all_acked(Duration(seconds=remaining)):
+            return False
+    return True
 
 
 def run_node(make_node: Callable[[], Node], args=None, *,
@@ -145,6 +161,8 @@ def run_node(make_node: Callable[[], Node], args=None, *,
             profiler.dump_stats(os.path.join(os.environ['REPLAN_CPROFILE_DIR'],
                                              f'{profiler.replan_name}.{os.getpid()}.prof'))
         if node is not None:
+            if rclpy.ok():
+                wait_for_acks(node)
             node.destroy_node()
         rclpy.try_shutdown()
 
