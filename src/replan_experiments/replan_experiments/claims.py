@@ -3,6 +3,7 @@ depend on each other) and the rows it gives the results page; ``run_all`` runs a
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import os
@@ -19,10 +20,9 @@ import yaml
 from replan_core.robot.robot_file import default_urdf
 from replan_experiments.motion_effects import cached_motion_effects
 from replan_experiments.plan import (
+    claim_hashes,
     node_settings,
     phase_impulses,
-    plan_hash,
-    primary_blocks,
     variant,
 )
 from replan_experiments.push_effects import cached_push_effects
@@ -38,9 +38,9 @@ class Context:
 
 
 class PlanRunner:
-    """A runner whose every run is a confirmatory run of the plan with hash ``plan``: its key
-    holds the hash (``runs.run_key``), so its rows say which plan they were made for. The rest
-    is the wrapped runner's."""
+    """A runner whose every run is a confirmatory run of the claim pre-registered with hash
+    ``plan`` (``plan.claim_hash``): its key holds the hash (``runs.run_key``), so its rows say
+    which pre-registration they were made for. The rest is the wrapped runner's."""
 
     def __init__(self, runner: Runner, plan: str) -> None:
         self.runner, self.plan = runner, plan
@@ -350,16 +350,22 @@ def _terrain_end(terrain: dict) -> float | None:
 def velocity_term(ctx: Context, cfg: dict) -> list[dict]:
     """Straight walks at each set-point with the MPC's velocity term on and off (the steady
     speed), and with ``step_scenario`` the same set-point step in both settings (how fast a
-    new set-point is reached: the paper's "faster motion"), paired by seed. Every run keeps its
-    bag: how the trunk travels between the footholds (``motion_effects``) is read from it, in
-    a straight walk from ``motion_after`` s, in a step from the change, to the run's end."""
+    new set-point is reached: the paper's "faster motion"), paired by seed. ``params``: node
+    parameters both settings get (e.g. the footholds' speed feedback off, so that only the
+    cost term differs); without it the runs are those of before. Every run keeps its bag: how
+    the trunk travels between the footholds (``motion_effects``) is read from it, in a straight
+    walk from ``motion_after`` s, in a step from the change, to the run's end."""
     runner = ctx.runner
     base = runner.scenario(cfg['scenario'])
     step = runner.scenario(cfg['step_scenario']) if cfg.get('step_scenario') else None
     motion_after = float(cfg['motion_after'])
+    shared = copy.deepcopy(cfg.get('params') or {})
     jobs = []
     for on in (True, False):
-        params = None if on else {'mpc': {'velocity_weight': 0.0}}
+        params = copy.deepcopy(shared)
+        if not on:
+            params.setdefault('mpc', {})['velocity_weight'] = 0.0
+        params = params or None
         for seed in cfg['seeds']:
             for v in cfg['setpoints']:
                 def make(on=on, seed=seed, v=v, params=params):
@@ -454,13 +460,11 @@ def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
     """The ``selected`` experiments of ``plan``; returns their data for the page."""
     settings = node_settings(runner.config_dir, getattr(runner, 'robot', None))
     ctx = Context(runner, settings)
-    # The pre-registered claims' runs are confirmatory: their keys hold the plan's hash.
-    hashed = plan_hash(plan)
-    confirmatory = Context(PlanRunner(runner, hashed), settings) if hashed else ctx
-    pre = set(primary_blocks(plan))
+    # The pre-registered claims' runs are confirmatory: their keys hold their claim's hash.
+    hashes = claim_hashes(plan)
 
     def context(name: str) -> Context:
-        return confirmatory if name in pre else ctx
+        return Context(PlanRunner(runner, hashes[name]), settings) if name in hashes else ctx
 
     results: dict = {}
     if 'qp_timing' in selected:       # before any graph loads the cores

@@ -317,6 +317,11 @@ def comparison(block: dict) -> str:
     where = block.get('where') or {}
     if where:
         text += ', ' + ', '.join(f'{k} {v}' for k, v in where.items())
+    baseline = block.get('baseline') or {}
+    if baseline:
+        text += (', each run minus its setting\'s run at '
+                 + ', '.join(f'{k} {v}' for k, v in baseline.items())
+                 + ' (a difference in differences)')
     return text + (f', paired by {", ".join(block["pair_by"])}' if block.get('pair_by') else '')
 
 
@@ -338,19 +343,23 @@ def preregistration_section(prereg: dict | None, verdicts: list[dict]) -> list[s
                 'verdicts; every comparison below is exploratory.', '']
     lines = ['## Pre-registration', '',
              f'Plan hash **{prereg["hash"]}** (`{prereg["file"]}`, the `primary` blocks: '
-             'measure, selection, direction, smallest effect, test, n and seeds; each '
-             'confirmatory run\'s key holds it). One primary test per claim, fixed before its '
-             'confirmatory runs; n is the number of confirmatory seeds, set from the pilot '
-             'runs of the pilot seeds, which never enter a verdict.', '',
+             'measure, selection, direction, smallest effect, test, n and seeds; the hash of '
+             'the claims\' hashes). Each confirmatory run\'s key holds its claim\'s hash, so a '
+             'claim pre-registered again gets runs of its own, and a verdict is refused on '
+             'runs of another pre-registration of its claim. One primary test per claim, fixed '
+             'before its confirmatory runs; n is the number of confirmatory seeds, set from '
+             'the pilot runs of the pilot seeds, which never enter a verdict.', '',
              '| Claim | Primary measure (effect: the sign of) | Direction | Smallest effect '
-             '(reason) | Test | n (seeds) | Pilot seeds |', '|---|---|---|---|---|---|---|']
+             '(reason) | Test | n (seeds) | Pilot seeds | Claim hash |',
+             '|---|---|---|---|---|---|---|---|']
+    hashes = prereg.get('claim_hashes') or {}
     for name, block in prereg['claims'].items():
         lines.append(
             f'| {CLAIMS.get(name, name)} | `{block["measure"]}` ({comparison(block)}) | '
             f'{block["direction"]} | {_num(float(block["smallest_effect"]))} {block["unit"]} '
             f'({" ".join(str(block["reason"]).split())}) | {_TEST_NAMES[block["test"]]} | '
             f'{block["n"]} ({", ".join(str(s) for s in block["seeds"])}) | '
-            f'{", ".join(str(s) for s in block["pilot_seeds"])} |')
+            f'{", ".join(str(s) for s in block["pilot_seeds"])} | {hashes.get(name, "-")} |')
     lines += ['', '## Verdicts', '',
               f'One family: the {len(verdicts)} claims\' primary tests, Holm\'s step-down '
               'correction over all of them at α = 0.05 (a claim that cannot be judged counts '

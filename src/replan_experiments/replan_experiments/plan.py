@@ -24,7 +24,7 @@ PLAN_KEYS = {
     'replan_window': {'scenario', 'windows', 'seeds', 'setpoints', 'duration'},
     'haptic': {'scenario', 'seeds', 'duration', 'durations', 'terrains'},
     'velocity_term': {'scenario', 'seeds', 'setpoints', 'duration', 'step_scenario',
-                      'motion_after'},
+                      'motion_after', 'params'},
     'sustained_push': {'scenario', 'push_start', 'push_duration', 'forces', 'direction',
                        'horizon', 'duration', 'seeds', 'settings'},
     'large_push': {'scenario', 'phases', 'first_push', 'push_duration', 'impulse', 'direction',
@@ -56,10 +56,11 @@ for _name in PRIMARY_MEASURES:
     PLAN_KEYS[_name] = PLAN_KEYS[_name] | {'primary'}
 # A primary block: every key below is required, one of ``compare`` (two settings, treatment
 # minus control) or ``against`` (one setting against a fixed bound) too; ``where`` and
-# ``pair_by`` select and pair the runs.
+# ``pair_by`` select and pair the runs; ``baseline`` (with ``compare``) makes each run's
+# measure a difference from its setting's run that matches it (a difference in differences).
 PRIMARY_REQUIRED = {'measure', 'unit', 'direction', 'smallest_effect', 'reason', 'test', 'n',
                     'pilot_seeds'}
-PRIMARY_KEYS = PRIMARY_REQUIRED | {'compare', 'against', 'where', 'pair_by'}
+PRIMARY_KEYS = PRIMARY_REQUIRED | {'compare', 'against', 'where', 'pair_by', 'baseline'}
 BINARY_TESTS = ('mcnemar', 'fisher')
 # Keys without a default, and what each says: a plan without one is refused.
 REQUIRED_KEYS = {
@@ -186,6 +187,15 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
             error = primary_error(name, plan[name])
             if error:
                 raise ExperimentError(f'{path}: {section}.{name}.primary: {error}')
+    term = plan.get('velocity_term')
+    if isinstance(term, dict) and term.get('params') is not None:
+        shared = term['params']
+        if not isinstance(shared, dict) or not all(isinstance(v, dict) for v in shared.values()):
+            raise ExperimentError(f'{path}: {section}.velocity_term.params: a mapping of node '
+                                  'to parameters, e.g. {gait: {velocity_feedback_gain: 0.0}}')
+        if 'velocity_weight' in (shared.get('mpc') or {}):
+            raise ExperimentError(f'{path}: {section}.velocity_term.params: '
+                                  'mpc.velocity_weight is what the two settings differ in')
     large = plan.get('large_push')
     if isinstance(large, dict):
         try:
@@ -219,6 +229,15 @@ def primary_error(name: str, cfg: dict) -> str | None:
     if compare is not None and (not isinstance(compare, dict)
                                 or set(compare) != {'by', 'treatment', 'control'}):
         return 'compare: a mapping of by, treatment and control'
+    baseline = block.get('baseline')
+    if baseline is not None:
+        if compare is None or block['test'] in BINARY_TESTS or not isinstance(baseline, dict) \
+                or not baseline:
+            return ('baseline: a mapping of run keys (e.g. force_n: 0.0), with compare and a '
+                    'paired test of a measured figure')
+        clash = set(baseline) & ({compare['by']} | set(block.get('where') or {}))
+        if clash:
+            return f'baseline: {sorted(clash)} also in compare.by or where'
     if block['measure'] not in PRIMARY_MEASURES[name]:
         return (f'measure: {block["measure"]!r} is not one the claim computes (known: '
                 f'{", ".join(sorted(PRIMARY_MEASURES[name]))})')
@@ -250,17 +269,28 @@ def primary_blocks(plan: dict) -> dict:
             if isinstance(plan.get(name), dict) and 'primary' in plan[name]}
 
 
+def claim_hash(block: dict) -> str:
+    """The hash of one claim's pre-registration: its primary block (measure, selection,
+    direction, smallest effect, test, n, pilot seeds, baseline) with its confirmatory seeds,
+    the ``reason`` text left out. A confirmatory run's key holds its claim's hash, so a claim
+    pre-registered again gets runs of its own and the others keep theirs."""
+    kept = {k: v for k, v in block.items() if k != 'reason'}
+    return hashlib.sha1(json.dumps(kept, sort_keys=True, default=str).encode()).hexdigest()[:12]
+
+
+def claim_hashes(plan: dict) -> dict[str, str]:
+    """Per pre-registered claim of ``plan``, its ``claim_hash``."""
+    return {name: claim_hash(block) for name, block in primary_blocks(plan).items()}
+
+
 def plan_hash(plan: dict) -> str | None:
-    """The hash of ``plan``'s pre-registration: every primary block (measure, selection,
-    direction, smallest effect, test, n, pilot seeds) with its confirmatory seeds, the
-    ``reason`` text left out; None without primary blocks. The one place it is computed: the
-    confirmatory runs' keys and the page both take it from here."""
-    blocks = {name: {k: v for k, v in block.items() if k != 'reason'}
-              for name, block in primary_blocks(plan).items()}
-    if not blocks:
+    """The hash of ``plan``'s whole pre-registration: of its claims' hashes; None without
+    primary blocks. The one place both are computed: the confirmatory runs' keys and the page
+    take them from here."""
+    hashes = claim_hashes(plan)
+    if not hashes:
         return None
-    text = json.dumps(blocks, sort_keys=True, default=str)
-    return hashlib.sha1(text.encode()).hexdigest()[:12]
+    return hashlib.sha1(json.dumps(hashes, sort_keys=True).encode()).hexdigest()[:12]
 
 
 def pilot_plan(plan: dict) -> dict:
@@ -275,9 +305,10 @@ def pilot_plan(plan: dict) -> dict:
 
 def preregistration(plan: dict, plan_file: Path | str, role: str) -> dict:
     """What the page needs of the plan's pre-registration: its hash, the file, the call's
-    ``role`` ('confirmatory', 'pilot' or 'quick') and the primary blocks."""
+    ``role`` ('confirmatory', 'pilot' or 'quick'), the primary blocks and each claim's
+    hash."""
     return {'hash': plan_hash(plan), 'file': str(plan_file), 'role': role,
-            'claims': primary_blocks(plan)}
+            'claims': primary_blocks(plan), 'claim_hashes': claim_hashes(plan)}
 
 
 def node_settings(config_dir: Path, robot: str | None = None) -> dict:

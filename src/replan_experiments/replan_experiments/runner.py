@@ -146,7 +146,9 @@ def main(argv=None) -> int:
     plan_file = args.plan or config_dir / 'experiments.yaml'
     try:
         plan, selected = load_plan(plan_file, args.quick, args.only)
-        prereg = preregistration(plan, plan_file, 'quick' if args.quick else
+        shown = (plan_file.resolve().relative_to(root)
+                 if plan_file.resolve().is_relative_to(root) else plan_file)
+        prereg = preregistration(plan, shown, 'quick' if args.quick else
                                  'pilot' if args.pilot else 'confirmatory')
         if args.pilot:
             plan = pilot_plan(plan)

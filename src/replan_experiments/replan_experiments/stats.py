@@ -176,21 +176,25 @@ POWER = 0.8          # the chance a test of that many pairs resolves a differenc
 MAX_PAIRS = 10000
 
 
-def pairs_to_resolve(diff) -> int | None:
-    """The fewest pairs whose paired t-test (two-sided, p < P_VALUE) resolves a true mean
-    difference and spread equal to those of ``diff`` with probability ``POWER``; None above
-    ``MAX_PAIRS`` or for no difference. An estimate from the runs: their own mean and spread
-    stand for the true ones."""
+def pairs_to_resolve(diff, effect: float | None = None, alpha: float = P_VALUE) -> int | None:
+    """The fewest pairs whose paired t-test (two-sided, p < ``alpha``) resolves a true mean
+    difference ``effect`` (default: the mean of ``diff``) at the spread of ``diff`` with
+    probability ``POWER``; None above ``MAX_PAIRS`` or for no difference. The pilot's
+    differences with the pre-registered smallest effect and Holm's strictest level (alpha over
+    the number of claims) give a plan's n; an estimate from the runs otherwise. A tail of the
+    noncentral t that scipy cannot compute (NaN, far out) counts as 0."""
     from scipy.stats import nct, t
     d = np.asarray(diff, dtype=float)
-    mean, sd = float(d.mean()), float(d.std(ddof=1)) if len(d) > 1 else 0.0
+    mean = float(d.mean()) if effect is None else float(effect)
+    sd = float(d.std(ddof=1)) if len(d) > 1 else 0.0
     if mean == 0.0 or not sd > 0.0:
         return None
-    effect = abs(mean) / sd
+    standardized = abs(mean) / sd
     for n in range(2, MAX_PAIRS + 1):
-        crit = t.ppf(1.0 - P_VALUE / 2.0, n - 1)
-        shift = effect * math.sqrt(n)
-        if nct.sf(crit, n - 1, shift) + nct.cdf(-crit, n - 1, shift) >= POWER:
+        crit = t.ppf(1.0 - alpha / 2.0, n - 1)
+        shift = standardized * math.sqrt(n)
+        tails = (float(nct.sf(crit, n - 1, shift)), float(nct.cdf(-crit, n - 1, shift)))
+        if sum(x for x in tails if not math.isnan(x)) >= POWER:
             return n
     return None
 
@@ -495,11 +499,14 @@ def primary_sample(rows: list[dict], block: dict) -> tuple[object, list[dict]]:
     block's confirmatory ``seeds`` that match its ``where``) and the rows it uses: the
     differences of the pairs (``pair_by``) treatment minus control, or of each run minus
     ``against``; (treatment, control) outcome pairs for ``mcnemar``; the two groups'
-    outcomes for ``fisher``. A pair censored in both settings is left out (two lower bounds);
-    so is a run without the measure."""
+    outcomes for ``fisher``. With ``baseline`` each run's measure is first taken minus that of
+    its baseline run (a difference in differences; a run without one is left out, the
+    baseline runs are among those used). A pair censored in both settings is left out (two
+    lower bounds); so is a run without the measure."""
     measure, test = block['measure'], block['test']
     binary = test in ('mcnemar', 'fisher')
-    sel = [r for r in rows if r.get('ok', True) and r.get('seed') in set(block['seeds'])
+    seeds = set(block['seeds'])
+    sel = [r for r in rows if r.get('ok', True) and r.get('seed') in seeds
            and _matches(r, block.get('where')) and r.get(measure) is not None]
 
     def value(row: dict):
@@ -508,30 +515,51 @@ def primary_sample(rows: list[dict], block: dict) -> tuple[object, list[dict]]:
     if 'against' in block:
         return [value(r) - float(block['against']) for r in sel], sel
     by, treatment, control = (block['compare'][k] for k in ('by', 'treatment', 'control'))
+    pair_by = block.get('pair_by') or ['seed']
+    baselines: dict[int, dict | None] = {}
+    if block.get('baseline'):
+        # A difference in differences: each run's measure minus that of its setting's run that
+        # matches the baseline and the run's other pairing keys (the same seed, unpushed).
+        baseline = block['baseline']
+        match = [by] + [k for k in pair_by if k not in baseline]
+        base_rows = {tuple(r.get(k) for k in match): r for r in rows
+                     if r.get('ok', True) and r.get('seed') in seeds
+                     and _matches(r, baseline) and r.get(measure) is not None}
+        baselines = {id(r): base_rows.get(tuple(r.get(k) for k in match)) for r in sel}
+        sel = [r for r in sel if baselines[id(r)] is not None]
+
+    def measured(row: dict) -> float:
+        base = baselines.get(id(row))
+        return value(row) if base is None else value(row) - value(base)
+
     a = [r for r in sel if r.get(by) == treatment]
     b = [r for r in sel if r.get(by) == control]
     if test == 'fisher':
         return ([value(r) for r in a], [value(r) for r in b]), a + b
 
     def key(row: dict) -> tuple:
-        return tuple(row.get(k) for k in block.get('pair_by') or ['seed'])
+        return tuple(row.get(k) for k in pair_by)
 
     ia, ib = {key(r): r for r in a}, {key(r): r for r in b}
     pairs = [k for k in sorted(set(ia) & set(ib), key=str)
              if not (ia[k].get('censored') and ib[k].get('censored'))]
     used = [ia[k] for k in pairs] + [ib[k] for k in pairs]
+    for base in {id(b): b for r in list(used) if (b := baselines.get(id(r))) is not None}.values():
+        used.append(base)
     if test == 'mcnemar':
         return [(value(ia[k]), value(ib[k])) for k in pairs], used
-    return [value(ia[k]) - value(ib[k]) for k in pairs], used
+    return [measured(ia[k]) - measured(ib[k]) for k in pairs], used
 
 
 def primary_verdicts(prereg: dict, results: dict) -> list[dict]:
     """The verdict of every pre-registered claim (``prereg``: plan.preregistration) from the
     call's ``results``: none for a pilot call, for a claim not run, or for runs of another
-    plan (their hash is not ``prereg['hash']``), which still count in Holm's family."""
-    current = prereg.get('hash')
+    pre-registration of the claim (their hash is not the claim's in
+    ``prereg['claim_hashes']``), which still count in Holm's family."""
+    hashes = prereg.get('claim_hashes') or {}
     tests = []
     for name, block in (prereg.get('claims') or {}).items():
+        current = hashes.get(name)
         test = {'claim': name, **block, 'sample': None}
         if prereg.get('role') != 'confirmatory':
             test['reason'] = (f'{prereg.get("role")} runs (seeds {block["seeds"]}) never enter '
@@ -544,7 +572,8 @@ def primary_verdicts(prereg: dict, results: dict) -> list[dict]:
             units = len(sample[0]) + len(sample[1]) if block['test'] == 'fisher' else len(sample)
             if plans - {current}:
                 other = ', '.join(sorted(str(p or 'none') for p in plans - {current}))
-                test['reason'] = f'runs of another plan (hash {other}, this plan {current})'
+                test['reason'] = (f'runs of another pre-registration (hash {other}, this '
+                                  f'claim\'s {current})')
             elif units < 2:
                 test['reason'] = f'{units} usable runs or pairs of the plan\'s seeds'
             else:

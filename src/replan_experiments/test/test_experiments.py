@@ -15,10 +15,10 @@ from replan_experiments.claims import bisect_impulse, second_push
 from replan_experiments.page import _bag_gaps, write_page
 from replan_experiments.plan import (
     ExperimentError,
+    claim_hashes,
     load_plan,
     node_settings,
     phase_impulses,
-    plan_hash,
     planned_runs,
     variant,
 )
@@ -482,8 +482,8 @@ def test_every_run_of_the_plan_passes_the_scenario_checks(quick):
     runner = RecordingRunner()
     run_all(plan, [n for n in selected if n != 'qp_timing'], runner)
     assert len(runner.docs) >= (3 if quick else 100)
-    # The pre-registered claims' runs carry the plan's hash, the others (and quick's) none.
-    assert runner.plans == ({None} if quick else {None, plan_hash(plan)})
+    # Every pre-registered claim's runs carry its claim's hash, the others (and quick's) none.
+    assert runner.plans == ({None} if quick else {None, *claim_hashes(plan).values()})
     for doc in {run_key(d): d for d in runner.docs}.values():
         check_scenario(parse_scenario(yaml.safe_dump(doc), doc['name']), CONFIG)
 
@@ -616,3 +616,29 @@ def test_a_cached_run_that_was_cut_short_is_made_again(tmp_path):
     assert not cut.run(doc).ok and cut.made == [False]
     again = FolderRunner(tmp_path)
     assert again.run(doc).ok and again.made == [False]      # not read back: made again
+
+
+def test_the_velocity_terms_shared_params_go_to_both_settings(tmp_path):
+    """velocity_term.params: node parameters of both settings (e.g. the footholds' speed
+    feedback off, so that only the cost term differs); without them the runs are those of
+    before; the term's own weight there is refused in one line."""
+    from replan_experiments.claims import Context, velocity_term
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    cfg = {**plan['velocity_term'], 'seeds': [0]}
+    before = RecordingRunner()
+    velocity_term(Context(before, {}), cfg)
+    shared = RecordingRunner()
+    velocity_term(Context(shared, {}), {**cfg, 'params': {'gait': {
+        'velocity_feedback_gain': 0.0}}})
+    assert len(before.docs) == len(shared.docs) >= 4
+    for old, new in zip(before.docs, shared.docs, strict=True):
+        assert new['params'].pop('gait') == {'velocity_feedback_gain': 0.0}
+        assert new == old and 'gait' not in old['params']
+    assert {str(d['params'].get('mpc')) for d in before.docs} == {
+        'None', str({'velocity_weight': 0.0})}
+    doc = yaml.safe_load((CONFIG / 'experiments.yaml').read_text())
+    doc['full']['velocity_term']['params'] = {'mpc': {'velocity_weight': 1.0}}
+    path = tmp_path / 'experiments.yaml'
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ExperimentError, match=r'mpc\.velocity_weight is what the two settings'):
+        load_plan(path, False, [])

@@ -16,6 +16,7 @@ from replan_experiments.findings import readme_table
 from replan_experiments.page import fill_readme, page_verdicts, write_page
 from replan_experiments.plan import (
     ExperimentError,
+    claim_hashes,
     load_plan,
     pilot_plan,
     plan_hash,
@@ -32,7 +33,9 @@ from replan_experiments.stats import (
     mcnemar,
     outcome,
     paired_t,
+    pairs_to_resolve,
     primary_sample,
+    primary_verdicts,
     verdicts,
 )
 
@@ -153,7 +156,12 @@ def test_the_plan_hash_follows_the_primary_blocks_only(tmp_path):
     doc = yaml.safe_load(_plan_text())
     doc['full']['haptic']['seeds'] = list(range(20, 30))
     path.write_text(yaml.safe_dump(doc))
-    assert plan_hash(load_plan(path, False, [])[0]) != first
+    changed = load_plan(path, False, [])[0]
+    assert plan_hash(changed) != first
+    # Only the changed claim's own hash moves: the other claims keep their runs.
+    before, after = claim_hashes(plan), claim_hashes(changed)
+    assert set(before) == set(after) and before['haptic'] != after['haptic']
+    assert all(before[name] == after[name] for name in before if name != 'haptic')
     # The quick plan pre-registers nothing; the pilot plan runs the pilot seeds, unhashed.
     assert plan_hash(load_plan(CONFIG / 'experiments.yaml', True, [])[0]) is None
     pilot = pilot_plan(plan)
@@ -220,7 +228,7 @@ def _haptic_prereg(role: str = 'confirmatory') -> dict:
 def test_the_page_judges_the_runs_of_this_plan(tmp_path):
     prereg = _haptic_prereg()
     seeds = prereg['claims']['haptic']['seeds']
-    results = {'haptic': _haptic_rows(prereg['hash'], seeds)
+    results = {'haptic': _haptic_rows(prereg['claim_hashes']['haptic'], seeds)
                + _haptic_rows(None, prereg['claims']['haptic']['pilot_seeds'], -0.5)}
     page = tmp_path / 'results.md'
     write_page(page, results, _meta(prereg))
@@ -229,7 +237,8 @@ def test_the_page_judges_the_runs_of_this_plan(tmp_path):
     assert ('| without haptic touchdown the pitch is disturbed (V.A, VI) | '
             '`fell` (haptic off minus haptic on, terrain step_down_10cm, paired by seed) | '
             'higher | 0.3 share of runs (three falls in ten walks') in text
-    assert '| 10 (10, 11, 12, 13, 14, 15, 16, 17, 18, 19) | 0, 1, 2, 3, 4, 5, 6, 7, 8, 9 |' in text
+    assert ('| 10 (10, 11, 12, 13, 14, 15, 16, 17, 18, 19) | 0, 1, 2, 3, 4, 5, 6, 7, 8, 9 | '
+            f'{prereg["claim_hashes"]["haptic"]} |') in text
     # The pilot rows (the other sign) never enter: off fell at 8 of 10 seeds, on at none
     # (McNemar exact: 2 / 2^8).
     row = next(line for line in text.splitlines()
@@ -247,11 +256,12 @@ def test_the_page_refuses_verdicts_on_runs_of_another_plan(tmp_path):
     prereg = _haptic_prereg()
     seeds = prereg['claims']['haptic']['seeds']
     page = tmp_path / 'results.md'
-    for plan in ('0123456789ab', None):
+    # Runs of another pre-registration of the claim, none, or keyed by the whole plan's hash.
+    for plan in ('0123456789ab', None, prereg['hash']):
         write_page(page, {'haptic': _haptic_rows(plan, seeds)}, _meta(prereg))
         text = page.read_text()
-        assert (f'| - | - | - | no verdict: runs of another plan (hash {plan or "none"}, this '
-                f'plan {prereg["hash"]}) |') in text
+        assert (f'| - | - | - | no verdict: runs of another pre-registration (hash '
+                f'{plan or "none"}, this claim\'s {prereg["claim_hashes"]["haptic"]}) |') in text
         # The runs' figures are still on the page.
         assert '| haptic | step down 10cm, off | largest touchdown pitch peak (deg) |' in text
     # A pilot call never judges, even on runs that would hold.
@@ -276,7 +286,8 @@ def test_the_sample_pairs_by_the_blocks_keys_and_leaves_out_censored_pairs():
 
 def test_readme_block_is_filled_between_its_markers(tmp_path):
     prereg = _haptic_prereg()
-    results = {'haptic': _haptic_rows(prereg['hash'], prereg['claims']['haptic']['seeds'])}
+    results = {'haptic': _haptic_rows(prereg['claim_hashes']['haptic'],
+                                      prereg['claims']['haptic']['seeds'])}
     readme = tmp_path / 'README.md'
     readme.write_text('# X\n\nbefore\n<!-- results:begin -->\nOLD TABLE\n'
                       '<!-- results:end -->\nafter\n')
@@ -297,6 +308,86 @@ def test_exploratory_comparisons_carry_no_verdict_words():
     assert exploratory('does not hold (the opposite) (5 pairs)') == (
         'the other direction (5 pairs)')
     assert exploratory('not resolved (within the spread)') == 'undecided (within the spread)'
+
+
+def _pushed_rows(plan: str | None, seeds) -> list[dict]:
+    """Sustained-push rows: 'literal' keeps 3 cm more margin than 'off' without a push and
+    only 1 mm more under 60 and 80 N, 'sway_free' 5 mm more under a push than without."""
+    gain = {('literal', 0.0): 0.03, ('literal', 60.0): 0.001, ('literal', 80.0): 0.001,
+            ('sway_free', 0.0): 0.0, ('sway_free', 60.0): 0.005, ('sway_free', 80.0): 0.005}
+    return [{'ok': True, 'world': 'realistic', 'correction': setting, 'force_n': force,
+             'seed': s, 'plan': plan,
+             'capture_margin_p5_m': 0.05 - force * 1e-4 + 1e-4 * (s % 3)
+             + gain.get((setting, force), 0.0) + (2e-4 * (s % 2) if setting != 'off' else 0)}
+            for setting in ('off', 'literal', 'sway_free') for force in (0.0, 60.0, 80.0)
+            for s in seeds]
+
+
+def test_a_baseline_makes_the_effect_a_difference_in_differences():
+    """A setting better already without a push is not better against the push for that."""
+    block = {'measure': 'capture_margin_p5_m', 'test': 'paired_t', 'seeds': [5, 6, 7],
+             'compare': {'by': 'correction', 'treatment': 'literal', 'control': 'off'},
+             'where': {'force_n': [60.0, 80.0]}, 'pair_by': ['seed', 'force_n'],
+             'baseline': {'force_n': 0.0}}
+    rows = _pushed_rows('h', [0, 5, 6, 7])
+    plain, _ = primary_sample(rows, {k: v for k, v in block.items() if k != 'baseline'})
+    sample, used = primary_sample(rows, block)
+    assert len(plain) == len(sample) == 6
+    assert all(abs(d - (0.001 + 2e-4 * (s % 2))) < 1e-12 for d, s in zip(
+        plain, (5, 5, 6, 6, 7, 7), strict=True))
+    assert all(abs(d - (0.001 - 0.03)) < 1e-12 for d in sample)
+    # The baseline runs are among those used (their plan is checked too); seed 0 is not.
+    assert sum(r['force_n'] == 0.0 for r in used) == 6 and {r['seed'] for r in used} == {5, 6, 7}
+    # A run without its baseline run is left out.
+    missing = [r for r in rows if not (r['seed'] == 7 and r['force_n'] == 0.0
+                                       and r['correction'] == 'off')]
+    assert len(primary_sample(missing, block)[0]) == 4
+    # The page says what the effect is.
+    from replan_experiments.findings import comparison
+    assert comparison(block) == ('literal minus off, force_n [60.0, 80.0], '
+                                 'each run minus its setting\'s run at force_n 0.0 (a difference '
+                                 'in differences), paired by seed, force_n')
+
+
+@pytest.mark.parametrize('change, message', [
+    ({'test': 'mcnemar', 'measure': 'fell'}, 'baseline: a mapping of run keys'),
+    ({'baseline': 0.0}, 'baseline: a mapping of run keys'),
+    ({'baseline': {'setting': 'correction_off'}}, r"baseline: \['setting'\] also in compare.by"),
+])
+def test_the_plan_loader_checks_the_baseline(tmp_path, change, message):
+    doc = yaml.safe_load(_plan_text())
+    block = doc['full']['sustained_push']['primary']
+    block['baseline'] = {'force_n': 0.0}
+    block.update(change)
+    path = tmp_path / 'experiments.yaml'
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ExperimentError, match=f'^{path}: full.sustained_push.primary: ' + message):
+        load_plan(path, False, [])
+
+
+def test_a_verdict_uses_its_claims_own_hash():
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    prereg = preregistration({'haptic': plan['haptic'], 'replan_window': plan['replan_window']},
+                             'config/experiments.yaml', 'confirmatory')
+    seeds = prereg['claims']['haptic']['seeds']
+    own = {v['claim']: v for v in primary_verdicts(prereg, {'haptic': _haptic_rows(
+        prereg['claim_hashes']['haptic'], seeds)})}
+    assert own['haptic']['outcome'] == 'holds'
+    assert own['replan_window']['outcome'] == 'no verdict: not run in this call'
+    other = {v['claim']: v for v in primary_verdicts(prereg, {'haptic': _haptic_rows(
+        prereg['claim_hashes']['replan_window'], seeds)})}
+    assert other['haptic']['outcome'].startswith('no verdict: runs of another pre-registration')
+
+
+def test_pairs_to_resolve_with_a_preregistered_effect_and_level():
+    diff = [0.9, 1.1, 1.0, 1.2, 0.8]            # mean 1.0, sd 0.158
+    assert pairs_to_resolve(diff) == 3
+    # Half the effect needs more pairs; Holm's strictest level (0.05 / 7) more again.
+    assert pairs_to_resolve(diff, effect=0.1) > pairs_to_resolve(diff, effect=0.5) > 3
+    assert pairs_to_resolve(diff, effect=0.5, alpha=0.05 / 7) > pairs_to_resolve(diff, 0.5)
+    # An effect of many spreads: scipy's far tail is NaN, which counts as 0, not as "never".
+    assert pairs_to_resolve([10.0, 10.001, 9.999]) == 2
+    assert pairs_to_resolve([1.0, 1.0]) is None               # no spread
 
 
 def test_a_pilot_call_is_not_a_quick_one():
@@ -329,7 +420,7 @@ def test_a_confirmatory_call_keys_its_runs_by_the_plan_and_judges_them(tmp_path,
     monkeypatch.setenv('REPLAN_ROOT', str(CONFIG.parent))
     monkeypatch.setenv('REPLAN_CONFIG', str(CONFIG))
     plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
-    hashed = plan_hash(plan)
+    hashed = claim_hashes(plan)['haptic']
     page = tmp_path / 'results.md'
     assert runner_module.main(['--only', 'haptic', '--out', str(tmp_path / 'out'), '--page',
                                str(page), '--quiet']) == 0
@@ -340,7 +431,8 @@ def test_a_confirmatory_call_keys_its_runs_by_the_plan_and_judges_them(tmp_path,
             '`fell` | 0.8 [0.384, 0.943] share | 10 |') in text
     assert 'no verdict: not run in this call' in text      # the six other claims
     data = json.loads((tmp_path / 'out' / 'results.json').read_text())
-    assert data['meta']['preregistration']['hash'] == hashed
+    assert data['meta']['preregistration']['hash'] == plan_hash(plan)
+    assert data['meta']['preregistration']['claim_hashes']['haptic'] == hashed
     assert runner_module.main(['--pilot', '--only', 'haptic', '--out', str(tmp_path / 'out'),
                                '--quiet']) == 0
     pilot = (tmp_path / 'out' / 'results-pilot.md').read_text()
