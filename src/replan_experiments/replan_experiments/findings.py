@@ -380,6 +380,36 @@ def preregistration_section(prereg: dict | None, verdicts: list[dict]) -> list[s
     return [*lines, '']
 
 
+def pilot_section(sizes: list[dict]) -> list[str]:
+    """A pilot call's section: per claim, what its pilot runs say of its n
+    (``stats.pilot_sizes``)."""
+    if not sizes:
+        return []
+    lines = ['## Sample sizes from the pilot', '',
+             'Per pre-registered claim, its primary sample on the pilot seeds: the mean and '
+             'spread of the differences, and the confirmatory seeds a paired t-test needs to '
+             'resolve the smallest effect that matters (not the pilot\'s own mean) with 80 % '
+             f'power at Holm\'s strictest level, α = 0.05 / {len(sizes)} '
+             '(`stats.pairs_to_resolve`). The plan\'s n is set from this before its '
+             'confirmatory runs.', '',
+             '| Claim | Measure | Pilot pairs (seeds) | Mean difference | SD | Smallest effect '
+             '| Seeds needed | n in the plan |', '|---|---|---|---|---|---|---|---|']
+    for row in sizes:
+        if row.get('pairs') is None:
+            lines.append(f'| {CLAIMS.get(row["claim"], row["claim"])} | `{row["measure"]}` | '
+                         f'- | - | - | {_num(row["smallest_effect"])} {row["unit"]} | '
+                         f'{row.get("reason", "-")} | {row["n"]} |')
+            continue
+        needed = row['seeds_needed']
+        lines.append(
+            f'| {CLAIMS.get(row["claim"], row["claim"])} | `{row["measure"]}` | {row["pairs"]} '
+            f'({row["pilot_seeds"]}) | {_num(row["mean"])} | {_num(row["sd"])} | '
+            f'{_num(row["smallest_effect"])} {row["unit"]} | '
+            f'{needed if needed is not None else "more than the largest n tried"} | '
+            f'{row["n"]} |')
+    return [*lines, '']
+
+
 def readme_table(verdicts: list[dict]) -> str:
     """The short table of the pre-registered verdicts (claim, verdict, effect with its 95 %
     interval) for README.md's results block."""

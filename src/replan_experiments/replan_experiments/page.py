@@ -16,7 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_experiments.findings import findings, preregistration_section, readme_table
+from replan_experiments.findings import (
+    findings,
+    pilot_section,
+    preregistration_section,
+    readme_table,
+)
 from replan_experiments.page_plots import plot_haptic, plot_push, plot_windows
 from replan_experiments.page_push import large_push_section, sustained_push_section
 from replan_experiments.stats import (
@@ -31,6 +36,7 @@ from replan_experiments.stats import (
     exploratory,
     forward_speed_rows,
     p_text,
+    pilot_sizes,
     primary_verdicts,
     prompt_by_cycles,
     push_resolution,
@@ -188,6 +194,8 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         '',
         *_bag_gaps(meta.get('bag_gaps')),
         *preregistration_section(meta.get('preregistration'), page_verdicts(results, meta)),
+        *(pilot_section(pilot_sizes(meta['preregistration'], results))
+          if meta.get('pilot') and meta.get('preregistration') else []),
         '## Every measure (exploratory)',
         '',
         'The comparisons of this table and of the findings are exploratory: no verdict, an '

@@ -582,6 +582,42 @@ def primary_verdicts(prereg: dict, results: dict) -> list[dict]:
     return verdicts(tests)
 
 
+def pilot_sizes(prereg: dict, results: dict) -> list[dict]:
+    """Per pre-registered claim, what its pilot runs (``results`` of a ``--pilot`` call) say
+    of its n: the primary sample on the pilot seeds, its mean and spread, and the confirmatory
+    seeds a paired t-test needs to resolve the smallest effect that matters with ``POWER`` at
+    Holm's strictest level (alpha over the number of claims): ``pairs_to_resolve`` of the
+    pilot's differences, over the pilot's pairs per seed. A binary outcome gets no figure
+    (its n: the plan's reason)."""
+    blocks = prereg.get('claims') or {}
+    alpha = P_VALUE / max(len(blocks), 1)
+    rows = []
+    for name, block in blocks.items():
+        row = {'claim': name, 'measure': block['measure'], 'unit': block['unit'],
+               'smallest_effect': float(block['smallest_effect']), 'n': block['n'],
+               'alpha': alpha, 'pairs': None}
+        if name not in results:
+            row['reason'] = 'not run in this call'
+        elif block['test'] in ('mcnemar', 'fisher') or 'against' in block:
+            row['reason'] = 'a binary outcome or a fixed bound: n from the plan\'s reason'
+        else:
+            pilot = {**block, 'seeds': list(block['pilot_seeds'])}
+            diff, used = primary_sample(claim_rows(name, results[name]), pilot)
+            seeds = {r.get('seed') for r in used}
+            if len(diff) < 2:
+                row['reason'] = f'{len(diff)} usable pilot pairs'
+            else:
+                d = np.asarray(diff, dtype=float)
+                per_seed = len(d) / max(len(seeds), 1)
+                pairs = pairs_to_resolve(d, effect=row['smallest_effect'], alpha=alpha)
+                row.update(pairs=len(d), pilot_seeds=len(seeds), mean=float(d.mean()),
+                           sd=float(d.std(ddof=1)), pairs_needed=pairs,
+                           seeds_needed=(None if pairs is None
+                                         else max(2, math.ceil(pairs / per_seed))))
+        rows.append(row)
+    return rows
+
+
 _EXPLORATORY = ((re.compile(r'\bdoes not hold \(the opposite\)'), 'the other direction'),
                 (re.compile(r'\bdoes not hold\b'), 'not met'),
                 (re.compile(r'\bholds\b'), 'the claimed direction'),

@@ -34,6 +34,7 @@ from replan_experiments.stats import (
     outcome,
     paired_t,
     pairs_to_resolve,
+    pilot_sizes,
     primary_sample,
     primary_verdicts,
     verdicts,
@@ -439,3 +440,36 @@ def test_a_confirmatory_call_keys_its_runs_by_the_plan_and_judges_them(tmp_path,
     assert '**Pilot run**' in pilot and 'no verdict: pilot runs (seeds [10,' in pilot
     keys = [p.name for p in (tmp_path / 'out' / 'runs').iterdir()]
     assert len(keys) == 160 and sum('-plan' in k for k in keys) == 80
+
+
+def test_a_pilot_page_says_what_its_runs_make_of_n(tmp_path):
+    """The pilot's differences with the smallest effect and Holm's strictest level give the
+    confirmatory seeds (stats.pairs_to_resolve); a binary outcome gets no figure."""
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    prereg = preregistration(plan, 'config/experiments.yaml', 'pilot')
+    block = prereg['claims']['sustained_push']
+    block['baseline'] = {'force_n': 0.0}
+    rows = _pushed_rows(None, block['pilot_seeds'])
+    for r in rows:
+        if r['correction'] == 'literal' and r['force_n'] == 60.0:
+            r['capture_margin_p5_m'] += 0.004 * (r['seed'] % 3)     # a spread of the DiD
+        r['setting'] = {'off': 'correction_off', 'literal': 'correction_literal'}.get(
+            r.pop('correction'), 'correction_sway_free')
+    sizes = {s['claim']: s for s in pilot_sizes(prereg, {'sustained_push': rows,
+                                                         'haptic': _haptic_rows(None, [0])})}
+    push = sizes['sustained_push']
+    assert push['pairs'] == 2 * len(block['pilot_seeds']) and push['alpha'] == 0.05 / 7
+    assert abs(push['mean'] - (0.001 - 0.03)) < 0.005 and push['sd'] > 0.001
+    expected = pairs_to_resolve(
+        primary_sample(rows, {**block, 'seeds': block['pilot_seeds']})[0],
+        effect=0.01, alpha=0.05 / 7)
+    assert expected is not None and push['pairs_needed'] == expected
+    assert push['seeds_needed'] == max(2, -(-expected // 2))    # two pairs (forces) a seed
+    assert sizes['haptic']['pairs'] is None and 'binary' in sizes['haptic']['reason']
+    assert sizes['replan_window']['reason'] == 'not run in this call'
+    page = tmp_path / 'results-pilot.md'
+    meta = {**_meta(prereg), 'pilot': True}
+    write_page(page, {'haptic': _haptic_rows(None, [0, 1])}, meta)
+    text = page.read_text()
+    assert '## Sample sizes from the pilot' in text and 'α = 0.05 / 7' in text
+    assert 'a binary outcome or a fixed bound: n from the plan\'s reason | 10 |' in text
