@@ -235,9 +235,8 @@ def primary_error(name: str, cfg: dict) -> str | None:
                 or not baseline:
             return ('baseline: a mapping of run keys (e.g. force_n: 0.0), with compare and a '
                     'paired test of a measured figure')
-        clash = set(baseline) & ({compare['by']} | set(block.get('where') or {}))
-        if clash:
-            return f'baseline: {sorted(clash)} also in compare.by or where'
+        if compare['by'] in baseline:
+            return f'baseline: {compare["by"]!r} is what the settings differ in (compare.by)'
     if block['measure'] not in PRIMARY_MEASURES[name]:
         return (f'measure: {block["measure"]!r} is not one the claim computes (known: '
                 f'{", ".join(sorted(PRIMARY_MEASURES[name]))})')
