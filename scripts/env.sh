@@ -30,6 +30,17 @@ export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}"
 # a fixed thread count is one condition of bit-exact runs (docs/ARCHITECTURE.md, "Bit-exact
 # runs"), and the nodes' matrices are far below the sizes where more threads pay on 2 cores.
 export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
+# The same BLAS kernels on every machine: OpenBLAS picks them by CPU model, and its Zen and
+# SkylakeX kernels give other last bits (the crawl's plans differ between an AMD EPYC and an
+# Intel Xeon). SkylakeX's where the CPU has AVX-512, else Haswell's (AVX2): runs are bit-exact
+# across the machines of each class (docs/ARCHITECTURE.md, "Bit-exact runs").
+if [ -z "${OPENBLAS_CORETYPE:-}" ]; then
+    if grep -qw avx512f /proc/cpuinfo 2>/dev/null; then
+        export OPENBLAS_CORETYPE=SkylakeX
+    else
+        export OPENBLAS_CORETYPE=Haswell
+    fi
+fi
 export MKL_NUM_THREADS="${MKL_NUM_THREADS:-1}"
 # The interface packages of the ROS wheels live in the venv prefix: make them findable by
 # ament_index (get_package_share_directory('sensor_msgs'), used for the bag schemas).

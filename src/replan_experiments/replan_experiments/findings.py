@@ -14,6 +14,7 @@ from replan_experiments.stats import (
     cycles_to_within,
     forward_speed_rows,
     p_text,
+    pilot_sizes,
     prompt_by_cycles,
     push_resolution,
     push_sign_test,
@@ -334,9 +335,11 @@ def effect_text(verdict: dict) -> str:
             f'{"share" if verdict["test"] in ("mcnemar", "fisher") else verdict["unit"]}')
 
 
-def preregistration_section(prereg: dict | None, verdicts: list[dict]) -> list[str]:
+def preregistration_section(prereg: dict | None, verdicts: list[dict],
+                            pilot_results: dict | None = None) -> list[str]:
     """The page's pre-registration (hash, per claim the primary test and where its n comes
-    from) and its verdict table; the quick plan's page says it has none."""
+    from) and its verdict table; the quick plan's page says it has none. With a pilot call's
+    ``pilot_results``, also what they make of each claim's n (``pilot_section``)."""
     if not prereg or not prereg.get('claims'):
         return ['## Pre-registered verdicts', '',
                 'This plan pre-registers no primary tests (only the full plan does): no '
@@ -377,6 +380,8 @@ def preregistration_section(prereg: dict | None, verdicts: list[dict]) -> list[s
                      f'{effect_text(v)} | {v.get("units", "-")} | '
                      + (f'{v["p_holm"]:.2g}' if v.get('p_holm') is not None else '-')
                      + f' | {v["outcome"]} |')
+    if pilot_results is not None:
+        lines += ['', *pilot_section(pilot_sizes(prereg, pilot_results))]
     return [*lines, '']
 
 

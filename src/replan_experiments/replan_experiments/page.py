@@ -16,12 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_experiments.findings import (
-    findings,
-    pilot_section,
-    preregistration_section,
-    readme_table,
-)
+from replan_experiments.findings import findings, preregistration_section, readme_table
 from replan_experiments.page_plots import plot_haptic, plot_push, plot_windows
 from replan_experiments.page_push import large_push_section, sustained_push_section
 from replan_experiments.stats import (
@@ -36,7 +31,6 @@ from replan_experiments.stats import (
     exploratory,
     forward_speed_rows,
     p_text,
-    pilot_sizes,
     primary_verdicts,
     prompt_by_cycles,
     push_resolution,
@@ -169,8 +163,7 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         'configuration makes every run again). Do not edit '
         'by hand: every number, verdict and plot below comes from the runs '
         '(`replan_experiments/`: `claims.py` the experiments, `page.py` this page, '
-        '`stats.py` its statistics, `findings.py` its findings; the '
-        'plan is '
+        '`stats.py` its statistics, `findings.py` its findings; the plan is '
         '`config/experiments.yaml`).',
         '',
     ]
@@ -193,9 +186,8 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         'deviation over the runs, with the smallest and largest value.',
         '',
         *_bag_gaps(meta.get('bag_gaps')),
-        *preregistration_section(meta.get('preregistration'), page_verdicts(results, meta)),
-        *(pilot_section(pilot_sizes(meta['preregistration'], results))
-          if meta.get('pilot') and meta.get('preregistration') else []),
+        *preregistration_section(meta.get('preregistration'), page_verdicts(results, meta),
+                                 results if meta.get('pilot') else None),
         '## Every measure (exploratory)',
         '',
         'The comparisons of this table and of the findings are exploratory: no verdict, an '

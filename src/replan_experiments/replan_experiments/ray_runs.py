@@ -54,7 +54,8 @@ def node_code() -> dict:
     root = _node_root()
     config = Path(os.environ.get('REPLAN_CONFIG', root / 'config')).resolve()
     return {'host': socket.gethostname(), 'root': str(root),
-            'code': code_fingerprint(config.parent), 'revision': git_revision(root)}
+            'code': code_fingerprint(config.parent), 'revision': git_revision(root),
+            'blas': os.environ.get('OPENBLAS_CORETYPE', '')}
 
 
 def mismatch(node: dict, code: str, revision: str) -> str | None:
@@ -62,9 +63,11 @@ def mismatch(node: dict, code: str, revision: str) -> str | None:
     if node['code'] == code:
         return None
     return (f'node {node["host"]} runs other code ({node["root"]}: revision '
-            f'{node["revision"]}, code {node["code"]}) than this checkout (revision '
-            f'{revision}, code {code}): check out the same revision there and run '
-            'scripts/setup.sh --with-ray')
+            f'{node["revision"]}, code {node["code"]}, BLAS kernels '
+            f'{node.get("blas") or "unset"}) than this checkout (revision {revision}, code '
+            f'{code}, BLAS kernels {os.environ.get("OPENBLAS_CORETYPE") or "unset"}): check out '
+            'the same revision there, run scripts/setup.sh --with-ray, and start Ray there '
+            'from a shell that sourced scripts/env.sh')
 
 
 _OWNER = '.owner'     # in a run folder: the lock its worker holds while the run lasts
