@@ -31,7 +31,7 @@ while [ $# -gt 0 ]; do
     esac
 done
 replan_env
-claim_domain
+claim_domain "$@"
 out="${1:-$(mktemp -d)/bench_graph}"
 mkdir -p "$out"
 # The robot's walk; a robot that cannot be used stops here in one line, before any run.

@@ -10,5 +10,5 @@
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env
-claim_domain
+claim_domain "$@"
 exec python -m replan_ros.launch.launch_graph "$@"

@@ -12,7 +12,7 @@ for arg in "$@"; do
     esac
 done
 replan_env
-claim_domain
+claim_domain "$@"
 out="${1:-$ROOT/runs/paper-$(date +%Y%m%d-%H%M%S)}"
 runs=()
 for name in forward paper_replan_window_2 paper_haptic_off push paper_push_no_correction; do

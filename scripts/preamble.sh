@@ -20,6 +20,8 @@ replan_env() {
 }
 claim_domain() {
     # Held until this script's process (and what it execs) ends: replan_ros/launch/domain.py.
+    # claim_domain "$@": a call for -h/--help starts no graph and claims nothing.
+    case " $* " in *" -h "*|*" --help "*) return 0 ;; esac
     local domain="${ROS_DOMAIN_ID:-0}" lock
     [ "${REPLAN_DOMAIN_HELD:-}" = "$domain" ] && return 0     # the caller holds it
     lock="$(python -m replan_ros.launch.domain path "$domain")" || exit 2

@@ -8,7 +8,7 @@ for arg in "$@"; do
     case "$arg" in -h|--help) usage; exit 0 ;; esac
 done
 replan_env
-claim_domain
+claim_domain "$@"
 window=10
 if [ "${1:-}" = "--window" ]; then window="$2"; shift 2; fi
 run_dir="$(mktemp -d)"

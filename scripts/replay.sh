@@ -11,5 +11,5 @@ if [ $# -lt 1 ] || [ "$1" = "-h" ] || [ "$1" = "--help" ]; then
     [ $# -lt 1 ] && exit 2 || exit 0
 fi
 replan_env
-claim_domain
+case " $* " in *" --info "*) ;; *) claim_domain "$@" ;; esac     # --info: no publisher
 exec "$REPLAN_ROOT/install/replan_ros/lib/replan_ros/replay" "$@"

@@ -171,6 +171,10 @@ def test_a_second_graph_on_a_claimed_domain_is_refused_in_one_line(ros_domain, t
         lines = refused.stderr.strip().splitlines()
         assert len(lines) == 1 and f'another graph runs on ROS_DOMAIN_ID {ros_domain}' in lines[0]
         assert 'started' not in refused.stdout and not (tmp_path / 'refused').exists()
+        helped = subprocess.run([str(REPO_ROOT / 'scripts' / 'launch.sh'), '--help'],
+                                env=graph_env(ros_domain), capture_output=True, text=True,
+                                timeout=60)
+        assert helped.returncode == 0 and 'usage: launch.sh' in helped.stdout    # no graph
         held = subprocess.run(
             [str(REPO_ROOT / 'scripts' / 'launch.sh'), '--duration', '0.5',
              '--run-dir', str(tmp_path / 'held')],
