@@ -29,12 +29,13 @@ while time.monotonic() < end:
 print('received', len(got), flush=True)
 '''
 
-_WRITER = '''
+# A writer of 100-sample rounds on topic argv[1], once the reader is there (both scripts).
+_WRITER_START = '''
 import json, sys, time
 import rclpy
+from rclpy.duration import Duration
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Header
-from rclpy.duration import Duration
 rclpy.init()
 node = rclpy.create_node('acks_writer')
 pub = node.create_publisher(Header, sys.argv[1], QoSProfile(
@@ -42,6 +43,9 @@ pub = node.create_publisher(Header, sys.argv[1], QoSProfile(
 while pub.get_subscription_count() == 0:
     time.sleep(0.05)
 time.sleep(0.5)
+'''
+
+_WRITER = _WRITER_START + '''
 rounds = []
 for _ in range(int(sys.argv[2])):
     for _ in range(100):
@@ -85,19 +89,8 @@ def test_every_sample_is_acknowledged_within_the_limit(ros_domain):
     assert 'received 500' in out, out
 
 
-_STOPPING_WRITER = '''
-import json, sys, time
-import rclpy
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Header
+_STOPPING_WRITER = _WRITER_START + '''
 from replan_ros.nodes.node_main import wait_for_acks
-rclpy.init()
-node = rclpy.create_node('acks_stopping_writer')
-pub = node.create_publisher(Header, sys.argv[1], QoSProfile(
-    depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE))
-while pub.get_subscription_count() == 0:
-    time.sleep(0.05)
-time.sleep(0.5)
 print('writing', flush=True)
 sys.stdin.readline()                   # the test has stopped the reader, or not
 for _ in range(100):
