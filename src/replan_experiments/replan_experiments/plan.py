@@ -262,8 +262,10 @@ def primary_error(name: str, cfg: dict) -> str | None:
 
 def primary_blocks(plan: dict) -> dict:
     """Per pre-registered claim of ``plan``, its primary block with its confirmatory
-    ``seeds``."""
-    return {name: {**plan[name]['primary'], 'seeds': list(plan[name].get('seeds') or [])}
+    ``seeds`` and, where the claim has them, the node ``params`` both its settings get (they
+    define the comparison: changing them is a new pre-registration)."""
+    return {name: {**plan[name]['primary'], 'seeds': list(plan[name].get('seeds') or []),
+                   **({'params': plan[name]['params']} if plan[name].get('params') else {})}
             for name in PRIMARY_MEASURES
             if isinstance(plan.get(name), dict) and 'primary' in plan[name]}
 

@@ -163,6 +163,13 @@ def test_the_plan_hash_follows_the_primary_blocks_only(tmp_path):
     before, after = claim_hashes(plan), claim_hashes(changed)
     assert set(before) == set(after) and before['haptic'] != after['haptic']
     assert all(before[name] == after[name] for name in before if name != 'haptic')
+    # The velocity term's shared node params define its comparison: its hash moves with them.
+    doc = yaml.safe_load(_plan_text())
+    doc['full']['velocity_term']['params'] = {'gait': {'velocity_feedback_gain': 0.0}}
+    path.write_text(yaml.safe_dump(doc))
+    shared = claim_hashes(load_plan(path, False, [])[0])
+    assert shared['velocity_term'] != before['velocity_term']
+    assert all(before[name] == shared[name] for name in before if name != 'velocity_term')
     # The quick plan pre-registers nothing; the pilot plan runs the pilot seeds, unhashed.
     assert plan_hash(load_plan(CONFIG / 'experiments.yaml', True, [])[0]) is None
     pilot = pilot_plan(plan)
