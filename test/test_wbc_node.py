@@ -63,9 +63,12 @@ def test_wbc_alone_keeps_robot_standing(launcher, probe):
     ok = probe.spin_until(lambda: odoms and stamp_to_sec(odoms[-1].header.stamp) >= 3.0,
                           timeout=90)
     assert ok, launcher.logs()
-    # Both statuses: the sim's comes on its own diagnostics period.
+    # Both statuses: the sim's comes on its own diagnostics period, and one sent before the
+    # first command (still waiting for it, the truth's readers not yet looked at) says nothing
+    # of lock-step: wait for one sent after (a CI run read such a stale one).
     probe.spin_until(lambda: _wbc_status(diags) is not None
-                     and _wbc_status(diags, 'sim') is not None, timeout=10)
+                     and _wbc_status(diags, 'sim') is not None
+                     and 'waiting' not in _wbc_status(diags, 'sim').message, timeout=10)
     heights = [o.pose.pose.position.z for o in odoms]
     final = odoms[-1].pose.pose
     assert min(heights) > 0.57, launcher.logs()
