@@ -8,7 +8,9 @@ import numpy as np
 
 from replan_experiments.page_push import impulse_label
 from replan_experiments.stats import (
+    P_VALUE,
     PAPER_QP_MS,
+    POWER,
     against_paper,
     compare_paired,
     cycles_to_within,
@@ -393,8 +395,8 @@ def pilot_section(sizes: list[dict]) -> list[str]:
     lines = ['## Sample sizes from the pilot', '',
              'Per pre-registered claim, its primary sample on the pilot seeds: the mean and '
              'spread of the differences, and the confirmatory seeds a paired t-test needs to '
-             'resolve the smallest effect that matters (not the pilot\'s own mean) with 80 % '
-             f'power at Holm\'s strictest level, α = 0.05 / {len(sizes)} '
+             f'resolve the smallest effect that matters (not the pilot\'s own mean) with '
+             f'{POWER:.0%} power at Holm\'s strictest level, α = {P_VALUE} / {len(sizes)} '
              '(`stats.pairs_to_resolve`). The plan\'s n is set from this before its '
              'confirmatory runs.', '',
              '| Claim | Measure | Pilot pairs (seeds) | Mean difference | SD | Smallest effect '

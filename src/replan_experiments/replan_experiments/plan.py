@@ -12,7 +12,7 @@ from pathlib import Path
 import yaml
 
 from replan_experiments.robot_info import robot_info
-from replan_experiments.stats import TESTS
+from replan_experiments.stats import BINARY_TESTS, TESTS
 from replan_ros.launch.param_files import check_run_files, gait_parameters
 
 # The keys each experiment reads: a misspelt one in the plan file is an error, not a default.
@@ -61,7 +61,6 @@ for _name in PRIMARY_MEASURES:
 PRIMARY_REQUIRED = {'measure', 'unit', 'direction', 'smallest_effect', 'reason', 'test', 'n',
                     'pilot_seeds'}
 PRIMARY_KEYS = PRIMARY_REQUIRED | {'compare', 'against', 'where', 'pair_by', 'baseline'}
-BINARY_TESTS = ('mcnemar', 'fisher')
 # Keys without a default, and what each says: a plan without one is refused.
 REQUIRED_KEYS = {
     'velocity_changes': {'steady_tolerance': 'the share of the set-point speed the steady '

@@ -288,6 +288,7 @@ def against_paper(mean_ms: float, paper_ms: float = PAPER_QP_MS,
 ALPHA = 0.05
 CONFIDENCE = 0.95
 TESTS = ('paired_t', 'wilcoxon', 'mcnemar', 'fisher')
+BINARY_TESTS = ('mcnemar', 'fisher')     # of a yes/no outcome (fell, crossed)
 OUTCOMES = ('holds', 'opposite', 'negligible', 'not resolved')
 
 
@@ -504,7 +505,7 @@ def primary_sample(rows: list[dict], block: dict) -> tuple[object, list[dict]]:
     baseline runs are among those used). A pair censored in both settings is left out (two
     lower bounds); so is a run without the measure."""
     measure, test = block['measure'], block['test']
-    binary = test in ('mcnemar', 'fisher')
+    binary = test in BINARY_TESTS
     seeds = set(block['seeds'])
     sel = [r for r in rows if r.get('ok', True) and r.get('seed') in seeds
            and _matches(r, block.get('where')) and r.get(measure) is not None]
@@ -544,8 +545,7 @@ def primary_sample(rows: list[dict], block: dict) -> tuple[object, list[dict]]:
     pairs = [k for k in sorted(set(ia) & set(ib), key=str)
              if not (ia[k].get('censored') and ib[k].get('censored'))]
     used = [ia[k] for k in pairs] + [ib[k] for k in pairs]
-    for base in {id(b): b for r in list(used) if (b := baselines.get(id(r))) is not None}.values():
-        used.append(base)
+    used += {id(b): b for r in used if (b := baselines.get(id(r))) is not None}.values()
     if test == 'mcnemar':
         return [(value(ia[k]), value(ib[k])) for k in pairs], used
     return [measured(ia[k]) - measured(ib[k]) for k in pairs], used
@@ -587,8 +587,8 @@ def pilot_sizes(prereg: dict, results: dict) -> list[dict]:
     of its n: the primary sample on the pilot seeds, its mean and spread, and the confirmatory
     seeds a paired t-test needs to resolve the smallest effect that matters with ``POWER`` at
     Holm's strictest level (alpha over the number of claims): ``pairs_to_resolve`` of the
-    pilot's differences, over the pilot's pairs per seed. A binary outcome gets no figure
-    (its n: the plan's reason)."""
+    pilot's differences (each run minus the bound with ``against``), over the pilot's pairs
+    per seed. A binary outcome gets no figure (its n: the plan's reason)."""
     blocks = prereg.get('claims') or {}
     alpha = P_VALUE / max(len(blocks), 1)
     rows = []
@@ -598,8 +598,8 @@ def pilot_sizes(prereg: dict, results: dict) -> list[dict]:
                'alpha': alpha, 'pairs': None}
         if name not in results:
             row['reason'] = 'not run in this call'
-        elif block['test'] in ('mcnemar', 'fisher') or 'against' in block:
-            row['reason'] = 'a binary outcome or a fixed bound: n from the plan\'s reason'
+        elif block['test'] in BINARY_TESTS:
+            row['reason'] = 'a binary outcome: n from the plan\'s reason'
         else:
             pilot = {**block, 'seeds': list(block['pilot_seeds'])}
             diff, used = primary_sample(claim_rows(name, results[name]), pilot)

@@ -478,4 +478,4 @@ def test_a_pilot_page_says_what_its_runs_make_of_n(tmp_path):
     write_page(page, {'haptic': _haptic_rows(None, [0, 1])}, meta)
     text = page.read_text()
     assert '## Sample sizes from the pilot' in text and 'α = 0.05 / 7' in text
-    assert 'a binary outcome or a fixed bound: n from the plan\'s reason | 10 |' in text
+    assert 'a binary outcome: n from the plan\'s reason | 10 |' in text

@@ -4,15 +4,15 @@ Two graphs on one domain mix their topics without an error (each controller answ
 simulators; docs/usage.md, "Two graphs on one machine"). The simulator's check for a second
 ``/clock`` publisher comes too late when both start at once. So whatever starts a graph claims
 its domain first: the scripts that start one (``claim_domain`` of scripts/preamble.sh, through
-``python -m replan_ros.launch.domain path``), the experiment runners (``domain_slot``) and the
-test harness. A claim is ``flock`` on the domain's lock file, held by an open file: it ends
-when the last process holding that file ends, a crash included, and a child that inherits the
-file (``pass_fds``, or a shell's ``exec``) keeps it.
+``python -m replan_ros.launch.domain path``) and the experiment runners (``domain_slot``); the
+test harness only skips a domain that is claimed. A claim is ``flock`` on the domain's lock
+file, held by an open file: it ends when the last process holding that file ends, a crash
+included, and a child that inherits the file (``pass_fds``, or a shell's ``exec``) keeps it.
 
 The lock files are per network namespace: DDS discovery does not cross one (a Ray test in
 ``unshare -n`` uses the same domain numbers as the machine without meeting its graphs).
-``HELD_ENV`` tells a child that its parent holds the claim of the domain it was given
-(a test's reserved domain, a script that calls another).
+``HELD_ENV`` tells a child script that its parent holds the claim of the domain it was given
+(a benchmark script that calls launch.sh and scenario.sh).
 
 Starts no graph and decides nothing of a run: outside the code fingerprint
 (replan_experiments/runs.py).
