@@ -1,6 +1,7 @@
 """Fixtures for node-graph tests (see harness.py).
 
-- ``ros_domain``: the ROS_DOMAIN_ID reserved for this test session (also set in os.environ).
+- ``ros_domain``: the ROS_DOMAIN_ID reserved (claimed) for this test session (also set in
+  os.environ, with ``REPLAN_DOMAIN_HELD``: a script the tests start passes the claim).
 - ``launcher``: ``launcher.start('sim_node', params_file=CONFIG_DIR / 'sim.yaml', params={...})``
   starts a real node process; all are stopped (SIGINT, then SIGKILL) after the test, and their
   logs are printed when the test failed.
@@ -19,6 +20,7 @@ import tempfile
 import pytest
 from harness import (
     CONFIG_DIR,
+    HELD_ENV,
     DomainReservation,
     Launcher,
     Probe,
@@ -37,6 +39,7 @@ def pytest_configure(config):
     if _session_domain is None:
         _session_domain = DomainReservation()
         os.environ['ROS_DOMAIN_ID'] = str(_session_domain.domain_id)
+        os.environ[HELD_ENV] = str(_session_domain.domain_id)    # scripts pass our claim
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 

@@ -25,7 +25,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from replan_ros.launch.domain import claim
+from replan_ros.launch.domain import HELD_ENV, claim
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO_ROOT / 'config'
@@ -35,46 +35,45 @@ _LOCK_PORT_BASE = 22119    # the same scheme as ROS 2's domain_coordinator: one 
 
 
 class DomainReservation:
-    """Holds a ROS_DOMAIN_ID for as long as this object lives, by binding a local port.
+    """Holds a ROS_DOMAIN_ID for as long as this object lives: its claim
+    (replan_ros/launch/domain.py) and a local port.
 
-    Two test runs on one machine never get the same domain: the second bind fails and the next
-    id is tried. A domain whose claim another graph holds (replan_ros/launch/domain.py: a
-    user's script) is skipped too; the test's scripts claim the domain themselves.
+    The claim is the one every graph starter honours: a user's script refuses the domain, and
+    an experiment runner's domain pool (``domain_slot``, used by tests with ``--domain-base``)
+    skips it, so a runner started by one test session never lands on another session's
+    domain. The port is ROS 2's domain_coordinator scheme, for tools that follow that one. A
+    script the tests start on this domain passes the claim (``graph_env`` sets ``HELD_ENV``).
     """
 
     def __init__(self) -> None:
         ids = list(_DOMAIN_RANGE)
         random.Random(os.getpid()).shuffle(ids)
         for domain_id in ids:
-            if not _unclaimed(domain_id):
+            held = claim(domain_id)
+            if held is None:
                 continue
             sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
             try:
                 sock.bind(('127.0.0.1', _LOCK_PORT_BASE + domain_id))
             except OSError:
                 sock.close()
+                os.close(held)
                 continue
             self.domain_id = domain_id
+            self._claim = held
             self._socket = sock
             return
         raise RuntimeError('no free ROS_DOMAIN_ID left to reserve')
 
     def release(self) -> None:
         self._socket.close()
-
-
-def _unclaimed(domain_id: int) -> bool:
-    """Whether no graph holds ``domain_id``'s claim now."""
-    fd = claim(domain_id)
-    if fd is None:
-        return False
-    os.close(fd)
-    return True
+        os.close(self._claim)
 
 
 def graph_env(domain_id: int) -> dict[str, str]:
     env = dict(os.environ)
     env['ROS_DOMAIN_ID'] = str(domain_id)
+    env[HELD_ENV] = str(domain_id)      # the test session holds the claim (DomainReservation)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env['PYTHONUNBUFFERED'] = '1'
     return env

@@ -16,6 +16,8 @@ from harness import (
     reap_leftovers,
 )
 
+from replan_ros.launch.domain import claim, domain_slot
+
 
 def test_reserved_domains_are_unique_while_held():
     first, second = DomainReservation(), DomainReservation()
@@ -24,6 +26,21 @@ def test_reserved_domains_are_unique_while_held():
     finally:
         first.release()
         second.release()
+
+
+def test_a_reserved_domain_is_claimed_and_a_runner_pool_skips_it():
+    """A test session's domain is claimed like a user's graph: an experiment runner started
+    by another session with its domain pool over it (``--domain-base``) takes the next one."""
+    reservation = DomainReservation()
+    try:
+        assert claim(reservation.domain_id) is None
+        with domain_slot(reservation.domain_id) as (domain, _):
+            assert domain != reservation.domain_id
+    finally:
+        reservation.release()
+    freed = claim(reservation.domain_id)
+    assert freed is not None, 'the claim outlived its release'
+    os.close(freed)
 
 
 def test_two_graphs_on_two_domains_do_not_see_each_other(tmp_path, reserve_domain):

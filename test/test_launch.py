@@ -159,30 +159,26 @@ def test_a_second_graph_on_a_claimed_domain_is_refused_in_one_line(ros_domain, t
     """Two graphs on one domain mix their topics without an error; started at once, the sim's
     check for a second /clock comes too late. A script that starts a graph claims its domain
     first (replan_ros/launch/domain.py) and refuses one that is held, before any node starts;
-    a script started by the holder (REPLAN_DOMAIN_HELD) passes the claim."""
-    fd = claim(ros_domain)
-    assert fd is not None, f'domain {ros_domain} held by another graph'
-    try:
-        refused = subprocess.run(
-            [str(REPO_ROOT / 'scripts' / 'scenario.sh'), str(REPO_ROOT / 'config' / 'scenarios'
-             / 'stand.yaml'), '--out', str(tmp_path / 'refused')],
-            env=graph_env(ros_domain), capture_output=True, text=True, timeout=60)
-        assert refused.returncode == 3, refused.stdout + refused.stderr
-        lines = refused.stderr.strip().splitlines()
-        assert len(lines) == 1 and f'another graph runs on ROS_DOMAIN_ID {ros_domain}' in lines[0]
-        assert 'started' not in refused.stdout and not (tmp_path / 'refused').exists()
-        helped = subprocess.run([str(REPO_ROOT / 'scripts' / 'launch.sh'), '--help'],
-                                env=graph_env(ros_domain), capture_output=True, text=True,
-                                timeout=60)
-        assert helped.returncode == 0 and 'usage: launch.sh' in helped.stdout    # no graph
-        # The holder's child passes the claim and goes on to its own checks (here a robot
-        # that does not exist: exit 2, not 3), without starting a graph.
-        held = subprocess.run(
-            [str(REPO_ROOT / 'scripts' / 'launch.sh'), '--robot', 'nosuch', '--duration', '1',
-             '--run-dir', str(tmp_path / 'held')],
-            env={**graph_env(ros_domain), HELD_ENV: str(ros_domain)}, capture_output=True,
-            text=True, timeout=120)
-        assert held.returncode == 2, held.stdout + held.stderr
-        assert "config error: unknown robot 'nosuch'" in held.stdout + held.stderr
-    finally:
-        os.close(fd)
+    a script started by the holder (REPLAN_DOMAIN_HELD) passes the claim. The holder here is
+    this test session (harness.DomainReservation claims its domain)."""
+    assert claim(ros_domain) is None, f'the test session does not hold domain {ros_domain}'
+    stranger = {key: value for key, value in graph_env(ros_domain).items() if key != HELD_ENV}
+    refused = subprocess.run(
+        [str(REPO_ROOT / 'scripts' / 'scenario.sh'), str(REPO_ROOT / 'config' / 'scenarios'
+         / 'stand.yaml'), '--out', str(tmp_path / 'refused')],
+        env=stranger, capture_output=True, text=True, timeout=60)
+    assert refused.returncode == 3, refused.stdout + refused.stderr
+    lines = refused.stderr.strip().splitlines()
+    assert len(lines) == 1 and f'another graph runs on ROS_DOMAIN_ID {ros_domain}' in lines[0]
+    assert 'started' not in refused.stdout and not (tmp_path / 'refused').exists()
+    helped = subprocess.run([str(REPO_ROOT / 'scripts' / 'launch.sh'), '--help'],
+                            env=stranger, capture_output=True, text=True, timeout=60)
+    assert helped.returncode == 0 and 'usage: launch.sh' in helped.stdout    # no graph
+    # The holder's child passes the claim and goes on to its own checks (here a robot that
+    # does not exist: exit 2, not 3), without starting a graph.
+    held = subprocess.run(
+        [str(REPO_ROOT / 'scripts' / 'launch.sh'), '--robot', 'nosuch', '--duration', '1',
+         '--run-dir', str(tmp_path / 'held')],
+        env=graph_env(ros_domain), capture_output=True, text=True, timeout=120)
+    assert held.returncode == 2, held.stdout + held.stderr
+    assert "config error: unknown robot 'nosuch'" in held.stdout + held.stderr
