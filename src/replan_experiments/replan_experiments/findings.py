@@ -235,7 +235,7 @@ def findings(page, name: str, data, results: dict) -> None:
                 f'Velocity term: with it the robot walks at {np.mean(on) * 100:.1f} % of the '
                 f'set-point, without it at {np.mean(off) * 100:.1f} % (the steady state): '
                 f'{effect} ({verdict}{p_text(p)}). Both settings take their speed from the '
-                f'same footholds (the gait\'s strides and the velocity feedback), so this '
+                f'same footholds, so this '
                 f'steady-state figure does not test the paper\'s "faster motion"; the rise '
                 f'time after a set-point step (table) does.')
         _trunk_travel_finding(page, steady)
@@ -325,6 +325,11 @@ def comparison(block: dict) -> str:
         text += (', each run minus its setting\'s run at '
                  + ', '.join(f'{k} {v}' for k, v in baseline.items())
                  + ' (a difference in differences)')
+    shared = block.get('params') or {}
+    if shared:
+        text += ', both settings with ' + ', '.join(
+            f'{node}.{key} {value}' for node, values in shared.items()
+            for key, value in values.items())
     return text + (f', paired by {", ".join(block["pair_by"])}' if block.get('pair_by') else '')
 
 

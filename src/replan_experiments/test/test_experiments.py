@@ -624,7 +624,7 @@ def test_the_velocity_terms_shared_params_go_to_both_settings(tmp_path):
     before; the term's own weight there is refused in one line."""
     from replan_experiments.claims import Context, velocity_term
     plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
-    cfg = {**plan['velocity_term'], 'seeds': [0]}
+    cfg = {**{k: v for k, v in plan['velocity_term'].items() if k != 'params'}, 'seeds': [0]}
     before = RecordingRunner()
     velocity_term(Context(before, {}), cfg)
     shared = RecordingRunner()

@@ -165,7 +165,7 @@ def test_the_plan_hash_follows_the_primary_blocks_only(tmp_path):
     assert all(before[name] == after[name] for name in before if name != 'haptic')
     # The velocity term's shared node params define its comparison: its hash moves with them.
     doc = yaml.safe_load(_plan_text())
-    doc['full']['velocity_term']['params'] = {'gait': {'velocity_feedback_gain': 0.0}}
+    doc['full']['velocity_term']['params'] = {'gait': {'velocity_feedback_gain': 0.25}}
     path.write_text(yaml.safe_dump(doc))
     shared = claim_hashes(load_plan(path, False, [])[0])
     assert shared['velocity_term'] != before['velocity_term']
@@ -355,6 +355,20 @@ def test_a_baseline_makes_the_effect_a_difference_in_differences():
     assert comparison(block) == ('literal minus off, force_n [60.0, 80.0], '
                                  'each run minus its setting\'s run at force_n 0.0 (a difference '
                                  'in differences), paired by seed, force_n')
+
+
+def test_the_page_says_which_node_parameters_both_settings_share():
+    """The velocity term's settings differ in the cost term only: the page's pre-registration
+    names the parameters both get (they are part of the claim's hash)."""
+    from replan_experiments.findings import comparison
+    from replan_experiments.plan import claim_hash
+    block = {'measure': 'rise_time_s', 'unit': 's', 'pair_by': ['seed'],
+             'compare': {'by': 'velocity_term', 'treatment': True, 'control': False},
+             'where': {'setpoint': 'step'}}
+    shared = {**block, 'params': {'gait': {'velocity_feedback_gain': 0.0}}}
+    assert comparison(shared) == comparison(block).replace(
+        ', paired by', ', both settings with gait.velocity_feedback_gain 0.0, paired by')
+    assert claim_hash(shared) != claim_hash(block)
 
 
 @pytest.mark.parametrize('change, message', [
