@@ -20,10 +20,13 @@ import yaml
 from replan_core.robot.robot_file import default_urdf
 from replan_experiments.motion_effects import cached_motion_effects
 from replan_experiments.plan import (
+    EXPERIMENTS,
+    ExperimentError,
     claim_hashes,
     node_settings,
     phase_impulses,
     variant,
+    variant_of,
 )
 from replan_experiments.push_effects import cached_push_effects
 from replan_experiments.robot_info import robot_info
@@ -47,6 +50,37 @@ class PlanRunner:
 
     def run(self, doc: dict, bag: bool = False) -> RunResult:
         return self.runner.run(doc, bag=bag, plan=self.plan)
+
+    def __getattr__(self, name: str):
+        return getattr(self.runner, name)
+
+
+class VariantRunner:
+    """A runner for a variant section (``plan.VARIANT_KEYS``): each scenario it reads runs
+    the section's ``robot`` and ``gait`` (the document's top-level keys) with every set-point
+    of its events times ``setpoint_scale``; set-points the section gives itself (``setpoints``)
+    are the section's. The rest is the wrapped runner's."""
+
+    def __init__(self, runner, robot: str | None = None, gait: str | None = None,
+                 setpoint_scale: float | None = None) -> None:
+        self.runner, self.gait, self.setpoint_scale = runner, gait, setpoint_scale
+        self.variant_robot = robot
+        self.robot = robot or getattr(runner, 'robot', None)    # _robot_mass reads it
+
+    def scenario(self, name: str) -> dict:
+        doc = self.runner.scenario(name)
+        suffix = [v for v in (self.gait, self.variant_robot) if v]
+        if self.variant_robot:
+            doc['robot'] = self.variant_robot
+        if self.gait:
+            doc['gait'] = self.gait
+        if self.setpoint_scale is not None:
+            scale = float(self.setpoint_scale)
+            doc['events'] = [{**e, 'cmd_vel': [round(float(v) * scale, 6) for v in e['cmd_vel']]}
+                             if 'cmd_vel' in e else e for e in doc.get('events') or []]
+            suffix.append(f'x{scale:g}')
+        doc['name'] = '_'.join([str(doc.get('name', name)), *suffix])
+        return doc
 
     def __getattr__(self, name: str):
         return getattr(self.runner, name)
@@ -484,8 +518,32 @@ def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
         'fastest_crawl': lambda: fastest_crawl(ctx, plan['fastest_crawl']),
         'ideal_world': lambda: ideal_world(ctx, plan['ideal_world'], plan),
     }
+    functions = {'velocity_changes': velocity_changes, 'replan_window': replan_window,
+                 'haptic': haptic, 'velocity_term': velocity_term,
+                 'sustained_push': sustained_push}
+    for name in selected:
+        if name in EXPERIMENTS:
+            continue
+        cfg = plan[name]
+        if cfg.get('robot') and getattr(runner, 'robot', None):
+            raise ExperimentError(f'{name}: the plan names its robot ({cfg["robot"]}) and '
+                                  f'--robot another ({runner.robot}): leave out one')
+        for key in ('robot', 'gait'):
+            if cfg.get(key) and not (runner.config_dir / f'{key}s'
+                                     / f'{cfg[key]}.yaml').is_file():
+                raise ExperimentError(f'{name}.{key}: no config/{key}s/{cfg[key]}.yaml')
+        variant_ctx = Context(
+            VariantRunner(context(name).runner, cfg.get('robot'), cfg.get('gait'),
+                          cfg.get('setpoint_scale')),
+            node_settings(runner.config_dir, cfg['robot']) if cfg.get('robot') else settings)
+        makers[name] = (lambda function=functions[cfg['experiment']], c=variant_ctx, cfg=cfg:
+                        function(c, cfg))
     names = [n for n in makers if n in selected]
     for name, value in zip(names, _parallel([makers[n] for n in names]), strict=True):
         results[name] = value
     results['settings'] = settings
+    variants = {n: {'experiment': plan[n]['experiment'], **variant_of(plan[n])}
+                for n in names if n not in EXPERIMENTS}
+    if variants:
+        results['variants'] = variants
     return results

@@ -15,6 +15,7 @@ from replan_experiments.stats import (
     compare_paired,
     cycles_to_within,
     forward_speed_rows,
+    is_variant,
     p_text,
     pilot_sizes,
     prompt_by_cycles,
@@ -294,6 +295,21 @@ CLAIMS = {
     'sustained_push': 'foothold correction keeps the support, sustained push (V.B)',
     'large_push': 'foothold correction keeps the support, large push (V.B)',
 }
+
+
+def claim_label(name: str, block: dict | None = None) -> str:
+    """How the verdict tables name claim ``name``: the paper's claim, and for a variant
+    (``block`` with ``experiment``) where it is tested again: gait, robot, set-point scale."""
+    experiment = (block or {}).get('experiment')
+    if experiment is None:
+        return CLAIMS.get(name, name)
+    where = [f'{block["gait"]} gait' if block.get('gait') else '',
+             str(block['robot']) if block.get('robot') else '',
+             f'set-points x{float(block["setpoint_scale"]):g}'
+             if block.get('setpoint_scale') is not None else '']
+    return f'{CLAIMS.get(experiment, experiment)}: {", ".join(w for w in where if w)}'
+
+
 _TEST_NAMES = {'paired_t': 'paired t (mean difference, t interval)',
                'wilcoxon': 'Wilcoxon signed-rank (Hodges-Lehmann estimate and interval)',
                'mcnemar': 'McNemar exact (difference in proportions, Newcombe interval)',
@@ -304,7 +320,8 @@ def _num(x: float) -> str:
     return f'{x:.3g}'
 
 
-def _setting(by: str, value) -> str:
+def setting_text(by: str, value) -> str:
+    """A setting as the tables name it: 'haptic off', 'window 2', 'correction literal'."""
     if isinstance(value, bool):
         return f'{by.replace("_", " ")} {"on" if value else "off"}'
     return (f'{by} {value}' if by == 'window' else str(value)).replace('_', ' ')
@@ -316,7 +333,8 @@ def comparison(block: dict) -> str:
         text = f'runs minus {_num(float(block["against"]))} {block["unit"]}'
     else:
         c = block['compare']
-        text = f'{_setting(c["by"], c["treatment"])} minus {_setting(c["by"], c["control"])}'
+        text = (f'{setting_text(c["by"], c["treatment"])} minus '
+                f'{setting_text(c["by"], c["control"])}')
     where = block.get('where') or {}
     if where:
         text += ', ' + ', '.join(f'{k} {v}' for k, v in where.items())
@@ -365,31 +383,45 @@ def preregistration_section(prereg: dict | None, verdicts: list[dict],
     hashes = prereg.get('claim_hashes') or {}
     for name, block in prereg['claims'].items():
         lines.append(
-            f'| {CLAIMS.get(name, name)} | `{block["measure"]}` ({comparison(block)}) | '
+            f'| {claim_label(name, block)} | `{block["measure"]}` ({comparison(block)}) | '
             f'{block["direction"]} | {_num(float(block["smallest_effect"]))} {block["unit"]} '
             f'({" ".join(str(block["reason"]).split())}) | {_TEST_NAMES[block["test"]]} | '
             f'{block["n"]} ({", ".join(str(s) for s in block["seeds"])}) | '
             f'{", ".join(str(s) for s in block["pilot_seeds"])} | {hashes.get(name, "-")} |')
     lines += ['', '## Verdicts', '',
-              f'One family: the {len(verdicts)} claims\' primary tests, Holm\'s step-down '
-              'correction over all of them at α = 0.05 (a claim that cannot be judged counts '
-              'with p = 1). **holds**: Holm-significant with the claim\'s sign and the point '
-              'estimate at least the smallest effect (the rule for "beyond the smallest '
-              'effect": the estimate, not the whole interval); **opposite**: Holm-significant '
-              'with the other sign; **negligible**: the 95 % interval inside ± the smallest '
-              'effect (an equivalence test: both one-sided tests of TOST at 0.025, so TOST at '
-              '0.05); **not resolved**: otherwise. Every other comparison on this page is '
+              _families(verdicts) + ' **holds**: Holm-significant with the claim\'s sign '
+              'and the point estimate at least the smallest effect (the rule for "beyond the '
+              'smallest effect": the estimate, not the whole interval); **opposite**: '
+              'Holm-significant with the other sign; **negligible**: the 95 % interval inside '
+              '± the smallest effect (an equivalence test: both one-sided tests of TOST at '
+              '0.025, so TOST at 0.05); **not resolved**: otherwise. Every other comparison '
+              'on this page is '
               'exploratory: unadjusted p, no verdict.', '',
               '| Claim | Measure | Effect (95 % CI) | Units | Holm-adjusted p | Outcome |',
               '|---|---|---|---|---|---|']
     for v in verdicts:
-        lines.append(f'| {CLAIMS.get(v["claim"], v["claim"])} | `{v["measure"]}` | '
+        lines.append(f'| {claim_label(v["claim"], v)} | `{v["measure"]}` | '
                      f'{effect_text(v)} | {v.get("units", "-")} | '
                      + (f'{v["p_holm"]:.2g}' if v.get('p_holm') is not None else '-')
                      + f' | {v["outcome"]} |')
     if pilot_results is not None:
         lines += ['', *pilot_section(pilot_sizes(prereg, pilot_results))]
     return [*lines, '']
+
+
+def _families(verdicts: list[dict]) -> str:
+    """The sentence that says which tests are corrected together (``stats.primary_verdicts``)."""
+    again = sum(is_variant(v) for v in verdicts)
+    paper = len(verdicts) - again
+    if not again:
+        return (f'One family: the {paper} claims\' primary tests, Holm\'s step-down '
+                'correction over all of them at α = 0.05 (a claim that cannot be judged counts '
+                'with p = 1).')
+    return (f'Two families, each with Holm\'s step-down correction over all of its tests at '
+            f'α = 0.05 (a claim that cannot be judged counts with p = 1): the paper\'s {paper} '
+            f'claims on HyQ\'s crawl, and the {again} claims tested again on another robot or '
+            'gait (named so in the tables), so that a replication never makes the correction '
+            'of the paper\'s claims stricter.')
 
 
 def pilot_section(sizes: list[dict]) -> list[str]:
@@ -401,22 +433,22 @@ def pilot_section(sizes: list[dict]) -> list[str]:
              'Per pre-registered claim, its primary sample on the pilot seeds: the mean and '
              'spread of the differences, and the confirmatory seeds a paired t-test needs to '
              f'resolve the smallest effect that matters (not the pilot\'s own mean) with '
-             f'{POWER:.0%} power at Holm\'s strictest level, α = {P_VALUE} / {len(sizes)} '
-             '(`stats.pairs_to_resolve`). The plan\'s n is set from this before its '
-             'confirmatory runs.', '',
+             f'{POWER:.0%} power at Holm\'s strictest level, α = {P_VALUE} / the number of '
+             'claims of its family (`stats.pairs_to_resolve`; `α` below). The plan\'s n is '
+             'set from this before its confirmatory runs.', '',
              '| Claim | Measure | Pilot pairs (seeds) | Mean difference | SD | Smallest effect '
-             '| Seeds needed | n in the plan |', '|---|---|---|---|---|---|---|---|']
+             '| α | Seeds needed | n in the plan |', '|---|---|---|---|---|---|---|---|---|']
     for row in sizes:
         if row.get('pairs') is None:
-            lines.append(f'| {CLAIMS.get(row["claim"], row["claim"])} | `{row["measure"]}` | '
+            lines.append(f'| {claim_label(row["claim"], row)} | `{row["measure"]}` | '
                          f'- | - | - | {_num(row["smallest_effect"])} {row["unit"]} | '
-                         f'{row.get("reason", "-")} | {row["n"]} |')
+                         f'{row["alpha"]:.3g} | {row.get("reason", "-")} | {row["n"]} |')
             continue
         needed = row['seeds_needed']
         lines.append(
-            f'| {CLAIMS.get(row["claim"], row["claim"])} | `{row["measure"]}` | {row["pairs"]} '
+            f'| {claim_label(row["claim"], row)} | `{row["measure"]}` | {row["pairs"]} '
             f'({row["pilot_seeds"]}) | {_num(row["mean"])} | {_num(row["sd"])} | '
-            f'{_num(row["smallest_effect"])} {row["unit"]} | '
+            f'{_num(row["smallest_effect"])} {row["unit"]} | {row["alpha"]:.3g} | '
             f'{needed if needed is not None else "more than the largest n tried"} | '
             f'{row["n"]} |')
     return [*lines, '']
@@ -426,6 +458,6 @@ def readme_table(verdicts: list[dict]) -> str:
     """The short table of the pre-registered verdicts (claim, verdict, effect with its 95 %
     interval) for README.md's results block."""
     lines = ['| Claim | Verdict | Effect (95 % CI) |', '|---|---|---|']
-    lines += [f'| {CLAIMS.get(v["claim"], v["claim"])} | {v["outcome"]} | {effect_text(v)} |'
+    lines += [f'| {claim_label(v["claim"], v)} | {v["outcome"]} | {effect_text(v)} |'
               for v in verdicts]
     return '\n'.join(lines) + '\n'

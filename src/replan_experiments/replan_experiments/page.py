@@ -16,7 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_experiments.findings import findings, preregistration_section, readme_table
+from replan_experiments.findings import (
+    claim_label,
+    findings,
+    preregistration_section,
+    readme_table,
+    setting_text,
+)
 from replan_experiments.page_plots import plot_haptic, plot_push, plot_windows
 from replan_experiments.page_push import large_push_section, sustained_push_section
 from replan_experiments.stats import (
@@ -152,6 +158,10 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         if name in results:
             writer(page, results[name], results)
             findings(page, name, results[name], results)
+    claims = (meta.get('preregistration') or {}).get('claims') or {}
+    for name, info in (results.get('variants') or {}).items():
+        if name in results:
+            _variant(page, name, info, results[name], claims.get(name))
     head = [
         '# Results: the paper\'s claims on the realistic robot',
         '',
@@ -218,6 +228,32 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
 
 
 # -- one writer per experiment ---------------------------------------------------------------
+
+def _variant(page: Page, name: str, info: dict, rows: list[dict], block: dict | None) -> None:
+    """A claim tested again elsewhere (a variant section of the plan): where, and per setting
+    its runs, falls and primary measure; the verdict is the pre-registered table's."""
+    label = claim_label(name, info)
+    rows = [r for r in rows or [] if isinstance(r, dict)]
+    by = ((block or {}).get('compare') or {}).get('by')
+    measure = (block or {}).get('measure')
+    lines = [f'## {label}', '',
+             f'The plan\'s `{name}` runs the experiment `{info["experiment"]}` again '
+             + ', '.join(f'with {k} {v}' for k, v in info.items() if k != 'experiment')
+             + ' (the set-points of its scenarios times `setpoint_scale`; the set-points, '
+             'forces and terrains the section gives are its own). Its verdict is the '
+             'pre-registered table\'s; the rows below are its runs.', '']
+    groups = sorted({r.get(by) for r in rows}, key=str) if by else [None]
+    for value in groups:
+        runs = [r for r in rows if by is None or r.get(by) == value]
+        setting = setting_text(by, value) if by else 'all runs'
+        falls = sum(bool(r.get('fell')) for r in runs)
+        if measure and measure not in ('fell', 'crossed'):
+            page.row(label, setting, f'`{measure}` ({block["unit"]})',
+                     spread(values(runs, measure), 4), len(runs), '', f'{falls} falls')
+        else:
+            page.row(label, setting, 'falls', f'{falls} of {len(runs)}', len(runs), '', '')
+    page.section('\n'.join(lines))
+
 
 
 def _velocity_changes(page: Page, rows: list[dict], _all) -> None:

@@ -54,6 +54,12 @@ PRIMARY_MEASURES = {
 }
 for _name in PRIMARY_MEASURES:
     PLAN_KEYS[_name] = PLAN_KEYS[_name] | {'primary'}
+# A claim again on another robot, gait or set-point scale: a section of its own name with
+# ``experiment`` (the claim it repeats), its keys and these. Not the claims whose pushes are
+# timed by the crawl's cycle (lateral_push, large_push).
+VARIANT_KEYS = {'experiment', 'robot', 'gait', 'setpoint_scale'}
+VARIANT_EXPERIMENTS = ('velocity_changes', 'replan_window', 'haptic', 'velocity_term',
+                       'sustained_push')
 # A primary block: every key below is required, one of ``compare`` (two settings, treatment
 # minus control) or ``against`` (one setting against a fixed bound) too; ``where`` and
 # ``pair_by`` select and pair the runs; ``baseline`` (with ``compare``) makes each run's
@@ -72,6 +78,18 @@ REQUIRED_KEYS = {
 
 class ExperimentError(ValueError):
     """A plan file or option that cannot be run, with the reason."""
+
+
+def experiment_of(name: str, cfg) -> str:
+    """The experiment section ``name`` runs: its own name, or a variant's ``experiment``."""
+    if isinstance(cfg, dict) and 'experiment' in cfg:
+        return str(cfg['experiment'])
+    return name
+
+
+def variant_of(cfg: dict) -> dict:
+    """A variant section's ``robot``, ``gait`` and ``setpoint_scale`` (those it sets)."""
+    return {k: cfg[k] for k in ('robot', 'gait', 'setpoint_scale') if k in cfg}
 
 
 def phase_impulses(impulse, phases: int) -> list[float]:
@@ -128,8 +146,9 @@ def planned_runs(plan: dict, selected: list[str]) -> int:
     """Upper bound of the runs of the ``selected`` experiments of ``plan`` (a run shared by two
     experiments counted twice)."""
     n = 0
-    for name in selected:
-        cfg = plan[name]
+    for section in selected:
+        cfg = plan[section]
+        name = experiment_of(section, cfg)
         if name == 'velocity_changes':
             n += len(cfg['scenarios']) * len(cfg['seeds'])
         elif name == 'lateral_push':
@@ -163,38 +182,41 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
     plan = (doc or {}).get(section)
     if not isinstance(plan, dict):
         raise ExperimentError(f'{path}: no {section}: section')
-    unknown = set(plan) - set(EXPERIMENTS)
-    if unknown:
-        raise ExperimentError(f'{path}: {section}: unknown experiments {sorted(unknown)} '
-                              f'(known: {", ".join(EXPERIMENTS)})')
+    for name, cfg in plan.items():
+        error = _section_error(name, cfg)
+        if error:
+            raise ExperimentError(f'{path}: {section}.{error}')
     entries = [(name, cfg) for name, cfg in plan.items()]
     entries += [(f'ideal_world.{k}', v) for k, v in (plan.get('ideal_world') or {}).items()]
     for where, entry in entries:
-        keys = PLAN_KEYS.get(where.split('.')[-1], set())   # ideal_world: the realistic keys
+        name = where.split('.')[-1]             # ideal_world: the realistic keys
         if not isinstance(entry, dict):
             raise ExperimentError(f'{path}: {section}.{where} must be a mapping')
+        keys = PLAN_KEYS.get(experiment_of(name, entry), set())
+        if '.' not in where and name not in EXPERIMENTS:
+            keys = keys | VARIANT_KEYS
         unknown = set(entry) - keys
         if unknown:
             raise ExperimentError(f'{path}: {section}.{where}: unknown keys {sorted(unknown)} '
                                   f'(known: {", ".join(sorted(keys))})')
-    for name, required in REQUIRED_KEYS.items():
-        for key, meaning in required.items():
-            if name in plan and key not in (plan[name] or {}):
+    for name, cfg in plan.items():
+        for key, meaning in REQUIRED_KEYS.get(experiment_of(name, cfg), {}).items():
+            if key not in cfg:
                 raise ExperimentError(f'{path}: {section}.{name}: {key} missing ({meaning})')
-    for name in PRIMARY_MEASURES:
-        if isinstance(plan.get(name), dict) and 'primary' in plan[name]:
-            error = primary_error(name, plan[name])
+        experiment = experiment_of(name, cfg)
+        if experiment in PRIMARY_MEASURES and 'primary' in cfg:
+            error = primary_error(experiment, cfg)
             if error:
                 raise ExperimentError(f'{path}: {section}.{name}.primary: {error}')
-    term = plan.get('velocity_term')
-    if isinstance(term, dict) and term.get('params') is not None:
-        shared = term['params']
-        if not isinstance(shared, dict) or not all(isinstance(v, dict) for v in shared.values()):
-            raise ExperimentError(f'{path}: {section}.velocity_term.params: a mapping of node '
-                                  'to parameters, e.g. {gait: {velocity_feedback_gain: 0.0}}')
-        if 'velocity_weight' in (shared.get('mpc') or {}):
-            raise ExperimentError(f'{path}: {section}.velocity_term.params: '
-                                  'mpc.velocity_weight is what the two settings differ in')
+        if experiment == 'velocity_term' and cfg.get('params') is not None:
+            shared = cfg['params']
+            if not isinstance(shared, dict) or not all(isinstance(v, dict)
+                                                       for v in shared.values()):
+                raise ExperimentError(f'{path}: {section}.{name}.params: a mapping of node '
+                                      'to parameters, e.g. {gait: {velocity_feedback_gain: 0.0}}')
+            if 'velocity_weight' in (shared.get('mpc') or {}):
+                raise ExperimentError(f'{path}: {section}.{name}.params: '
+                                      'mpc.velocity_weight is what the two settings differ in')
     large = plan.get('large_push')
     if isinstance(large, dict):
         try:
@@ -209,6 +231,36 @@ def load_plan(path: Path, quick: bool, only: list[str]) -> tuple[dict, list[str]
         raise ExperimentError(f'--only: {sorted(bad)} not in the {section} plan '
                               f'(there: {", ".join(plan)})')
     return plan, [name for name in plan if not only or name in only]
+
+
+def _section_error(name: str, cfg) -> str | None:
+    """What is wrong with plan section ``name`` as a section (an experiment, or a variant of
+    one: ``VARIANT_KEYS``), in one line starting with its name, or None."""
+    if not isinstance(cfg, dict):
+        return f'{name} must be a mapping'
+    if name in EXPERIMENTS:
+        if set(cfg) & (VARIANT_KEYS - {'experiment'}) or 'experiment' in cfg:
+            return (f'{name}: {", ".join(sorted(set(cfg) & VARIANT_KEYS))}: only a variant '
+                    'section (a name of its own with experiment:) runs a claim elsewhere')
+        return None
+    experiment = cfg.get('experiment')
+    if experiment is None:
+        return (f'{name}: unknown experiment (known: {", ".join(EXPERIMENTS)}; a variant '
+                'names the one it repeats with experiment:)')
+    if experiment not in VARIANT_EXPERIMENTS:
+        return (f'{name}.experiment: {experiment!r} cannot be repeated as a variant (one of '
+                f'{", ".join(VARIANT_EXPERIMENTS)})')
+    if not set(cfg) & {'robot', 'gait', 'setpoint_scale'}:
+        return f'{name}: a variant sets robot, gait or setpoint_scale'
+    for key in ('robot', 'gait'):
+        value = cfg.get(key)
+        if key in cfg and not (isinstance(value, str) and value.replace('_', '').isalnum()):
+            return f'{name}.{key}: a name of config/{key}s/, got {value!r}'
+    if 'setpoint_scale' in cfg:
+        scale = cfg['setpoint_scale']
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not scale > 0:
+            return f'{name}.setpoint_scale: a positive figure, got {scale!r}'
+    return None
 
 
 def primary_error(name: str, cfg: dict) -> str | None:
@@ -261,12 +313,18 @@ def primary_error(name: str, cfg: dict) -> str | None:
 
 def primary_blocks(plan: dict) -> dict:
     """Per pre-registered claim of ``plan``, its primary block with its confirmatory
-    ``seeds`` and, where the claim has them, the node ``params`` both its settings get (they
-    define the comparison: changing them is a new pre-registration)."""
+    ``seeds`` and, where the claim has them, the node ``params`` both its settings get and a
+    variant's ``experiment``, ``robot``, ``gait`` and ``setpoint_scale`` (they define the
+    comparison: changing them is a new pre-registration). The paper's claims first, then the
+    variants in the plan's order."""
+    names = [n for n in PRIMARY_MEASURES if isinstance(plan.get(n), dict)]
+    names += [n for n, cfg in plan.items() if n not in EXPERIMENTS
+              and experiment_of(n, cfg) in PRIMARY_MEASURES]
     return {name: {**plan[name]['primary'], 'seeds': list(plan[name].get('seeds') or []),
-                   **({'params': plan[name]['params']} if plan[name].get('params') else {})}
-            for name in PRIMARY_MEASURES
-            if isinstance(plan.get(name), dict) and 'primary' in plan[name]}
+                   **({'params': plan[name]['params']} if plan[name].get('params') else {}),
+                   **({'experiment': plan[name]['experiment'], **variant_of(plan[name])}
+                      if name not in EXPERIMENTS else {})}
+            for name in names if 'primary' in plan[name]}
 
 
 def claim_hash(block: dict) -> str:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import re
 import warnings
+from collections import Counter
 
 import numpy as np
 
@@ -579,23 +580,36 @@ def primary_verdicts(prereg: dict, results: dict) -> list[dict]:
             else:
                 test['sample'], test['units'] = sample, units
         tests.append(test)
-    return verdicts(tests)
+    # Two families, each Holm-corrected on its own: the paper's claims, and the claims tested
+    # again elsewhere (variants: another robot or gait), so a replication never makes the
+    # correction of the paper's claims stricter.
+    return (verdicts([t for t in tests if not is_variant(t)])
+            + verdicts([t for t in tests if is_variant(t)]))
+
+
+def is_variant(block: dict) -> bool:
+    """Whether a primary block (or its verdict) is a claim tested again elsewhere."""
+    return 'experiment' in block
 
 
 def pilot_sizes(prereg: dict, results: dict) -> list[dict]:
     """Per pre-registered claim, what its pilot runs (``results`` of a ``--pilot`` call) say
     of its n: the primary sample on the pilot seeds, its mean and spread, and the confirmatory
     seeds a paired t-test needs to resolve the smallest effect that matters with ``POWER`` at
-    Holm's strictest level (alpha over the number of claims): ``pairs_to_resolve`` of the
-    pilot's differences (each run minus the bound with ``against``), over the pilot's pairs
-    per seed. A binary outcome gets no figure (its n: the plan's reason)."""
+    Holm's strictest level (alpha over the number of claims of its family):
+    ``pairs_to_resolve`` of the pilot's differences (each run minus the bound with
+    ``against``), over the pilot's pairs per seed. A binary outcome gets no figure (its n:
+    the plan's reason)."""
     blocks = prereg.get('claims') or {}
-    alpha = P_VALUE / max(len(blocks), 1)
+    family = Counter(is_variant(block) for block in blocks.values())
     rows = []
     for name, block in blocks.items():
+        alpha = P_VALUE / family[is_variant(block)]
         row = {'claim': name, 'measure': block['measure'], 'unit': block['unit'],
                'smallest_effect': float(block['smallest_effect']), 'n': block['n'],
-               'alpha': alpha, 'pairs': None}
+               'alpha': alpha, 'pairs': None,
+               **{k: block[k] for k in ('experiment', 'robot', 'gait', 'setpoint_scale')
+                  if k in block}}
         if name not in results:
             row['reason'] = 'not run in this call'
         elif block['test'] in BINARY_TESTS:

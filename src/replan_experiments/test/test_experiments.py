@@ -234,7 +234,7 @@ def test_shipped_plan_loads_and_rejects_unknown_names(tmp_path):
         load_plan(CONFIG / 'experiments.yaml', False, ['replan_windw'])
     bad = tmp_path / 'plan.yaml'
     bad.write_text('full: {replan_windows: {}}\n')
-    with pytest.raises(ExperimentError, match='unknown experiments'):
+    with pytest.raises(ExperimentError, match='unknown experiment '):
         load_plan(bad, False, [])
     bad.write_text('full: {haptic: {seeds: [0], durration: 9.0}}\n')
     with pytest.raises(ExperimentError, match=r"full.haptic: unknown keys \['durration'\]"):
@@ -642,3 +642,63 @@ def test_the_velocity_terms_shared_params_go_to_both_settings(tmp_path):
     path.write_text(yaml.safe_dump(doc))
     with pytest.raises(ExperimentError, match=r'mpc\.velocity_weight is what the two settings'):
         load_plan(path, False, [])
+
+
+def test_a_variant_section_runs_its_claim_on_its_robot_and_gait():
+    """A variant section (plan.VARIANT_KEYS) repeats a claim: each of its scenarios runs its
+    robot and gait, with every set-point of the scenario times its scale; its runs carry its
+    own claim hash; the page data say which section is a variant of what."""
+    from replan_experiments.claims import run_all
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    runner = RecordingRunner()
+    results = run_all(plan, ['haptic_go1', 'replan_window_trot'], runner)
+    assert results['variants'] == {
+        'haptic_go1': {'experiment': 'haptic', 'robot': 'go1', 'setpoint_scale': 0.3333},
+        'replan_window_trot': {'experiment': 'replan_window', 'gait': 'trot'}}
+    hashes = claim_hashes(plan)
+    assert runner.plans == {hashes['haptic_go1'], hashes['replan_window_trot']}
+    haptic_docs = [d for d in runner.docs if d.get('robot') == 'go1']
+    assert len(haptic_docs) == 2 * len(plan['haptic_go1']['seeds'])
+    for doc in haptic_docs:
+        assert 'gait' not in doc and doc['name'] == 'exp_blind_terrain_go1_x0.3333'
+        assert [e['cmd_vel'] for e in doc['events'] if 'cmd_vel' in e] == [
+            [round(0.15 * 0.3333, 6), 0.0, 0.0]]
+        assert doc['terrain']['step_height'] == 0.061
+    trot_docs = [d for d in runner.docs if d.get('gait') == 'trot']
+    assert len(trot_docs) == 2 * 10 * 2 and all('robot' not in d for d in trot_docs)
+    assert {e['cmd_vel'][0] for d in trot_docs for e in d['events'] if 'cmd_vel' in e} == {
+        0.30, 0.37}           # the section's own set-points, not scaled
+    assert len(results['haptic_go1']) == 20 and len(results['replan_window_trot']) == 40
+
+
+@pytest.mark.parametrize('section, message', [
+    ({'experiment': 'lateral_push', 'robot': 'go1'}, r"'lateral_push' cannot be repeated"),
+    ({'robot': 'go1'}, 'unknown experiment'),
+    ({'experiment': 'haptic'}, 'a variant sets robot, gait or setpoint_scale'),
+    ({'experiment': 'haptic', 'robot': 'go1', 'setpoint_scale': 0}, 'setpoint_scale: a positive'),
+    ({'experiment': 'haptic', 'robot': '../hyq'}, r'robot: a name of config/robots/'),
+    ({'experiment': 'haptic', 'robot': 'go1', 'windows': [1]}, r"unknown keys \['windows'\]"),
+])
+def test_the_plan_loader_checks_a_variant_in_one_line(tmp_path, section, message):
+    doc = yaml.safe_load((CONFIG / 'experiments.yaml').read_text())
+    doc['full']['again'] = {**section, **({'scenario': 'exp_blind_terrain', 'seeds': [0],
+                                          'terrains': {'flat': {'type': 'flat'}}}
+                                          if section.get('experiment') == 'haptic' else {})}
+    path = tmp_path / 'experiments.yaml'
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(ExperimentError, match=message) as err:
+        load_plan(path, False, [])
+    assert 'full.again' in str(err.value) and '\n' not in str(err.value)
+
+
+def test_a_variant_needs_its_robot_and_gait_files_and_no_other_robot():
+    from replan_experiments.claims import run_all
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    plan['haptic_go1'] = {**plan['haptic_go1'], 'robot': 'go7'}
+    with pytest.raises(ExperimentError, match=r'haptic_go1.robot: no config/robots/go7.yaml'):
+        run_all(plan, ['haptic_go1'], RecordingRunner())
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    runner = RecordingRunner()
+    runner.robot = 'a1'
+    with pytest.raises(ExperimentError, match=r'--robot another \(a1\)'):
+        run_all(plan, ['haptic_go1'], runner)

@@ -487,9 +487,43 @@ def test_a_pilot_page_says_what_its_runs_make_of_n(tmp_path):
     assert push['seeds_needed'] == max(2, -(-expected // 2))    # two pairs (forces) a seed
     assert sizes['haptic']['pairs'] is None and 'binary' in sizes['haptic']['reason']
     assert sizes['replan_window']['reason'] == 'not run in this call'
+    # The claims tested again elsewhere are a family of their own (stats.primary_verdicts).
+    variants = [name for name, b in prereg['claims'].items() if 'experiment' in b]
+    assert variants and all(sizes[v]['alpha'] == 0.05 / len(variants) for v in variants)
     page = tmp_path / 'results-pilot.md'
     meta = {**_meta(prereg), 'pilot': True}
     write_page(page, {'haptic': _haptic_rows(None, [0, 1])}, meta)
     text = page.read_text()
-    assert '## Sample sizes from the pilot' in text and 'α = 0.05 / 7' in text
-    assert 'a binary outcome: n from the plan\'s reason | 10 |' in text
+    assert '## Sample sizes from the pilot' in text and 'the number of claims of its family' in text
+    assert f'| {0.05 / 7:.3g} | a binary outcome: n from the plan\'s reason | 10 |' in text
+
+
+def test_a_claim_tested_again_elsewhere_is_a_family_of_its_own(tmp_path):
+    """A variant's test (another robot or gait) is Holm-corrected with the other variants
+    only: adding it leaves the paper's claims' adjusted p as they were; the page names where
+    it was tested and gives its runs a section."""
+    plan, _ = load_plan(CONFIG / 'experiments.yaml', False, [])
+    alone = preregistration({'haptic': plan['haptic']}, 'config/experiments.yaml',
+                            'confirmatory')
+    both = preregistration({'haptic': plan['haptic'], 'haptic_trot': plan['haptic_trot']},
+                           'config/experiments.yaml', 'confirmatory')
+    assert both['claim_hashes']['haptic'] == alone['claim_hashes']['haptic']
+    seeds = plan['haptic']['seeds']
+    rows = _haptic_rows(alone['claim_hashes']['haptic'], seeds)
+    trot = [{**r, 'plan': both['claim_hashes']['haptic_trot']}
+            for r in _haptic_rows(None, plan['haptic_trot']['seeds'], off_more=-0.5)]
+    first = primary_verdicts(alone, {'haptic': rows})
+    second = {v['claim']: v for v in primary_verdicts(both, {'haptic': rows,
+                                                             'haptic_trot': trot})}
+    assert second['haptic']['p_holm'] == first[0]['p_holm'] == first[0]['p']
+    assert second['haptic_trot']['outcome'] == 'opposite'     # there the trot falls with haptic
+    page = tmp_path / 'results.md'
+    results = {'haptic': rows, 'haptic_trot': trot,
+               'variants': {'haptic_trot': {'experiment': 'haptic', 'gait': 'trot',
+                                            'setpoint_scale': 2.0}}}
+    write_page(page, results, _meta(both))
+    text = page.read_text()
+    label = 'without haptic touchdown the pitch is disturbed (V.A, VI): trot gait, set-points x2'
+    assert 'Two families' in text and f'## {label}' in text
+    assert f'| {label} | opposite |' in readme_table(list(second.values()))
+    assert f'| {label} | haptic on | falls | 8 of 10 |' in text
