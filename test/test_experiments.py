@@ -12,6 +12,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+import yaml
 from harness import REPO_ROOT, ExperimentsCall, experiments, graph_env
 from ray_cluster import on_cluster, run_metrics
 
@@ -95,6 +96,13 @@ def test_quick_experiments_write_the_results_page(quick_experiments, ros_domain)
     pushed = [r for r in runs if r['pushes']]
     assert pushed and all(r['pushes'][0]['support_inradius_before_m'] > 0 for r in pushed)
     assert (out / 'results_plots' / 'replan_window.png').is_file()
+    # A claim tested again in another gait (a variant section): its runs walk the trot.
+    assert ('## without haptic touchdown the pitch is disturbed (V.A, VI): trot gait, '
+            'set-points x2') in page
+    trot = [f for f in folders if f.name.startswith('exp_blind_terrain_trot_x2-')]
+    assert len(trot) == 2, [f.name for f in folders]
+    assert all(yaml.safe_load((f / 'scenario.yaml').read_text())['gait'] == 'trot'
+               for f in trot)
     # A second call reads the runs it finds instead of making them again.
     again = subprocess.run(
         [str(REPO_ROOT / 'scripts' / 'experiments.sh'), '--quick', '--out', str(out),
