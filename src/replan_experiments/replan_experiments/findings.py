@@ -1,8 +1,11 @@
 """The results page's exploratory findings, one bullet per experiment, and its tables of the
-pre-registered verdicts (``preregistration_section``, ``readme_table``): every number computed
-from the runs; a cause the runs do not isolate is labelled a hypothesis."""
+pre-registered verdicts (``preregistration_section``, ``readme_table``, README.md's block
+``fill_readme``): every number computed from the runs; a cause the runs do not isolate is
+labelled a hypothesis."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -18,6 +21,7 @@ from replan_experiments.stats import (
     is_variant,
     p_text,
     pilot_sizes,
+    primary_verdicts,
     prompt_by_cycles,
     push_resolution,
     push_sign_test,
@@ -452,6 +456,40 @@ def pilot_section(sizes: list[dict]) -> list[str]:
             f'{needed if needed is not None else "more than the largest n tried"} | '
             f'{row["n"]} |')
     return [*lines, '']
+
+
+def page_verdicts(results: dict, meta: dict) -> list[dict]:
+    """The pre-registered claims' verdicts of a call (``meta['preregistration']``, from
+    plan.preregistration): none without one."""
+    prereg = meta.get('preregistration')
+    return primary_verdicts(prereg, results) if prereg and prereg.get('claims') else []
+
+
+README_BEGIN, README_END = '<!-- results:begin -->', '<!-- results:end -->'
+
+
+def replace_block(readme: Path, begin: str, end: str, block: str) -> bool:
+    """Put ``block`` between the markers ``begin`` and ``end`` of ``readme`` (a generated part
+    of a hand-written file); False (nothing written) without both markers."""
+    text = readme.read_text() if readme.is_file() else ''
+    if begin not in text or end not in text:
+        return False
+    head, rest = text.split(begin, 1)
+    tail = rest.split(end, 1)[1]
+    readme.write_text(head + begin + '\n' + block + end + tail)
+    return True
+
+
+def fill_readme(readme: Path, results: dict, meta: dict) -> bool:
+    """The verdict table (``findings.readme_table``) between the results markers of ``readme``,
+    linking the page; False (nothing written) without the markers or without verdicts."""
+    verdicts = page_verdicts(results, meta)
+    if not verdicts:
+        return False
+    block = ('The pre-registered verdicts of [docs/results.md](docs/results.md) (generated; '
+             'the page names the revision, plan and runs they come from):\n\n'
+             + readme_table(verdicts))
+    return replace_block(readme, README_BEGIN, README_END, block)
 
 
 def readme_table(verdicts: list[dict]) -> str:

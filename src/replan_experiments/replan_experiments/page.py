@@ -16,15 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_experiments.findings import (
-    claim_label,
-    findings,
-    preregistration_section,
-    readme_table,
-    setting_text,
-)
+from replan_experiments.findings import findings, page_verdicts, preregistration_section
 from replan_experiments.page_plots import plot_haptic, plot_push, plot_windows
 from replan_experiments.page_push import large_push_section, sustained_push_section
+from replan_experiments.page_variants import variant_sections
 from replan_experiments.stats import (
     P_VALUE,
     PAPER_QP_MS,
@@ -37,7 +32,6 @@ from replan_experiments.stats import (
     exploratory,
     forward_speed_rows,
     p_text,
-    primary_verdicts,
     prompt_by_cycles,
     push_resolution,
     push_sign_test,
@@ -109,40 +103,6 @@ class Page:
         return f'{self.plot_dir.name}/{name}'
 
 
-def page_verdicts(results: dict, meta: dict) -> list[dict]:
-    """The pre-registered claims' verdicts of a call (``meta['preregistration']``, from
-    plan.preregistration): none without one."""
-    prereg = meta.get('preregistration')
-    return primary_verdicts(prereg, results) if prereg and prereg.get('claims') else []
-
-
-README_BEGIN, README_END = '<!-- results:begin -->', '<!-- results:end -->'
-
-
-def replace_block(readme: Path, begin: str, end: str, block: str) -> bool:
-    """Put ``block`` between the markers ``begin`` and ``end`` of ``readme`` (a generated part
-    of a hand-written file); False (nothing written) without both markers."""
-    text = readme.read_text() if readme.is_file() else ''
-    if begin not in text or end not in text:
-        return False
-    head, rest = text.split(begin, 1)
-    tail = rest.split(end, 1)[1]
-    readme.write_text(head + begin + '\n' + block + end + tail)
-    return True
-
-
-def fill_readme(readme: Path, results: dict, meta: dict) -> bool:
-    """The verdict table (``findings.readme_table``) between the results markers of ``readme``,
-    linking the page; False (nothing written) without the markers or without verdicts."""
-    verdicts = page_verdicts(results, meta)
-    if not verdicts:
-        return False
-    block = ('The pre-registered verdicts of [docs/results.md](docs/results.md) (generated; '
-             'the page names the revision, plan and runs they come from):\n\n'
-             + readme_table(verdicts))
-    return replace_block(readme, README_BEGIN, README_END, block)
-
-
 def write_page(path: Path, results: dict, meta: dict) -> None:
     """Write the results page ``path`` (and its plots) from ``results`` (experiments.run_all)
     and ``meta`` (command, machine, revision, date, wall time, runs, failures, the plan's
@@ -158,10 +118,7 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
         if name in results:
             writer(page, results[name], results)
             findings(page, name, results[name], results)
-    claims = (meta.get('preregistration') or {}).get('claims') or {}
-    for name, info in (results.get('variants') or {}).items():
-        if name in results:
-            _variant(page, name, info, results[name], claims.get(name))
+    variant_sections(page, results, meta)
     head = [
         '# Results: the paper\'s claims on the realistic robot',
         '',
@@ -228,32 +185,6 @@ def write_page(path: Path, results: dict, meta: dict) -> None:
 
 
 # -- one writer per experiment ---------------------------------------------------------------
-
-def _variant(page: Page, name: str, info: dict, rows: list[dict], block: dict | None) -> None:
-    """A claim tested again elsewhere (a variant section of the plan): where, and per setting
-    its runs, falls and primary measure; the verdict is the pre-registered table's."""
-    label = claim_label(name, info)
-    rows = [r for r in rows or [] if isinstance(r, dict)]
-    by = ((block or {}).get('compare') or {}).get('by')
-    measure = (block or {}).get('measure')
-    lines = [f'## {label}', '',
-             f'The plan\'s `{name}` runs the experiment `{info["experiment"]}` again '
-             + ', '.join(f'with {k} {v}' for k, v in info.items() if k != 'experiment')
-             + ' (the set-points of its scenarios times `setpoint_scale`; the set-points, '
-             'forces and terrains the section gives are its own). Its verdict is the '
-             'pre-registered table\'s; the rows below are its runs.', '']
-    groups = sorted({r.get(by) for r in rows}, key=str) if by else [None]
-    for value in groups:
-        runs = [r for r in rows if by is None or r.get(by) == value]
-        setting = setting_text(by, value) if by else 'all runs'
-        falls = sum(bool(r.get('fell')) for r in runs)
-        if measure and measure not in ('fell', 'crossed'):
-            page.row(label, setting, f'`{measure}` ({block["unit"]})',
-                     spread(values(runs, measure), 4), len(runs), '', f'{falls} falls')
-        else:
-            page.row(label, setting, 'falls', f'{falls} of {len(runs)}', len(runs), '', '')
-    page.section('\n'.join(lines))
-
 
 
 def _velocity_changes(page: Page, rows: list[dict], _all) -> None:

@@ -441,7 +441,7 @@ README_BEGIN, README_END = '<!-- robots:begin -->', '<!-- robots:end -->'
 def _fill_readme(root: Path, page: Path, data: dict) -> None:
     """The README's short table of the page (``robots_render.readme_block``), for the full
     page of the repository only (a quick or elsewhere-written page is not the project's)."""
-    from replan_experiments.page import replace_block
+    from replan_experiments.findings import replace_block
     from replan_experiments.robots_render import readme_block
     if data['meta'].get('quick') or page.resolve() != (root / 'docs' / 'robots.md').resolve():
         return

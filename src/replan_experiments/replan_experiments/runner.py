@@ -46,7 +46,8 @@ import time
 from pathlib import Path
 
 from replan_experiments.claims import run_all
-from replan_experiments.page import fill_readme, write_page
+from replan_experiments.findings import fill_readme
+from replan_experiments.page import write_page
 from replan_experiments.plan import (
     EXPERIMENTS,
     ExperimentError,

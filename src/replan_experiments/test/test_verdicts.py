@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import yaml
 
-from replan_experiments.findings import readme_table
-from replan_experiments.page import fill_readme, page_verdicts, write_page
+from replan_experiments.findings import fill_readme, page_verdicts, readme_table
+from replan_experiments.page import write_page
 from replan_experiments.plan import (
     ExperimentError,
     claim_hashes,
