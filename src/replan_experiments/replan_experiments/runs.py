@@ -50,7 +50,10 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_experiments/page.py',
                 'replan_experiments/page_status.py',
                 'replan_experiments/benchmarks/', 'replan_experiments/planner_loop.py',
                 # Which domain a graph runs on, never what it does (one graph per domain).
-                'replan_ros/launch/domain.py')
+                'replan_ros/launch/domain.py',
+                # What a viewer is shown (the bag's derived /tf and markers), never what the
+                # robot does or what a measure reads.
+                'replan_ros/view/state_view.py')
 
 
 def code_fingerprint(root: Path, robot: str | None = None) -> str:

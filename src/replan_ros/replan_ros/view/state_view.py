@@ -73,7 +73,11 @@ TYPES = {
 DERIVED_TOPICS = tuple(TYPES)
 INPUT_TOPICS = ('/odom', '/joint_states', '/ground_truth/contacts', '/diagnostics',
                 '/velocity_setpoint')
-_PAIRING = 16            # recent stamps of /odom and /joint_states kept to pair them
+# Recent stamps of /odom and /joint_states kept to pair them: 1 s of 4 ms ticks. A reliable
+# reader that lost a sample holds every later one of that writer until the writer sends it
+# again, a heartbeat (100 ms, config/dds/fastdds.xml) later: one topic then arrives 25 ticks
+# or more behind the other, and a shorter window loses those ticks' /tf.
+_PAIRING = 250
 _D3 = struct.Struct('<3d')
 _F4 = struct.Struct('<4f')
 _I3 = struct.Struct('<3i')

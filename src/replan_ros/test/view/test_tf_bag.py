@@ -74,6 +74,22 @@ def test_tf_pairs_odom_and_joints_by_stamp_in_any_order_once_per_period():
     assert lonely.feed('/odom', state(0.0)[1]) == []
 
 
+def test_tf_pairs_a_topic_that_arrives_a_retransmission_late():
+    """A reliable reader that lost a sample gets that writer's later samples only after the
+    resend, a heartbeat (100 ms, 25 ticks) later, in a burst: every /tf due still comes."""
+    view = StateView(period=0.04)
+    states = [state(k * DT) for k in range(100)]
+    late = 40                                   # ticks /odom arrives behind /joint_states
+    out = []
+    for k in range(100 + late):
+        if k < 100:
+            out += view.feed('/joint_states', states[k][0])
+        if k >= late:
+            out += view.feed('/odom', states[k - late][1])
+    tf = [d.stamp_ns for d in out if d.topic == TF_TOPIC]
+    assert tf == [round(k * DT * 1e9) for k in range(0, 100, 10)]
+
+
 def test_bag_tf_and_description_decode_with_rosbags(tmp_path, view):
     path = tmp_path / 'view.mcap'
     writer = BagWriter(path)
