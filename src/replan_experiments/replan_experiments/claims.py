@@ -21,6 +21,7 @@ from replan_core.robot.robot_file import default_urdf
 from replan_experiments.motion_effects import cached_motion_effects
 from replan_experiments.plan import (
     EXPERIMENTS,
+    VARIANT_EXPERIMENTS,
     ExperimentError,
     claim_hashes,
     node_settings,
@@ -518,9 +519,8 @@ def run_all(plan: dict, selected: list[str], runner: Runner) -> dict:
         'fastest_crawl': lambda: fastest_crawl(ctx, plan['fastest_crawl']),
         'ideal_world': lambda: ideal_world(ctx, plan['ideal_world'], plan),
     }
-    functions = {'velocity_changes': velocity_changes, 'replan_window': replan_window,
-                 'haptic': haptic, 'velocity_term': velocity_term,
-                 'sustained_push': sustained_push}
+    # Each experiment a variant can repeat is this module's function of its name.
+    functions = {name: globals()[name] for name in VARIANT_EXPERIMENTS}
     for name in selected:
         if name in EXPERIMENTS:
             continue

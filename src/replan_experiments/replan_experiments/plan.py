@@ -12,7 +12,7 @@ from pathlib import Path
 import yaml
 
 from replan_experiments.robot_info import robot_info
-from replan_experiments.stats import BINARY_TESTS, TESTS
+from replan_experiments.stats import BINARY_TESTS, TESTS, VARIANT_WHERE
 from replan_ros.launch.param_files import check_run_files, gait_parameters
 
 # The keys each experiment reads: a misspelt one in the plan file is an error, not a default.
@@ -57,7 +57,7 @@ for _name in PRIMARY_MEASURES:
 # A claim again on another robot, gait or set-point scale: a section of its own name with
 # ``experiment`` (the claim it repeats), its keys and these. Not the claims whose pushes are
 # timed by the crawl's cycle (lateral_push, large_push).
-VARIANT_KEYS = {'experiment', 'robot', 'gait', 'setpoint_scale'}
+VARIANT_KEYS = {'experiment', *VARIANT_WHERE}
 VARIANT_EXPERIMENTS = ('velocity_changes', 'replan_window', 'haptic', 'velocity_term',
                        'sustained_push')
 # A primary block: every key below is required, one of ``compare`` (two settings, treatment
@@ -89,7 +89,7 @@ def experiment_of(name: str, cfg) -> str:
 
 def variant_of(cfg: dict) -> dict:
     """A variant section's ``robot``, ``gait`` and ``setpoint_scale`` (those it sets)."""
-    return {k: cfg[k] for k in ('robot', 'gait', 'setpoint_scale') if k in cfg}
+    return {k: cfg[k] for k in VARIANT_WHERE if k in cfg}
 
 
 def phase_impulses(impulse, phases: int) -> list[float]:
@@ -250,7 +250,7 @@ def _section_error(name: str, cfg) -> str | None:
     if experiment not in VARIANT_EXPERIMENTS:
         return (f'{name}.experiment: {experiment!r} cannot be repeated as a variant (one of '
                 f'{", ".join(VARIANT_EXPERIMENTS)})')
-    if not set(cfg) & {'robot', 'gait', 'setpoint_scale'}:
+    if not set(cfg) & set(VARIANT_WHERE):
         return f'{name}: a variant sets robot, gait or setpoint_scale'
     for key in ('robot', 'gait'):
         value = cfg.get(key)

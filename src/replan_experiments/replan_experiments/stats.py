@@ -587,6 +587,10 @@ def primary_verdicts(prereg: dict, results: dict) -> list[dict]:
             + verdicts([t for t in tests if is_variant(t)]))
 
 
+# Where a variant of a claim is tested (plan.VARIANT_KEYS besides ``experiment``).
+VARIANT_WHERE = ('robot', 'gait', 'setpoint_scale')
+
+
 def is_variant(block: dict) -> bool:
     """Whether a primary block (or its verdict) is a claim tested again elsewhere."""
     return 'experiment' in block
@@ -608,7 +612,7 @@ def pilot_sizes(prereg: dict, results: dict) -> list[dict]:
         row = {'claim': name, 'measure': block['measure'], 'unit': block['unit'],
                'smallest_effect': float(block['smallest_effect']), 'n': block['n'],
                'alpha': alpha, 'pairs': None,
-               **{k: block[k] for k in ('experiment', 'robot', 'gait', 'setpoint_scale')
+               **{k: block[k] for k in ('experiment', *VARIANT_WHERE)
                   if k in block}}
         if name not in results:
             row['reason'] = 'not run in this call'
