@@ -33,6 +33,19 @@ from replan_ros.launch.watch import ClockWatch
 from replan_ros.transport.on_demand import helper_name
 
 NODES = ('sim', 'gait', 'mpc', 'wbc')
+
+
+def wbc_listeners(recording: bool) -> list[str]:
+    """Whom the wbc's first command waits for (its ``first_command_waits_for``): the planners
+    on the estimate they read and, in a recorded graph, the recorder on all of it. A wbc started
+    again on a running graph is unknown to the other processes for one to three wall s of DDS
+    discovery: stepping meanwhile, the planners would plan nothing and the bag would lose its
+    first ticks. The estimate comes from the wbc, which starts last, so at the graph's start the
+    wait is the same as for its first plans."""
+    planners = [f'{helper_name("gait")}=contacts+odom', f'{helper_name("mpc")}=odom']
+    return planners + ([helper_name('recorder')] if recording else [])
+
+
 # Published by sim, gait and mpc as soon as they are up; with a recorder in the graph the wbc,
 # whose first command lets the sim advance, starts only once the recorder listens to all of them.
 RECORDED_BEFORE_START = ('/clock', '/joint_states', '/imu', '/ground_truth/odom',
@@ -193,10 +206,9 @@ class Graph:
                 cmd += ['--params-file', str(extra)]
             if name == 'sim' and gui:
                 cmd += ['-p', 'gui:=true']
-            if name == 'wbc' and record_dir is not None:
-                # The estimate (odom, contacts) comes from the wbc, which starts last: its first
-                # command waits until the recorder listens, so the bag holds it from t = 0.
-                cmd += ['-p', f'first_command_waits_for:=[{helper_name("recorder")}]']
+            if name == 'wbc':
+                listeners = ', '.join(wbc_listeners(record_dir is not None))
+                cmd += ['-p', f'first_command_waits_for:=[{listeners}]']
             if name == 'recorder':
                 cmd += ['-p', f'output_dir:={record_dir}']
                 cmd += ['-p', 'config_files:=[' + ', '.join(

@@ -114,6 +114,7 @@ class WbcNode(Node):
         self.timing = PhaseTimer(self.budget)
         # (stamp, odom, contacts, events) of the last estimated tick, not yet published
         self._unpublished: tuple | None = None
+        self._joint_states_received = 0      # since start, for /diagnostics
 
         self.cmd_pub = self.create_publisher(JointStateMsg, 'joint_torque_cmd', COMMAND_PUB,
                                              event_callbacks=INTERNAL_PUB_EVENTS)
@@ -127,10 +128,14 @@ class WbcNode(Node):
                                                 event_callbacks=INTERNAL_PUB_EVENTS)
         # The first command lets the sim move: only once these nodes listen to the estimate
         # and the commands, and only then is the estimate published (_publish_estimate).
-        self._listeners = ListenersGate(
-            self, {'odom': self.odom_pub, 'contacts': self.contacts_pub,
-                   'contact_events': self.events_pub, 'joint_torque_cmd': self.cmd_pub},
-            p['first_command_waits_for'], float(p['first_command_wait_timeout']))
+        try:
+            self._listeners = ListenersGate(
+                self, {'odom': self.odom_pub, 'contacts': self.contacts_pub,
+                       'contact_events': self.events_pub, 'joint_torque_cmd': self.cmd_pub},
+                p['first_command_waits_for'], float(p['first_command_wait_timeout']))
+        except ValueError as err:
+            self.get_logger().fatal(f'config error: wbc: first_command_waits_for: {err}')
+            raise SystemExit(2) from None
         # One wake-up per tick, on joint_states: the sim publishes the imu (and, to a controller
         # that reads it, the truth) before them, so they are queued by then, and are taken from
         # their queues (on_demand.py; waited for up to _STATE_WAIT if late).
@@ -178,6 +183,7 @@ class WbcNode(Node):
         timing = self.timing
         timing.mark()
         wall0 = time.time_ns()
+        self._joint_states_received += 1
         stamp = cdr_header_stamp_ns(data)
         if stamp is None:
             self._warn('rejected joint_states: too short for a header')
@@ -353,6 +359,7 @@ class WbcNode(Node):
         level, message, values = self.stats.status(protocol, {
             'state_estimation': self.state_estimation,
             'contact_estimation': self.contact_estimation,
+            'joint_states_received': self._joint_states_received,
             # Estimator updates that used the covariance step prepared after the last
             # command (StateEstimator.prepare_next); most of the ticks while walking.
             'estimator_prepared_steps': (self.estimator.prepared_used

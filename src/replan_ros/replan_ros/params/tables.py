@@ -309,9 +309,10 @@ WBC = (
     _p('contact_estimation', False, "true: foot contacts from forces estimated from the joint "
        "torques; false: the simulator's ground_truth/contacts (ideal)"),
     _p('first_command_waits_for', [], 'nodes that must subscribe to odom, contacts, '
-       'contact_events and joint_torque_cmd before the first estimate is published and the '
-       "first command lets the sim move (the launcher sets the recorder's, so a bag holds the "
-       'estimate and the commands from t = 0)', kind='str[]'),
+       'contact_events and joint_torque_cmd (an entry name=topic+topic: to those only) before '
+       'the first estimate is published and the first command lets the sim move (the launcher '
+       "sets the planners' and the recorder's: a restarted wbc is heard before the sim steps, "
+       'and a bag holds the estimate and the commands from t = 0)', kind='str[]'),
     _p('first_command_wait_timeout', 10.0, 'longest wait for first_command_waits_for; '
        'then the first command goes out anyway, with a warning naming what is missing',
        'wall s', min=0.0, max=3600.0),

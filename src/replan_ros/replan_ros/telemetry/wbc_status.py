@@ -44,8 +44,13 @@ class ControllerStats:
         own keys) merged in; starts the next period."""
         result = self._last
         if result is None:
-            return (diagnostics.WARN, 'no state answered yet',
-                    {'waiting_for_plans': protocol.waiting is not None})
+            # Which side is silent: no joint_states at all (the sim, or DDS delivery to this
+            # process), or states that were not answered (waiting for plans or listeners).
+            received = values.get('joint_states_received', 0)
+            message = (f'no state answered yet ({received} joint_states received)' if received
+                       else 'no state answered yet: no joint_states received')
+            return (diagnostics.WARN, message,
+                    {'waiting_for_plans': protocol.waiting is not None, **values})
         # Figures over the period; a period without ticks (waiting) repeats the last one.
         times = np.array(self._times or [result.compute_time]) * 1e3
         errors = np.array(self._com_errors or [float(np.linalg.norm(result.com_error))])

@@ -80,3 +80,28 @@ def test_no_named_nodes_no_wait():
     node = _Node()
     assert ListenersGate(node, {'odom': _Publisher()}, [], 10.0).ready()
     assert node.logger.lines == []
+
+
+def test_a_node_named_with_topics_is_waited_for_on_those_only():
+    # A planner reads one topic of the estimate: it never subscribes to the others.
+    node, odom, contacts = _Node(), _Publisher(), _Publisher()
+    gate = ListenersGate(node, {'odom': odom, 'contacts': contacts},
+                         ['gait=contacts+odom', 'mpc=odom'], 10.0)
+    node.readers = {'/odom': ['mpc'], '/contacts': ['gait']}
+    odom.matched = contacts.matched = 1
+    assert gate.missing() == ['gait on odom']
+    assert not gate.ready()
+    node.readers['/odom'].append('gait')
+    odom.matched = 2
+    assert gate.ready()
+    assert node.logger.lines == [('info', "['gait', 'mpc'] listen: starting")]
+
+
+def test_an_entry_with_a_topic_not_published_is_refused():
+    for entry in ('gait=footholds', '=odom', 'gait=odom+'):
+        try:
+            ListenersGate(_Node(), {'odom': _Publisher()}, [entry], 10.0)
+        except ValueError as err:
+            assert repr(entry) in str(err)
+        else:
+            raise AssertionError(entry)
