@@ -288,7 +288,8 @@ def gait_axes(result: RunResult, steady_cycles: int) -> dict:
     """Per segment with a set-point of a gait's run (its axis: the set-point's largest
     component): the mean of that component over the last ``steady_cycles`` whole cycles of
     the gait (a true touchdown of a leg to its next) before the next set-point, as a share of
-    the set-point (``share`` None with fewer cycles), and the cycles it had."""
+    the set-point (``share`` None with fewer cycles), the cycles it had and each whole cycle's
+    mean as a share (``cycle_shares``: how much one cycle scatters about the mean)."""
     axes = {}
     for segment in result.metrics.get('velocity_tracking') or []:
         commanded = segment.get('commanded') or []
@@ -300,7 +301,9 @@ def gait_axes(result: RunResult, steady_cycles: int) -> dict:
         axes[ROBOT_KEYS[k]] = {'commanded': commanded[k], 'cycles': len(cycles),
                                'achieved': None if steady is None else round(steady[k], 5),
                                'share': (None if steady is None
-                                         else round(steady[k] / commanded[k], 4))}
+                                         else round(steady[k] / commanded[k], 4)),
+                               'cycle_shares': [round(c['velocity'][k] / commanded[k], 4)
+                                                for c in cycles]}
     return axes
 
 

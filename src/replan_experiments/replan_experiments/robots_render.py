@@ -320,7 +320,8 @@ def readme_block(data: dict) -> str:
 
 def share_cell(run: dict | None, axis: str, unit: str) -> str:
     """A gait's achieved ``axis`` over its last whole cycles, in per cent of the set-point,
-    or the fall, the failure or the missing cycles."""
+    then each whole cycle's (when the run gave them), or the fall, the failure or the missing
+    cycles."""
     if (said := _not_measured(run)) is not None:
         return said
     cell = (run.get('axes') or {}).get(axis)
@@ -328,8 +329,10 @@ def share_cell(run: dict | None, axis: str, unit: str) -> str:
         return 'no segment'
     if cell.get('share') is None:
         return f'too few whole cycles ({cell.get("cycles", 0)})'
+    shares = cell.get('cycle_shares')
+    each = (f'; cycles {" ".join(f"{100.0 * x:.0f}" for x in shares)} %' if shares else '')
     return (f'{100.0 * cell["share"]:.1f} % ({_num(cell["achieved"])} of '
-            f'{cell["commanded"]:g} {unit})')
+            f'{cell["commanded"]:g} {unit}){each}')
 
 
 def standing_cell(gait: dict) -> str:
@@ -419,7 +422,10 @@ def gait_section(meta: dict, robots: dict, gait: str) -> list[str]:
         + (f' One run walks forward from standing at the speed of Froude number '
            f'{tests["fast"]["froude"]:g}, sqrt({tests["fast"]["froude"]:g} g l), for '
            f'{tests["fast"]["forward_cycles"]} cycles (the last {tests["fast"]["steady_cycles"]} '
-           'whole cycles).' if 'fast' in tests else ''), '',
+           'whole cycles).' if 'fast' in tests else '')
+        + ' After each achieved share: every whole cycle\'s of the set-point\'s segment, from '
+        'the first (the start or the change) on, in per cent: how much one cycle of the gait '
+        'scatters about its mean.', '',
         *gait_table(robots, gait), '']
 
 

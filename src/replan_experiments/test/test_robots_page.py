@@ -281,4 +281,6 @@ def test_a_gaits_achieved_is_the_mean_of_its_last_whole_cycles():
     assert list(axes) == ['forward']
     assert axes['forward']['share'] == pytest.approx(0.29 / 0.29) and axes['forward'][
         'cycles'] == 3
+    assert axes['forward']['cycle_shares'] == pytest.approx([0.1 / 0.29, 0.28 / 0.29,
+                                                             0.30 / 0.29], abs=1e-4)
     assert gait_axes(RunResult('w', {}, metrics, Path('w')), 4)['forward']['share'] is None

@@ -215,6 +215,11 @@ def test_gait_cells_at_the_edges():
            'axes': {'forward': {'commanded': 0.3, 'achieved': None, 'share': None,
                                 'cycles': 1}}}
     assert share_cell(few, 'forward', 'm/s') == 'too few whole cycles (1)'
+    scattered = {'run': 'r', 'ok': True, 'fell': False,
+                 'axes': {'lateral': {'commanded': 0.05, 'achieved': 0.0308, 'share': 0.616,
+                                      'cycles': 4, 'cycle_shares': [1.13, 1.58, 0.64, 0.59]}}}
+    assert share_cell(scattered, 'lateral', 'm/s') == \
+        '61.6 % (0.0308 of 0.05 m/s); cycles 113 158 64 59 %'
     assert share_cell(few, 'yaw', 'rad/s') == 'no segment'
     assert share_cell({'run': 'r', 'ok': False}, 'forward', 'm/s') == 'run failed'
     assert standing_cell({'walk': few, 'standing': {'window_s': [1.0, 2.0]}}) == \
