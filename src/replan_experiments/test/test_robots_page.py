@@ -235,10 +235,10 @@ def test_a_gait_is_measured_walking_turning_pushed_and_down_a_ladder_of_steps(tm
     # The ladder stops at the first share not crossed: 0.05 crossed, 0.10 fell, 0.15 not run.
     assert [s['share'] for s in row['step_down']] == [0.05, 0.10]
     assert [s['crossed'] for s in row['step_down']] == [True, False]
-    assert row['push']['survived_dv'] == 0.3 and row['push']['phases'] == 2
+    assert row['push']['survived_dv'] == 0.3 and row['push']['phases'] == 4
     assert len(row['falls']) == 1 and '_trot_step_down_0.1-' in row['falls'][0]
     assert all(d['gait'] == 'trot' and d['name'].startswith('go1_trot_') for d in runner.docs)
-    assert len(runner.docs) == row['runs'] == 2 + 1 + 2 + 2
+    assert len(runner.docs) == row['runs'] == 2 + 1 + 2 + 4
     walk = next(d for d in runner.docs if d['name'] == 'go1_trot_walk')
     assert row['standing']['window_s'][1] == walk['duration']          # the run's end
     # The fast walk: forward at Froude 0.05 from standing, its whole cycles measured.
@@ -268,7 +268,7 @@ def test_planned_runs_count_every_gait():
     assert planned_runs(plan) == 7 + 5 + 4
     full = load_robots_plan(PLAN)
     assert planned_runs(full) == planned_runs(replace(full, gaits={})) + 7 * (
-        2 + 1 + 3 + 2 + 2 + 1 + 1)
+        2 + 1 + 3 + 4 + 2 + 1 + 4)
 
 
 def test_a_gaits_achieved_is_the_mean_of_its_last_whole_cycles():

@@ -236,8 +236,8 @@ def test_a_gaits_documents_run_the_gait_in_its_cycles():
     assert turn['duration'] == pytest.approx(0.5 + 2 * span) and turn['gait'] == 'trot'
     # The push: mass x 0.3 m/s over the push's duration, at phases of the trot's cycle.
     times = push_times(WALK, info, trots)
-    assert len(times) == cfg['push']['phases'] == 2
-    assert times[1] - times[0] == pytest.approx(0.3)
+    assert len(times) == cfg['push']['phases'] == 4
+    assert times[1] - times[0] == pytest.approx(0.6 / 4)          # the trot's cycle, 2 x 0.3 s
     push = push_doc(WALK, info, trots, 0.3, times[0])
     assert push['events'][-1]['push']['force'][1] == pytest.approx(
         12.0 * 0.3 / cfg['push']['push_duration'], abs=1e-4)
