@@ -4,8 +4,11 @@
 (``runs.code_fingerprint``: a hash of every file that shapes a run). The same hash of the
 checkout tells whether the page's runs are those that today's code would make: a user comparing
 planner settings, or about to quote a page, sees in one line per page whether it is current or
-which command makes it again. Exit code 0 when every page is current, 1 when one is not (or
-names no fingerprint).
+which command makes it again. A page is not current either when its plan (which runs it makes,
+``config/experiments.yaml`` or ``config/robots_page.yaml``, or its command's ``--plan``) differs
+from the plan at the revision the page names (``git show``; where git cannot tell, only the
+fingerprint counts). Exit code 0 when every page is current, 1 when one is not (or names no
+fingerprint).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import argparse
 import os
 import re
 import shlex
+import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,8 +26,10 @@ from replan_experiments.runs import ExperimentError, code_fingerprint
 from replan_ros.launch.param_files import DEFAULT_ROBOT
 
 # page (relative to the repository), whether its runs are keyed per robot (the experiments:
-# the fingerprint of the robot they run) or by the whole checkout (the robots page: every robot)
-PAGES = (('docs/results.md', True), ('docs/robots.md', False))
+# the fingerprint of the robot they run) or by the whole checkout (the robots page: every
+# robot), and its plan unless its command names another (--plan)
+PAGES = (('docs/results.md', True, 'config/experiments.yaml'),
+         ('docs/robots.md', False, 'config/robots_page.yaml'))
 
 _FINGERPRINT = re.compile(r'code fingerprint ([0-9a-f]{12})')
 _REVISION = re.compile(r'revision ([0-9a-f]{7,40})')
@@ -37,36 +43,64 @@ class PageStatus:
     revision: str | None        # the revision it was rendered at
     command: str | None         # the command that made it
     code: str                   # today's fingerprint for the page's runs
+    plan: str | None = None     # the page's plan file (relative to the repository)
+    plan_changed: bool | None = None    # it differs from the page's revision's (None: unknown)
 
     @property
     def current(self) -> bool:
-        return self.page_code is not None and self.page_code == self.code
+        return (self.page_code is not None and self.page_code == self.code
+                and self.plan_changed is not True)
 
     def line(self) -> str:
         """One line for the user."""
         if self.page_code is None:
             return f'{self.page}: names no code fingerprint (not made by its script?)'
         made = f'runs of code {self.page_code} (page rendered at {self.revision or "?"})'
+        again = f'made again by `{self.command or "its script"}`'
         if self.current:
             return f'{self.page}: current: {made}'
-        return (f'{self.page}: NOT of today\'s code: {made}, today\'s code {self.code}; '
-                f'made again by `{self.command or "its script"}`')
+        if self.page_code == self.code:
+            return (f'{self.page}: NOT of today\'s plan: {made}, but {self.plan} changed since '
+                    f'{self.revision}; {again}')
+        return f'{self.page}: NOT of today\'s code: {made}, today\'s code {self.code}; {again}'
+
+
+def command_option(command: str | None, option: str) -> str | None:
+    """The value of ``option`` (``--name VALUE`` or ``--name=VALUE``) in ``command``."""
+    words = shlex.split(command or '')
+    for i, word in enumerate(words):
+        if word == option and i + 1 < len(words):
+            return words[i + 1]
+        if word.startswith(option + '='):
+            return word.split('=', 1)[1]
+    return None
 
 
 def page_robot(command: str | None) -> str:
     """The robot of an experiments page's runs: its command's ``--robot``, else the default."""
-    words = shlex.split(command or '')
-    for i, word in enumerate(words):
-        if word == '--robot' and i + 1 < len(words):
-            return words[i + 1]
-        if word.startswith('--robot='):
-            return word.split('=', 1)[1]
-    return DEFAULT_ROBOT
+    return command_option(command, '--robot') or DEFAULT_ROBOT
 
 
-def page_status(root: Path, page: str, per_robot: bool) -> PageStatus:
-    """The status of ``root``/``page`` against the checkout at ``root``. OSError if the page
-    cannot be read; ExperimentError if the checkout's robot files cannot be."""
+def plan_changed(root: Path, revision: str | None, plan: str) -> bool | None:
+    """Whether ``root``/``plan`` differs from the same file at ``revision``; None when git
+    cannot tell (no revision, no repository, a revision or file it does not know)."""
+    if not revision:
+        return None
+    try:
+        shown = subprocess.run(['git', 'show', f'{revision}:{plan}'], cwd=root,
+                               capture_output=True, timeout=10)
+        if shown.returncode != 0:
+            return None
+        return shown.stdout != (root / plan).read_bytes()
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def page_status(root: Path, page: str, per_robot: bool,
+                plan: str | None = None) -> PageStatus:
+    """The status of ``root``/``page`` against the checkout at ``root`` (its code and, if
+    given, its ``plan`` file, relative to ``root``). OSError if the page cannot be read;
+    ExperimentError if the checkout's robot files cannot be."""
     text = (root / page).read_text()
     head = '\n'.join(text.splitlines()[:6])     # the header paragraph names all three
     found = {name: (m.group(1) if (m := pattern.search(head)) else None)
@@ -74,7 +108,10 @@ def page_status(root: Path, page: str, per_robot: bool) -> PageStatus:
                                    ('command', _COMMAND))}
     code = code_fingerprint(root, page_robot(found['command'])) if per_robot else (
         code_fingerprint(root))
-    return PageStatus(page, found['code'], found['revision'], found['command'], code)
+    plan = command_option(found['command'], '--plan') or plan
+    changed = plan_changed(root, found['revision'], plan) if plan else None
+    return PageStatus(page, found['code'], found['revision'], found['command'], code, plan,
+                      changed)
 
 
 def main(argv=None) -> int:
@@ -84,9 +121,9 @@ def main(argv=None) -> int:
     parser.parse_args(argv)
     root = Path(os.environ.get('REPLAN_ROOT', '.')).resolve()
     all_current = True
-    for page, per_robot in PAGES:
+    for page, per_robot, plan in PAGES:
         try:
-            status = page_status(root, page, per_robot)
+            status = page_status(root, page, per_robot, plan)
         except (OSError, ExperimentError) as err:
             print(f'{page}: cannot be checked: {err}')
             all_current = False
