@@ -20,7 +20,8 @@ def variant_section(page, name: str, info: dict, rows: list[dict], block: dict |
              + ', '.join(f'with {k} {v}' for k, v in info.items() if k != 'experiment')
              + ' (the set-points of its scenarios times `setpoint_scale`; the set-points, '
              'forces and terrains the section gives are its own). Its verdict is the '
-             'pre-registered table\'s; the rows below are its runs.', '']
+             'pre-registered table\'s; its runs are the rows under its name in "Every '
+             'measure (exploratory)".', '']
     groups = sorted({r.get(by) for r in rows}, key=str) if by else [None]
     for value in groups:
         runs = [r for r in rows if by is None or r.get(by) == value]
