@@ -7,8 +7,10 @@ planner settings, or about to quote a page, sees in one line per page whether it
 which command makes it again. A page is not current either when its plan (which runs it makes,
 ``config/experiments.yaml`` or ``config/robots_page.yaml``, or its command's ``--plan``) differs
 from the plan at the revision the page names (``git show``; where git cannot tell, only the
-fingerprint counts). Exit code 0 when every page is current, 1 when one is not (or names no
-fingerprint).
+fingerprint counts). A page whose fingerprint is today's code's under the other OpenBLAS kernel
+class (``runs.BLAS_CLASSES``; the class counts in the fingerprint) is current, and its line
+names that class: this machine would make the same runs but for their last bits. Exit code 0
+when every page is current, 1 when one is not (or names no fingerprint).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from replan_experiments.runs import ExperimentError, code_fingerprint
+from replan_experiments.runs import BLAS_CLASSES, ExperimentError, code_fingerprint
 from replan_ros.launch.param_files import DEFAULT_ROBOT
 
 # page (relative to the repository), whether its runs are keyed per robot (the experiments:
@@ -45,10 +47,12 @@ class PageStatus:
     code: str                   # today's fingerprint for the page's runs
     plan: str | None = None     # the page's plan file (relative to the repository)
     plan_changed: bool | None = None    # it differs from the page's revision's (None: unknown)
+    blas_class: str | None = None   # the other kernel class whose fingerprint the page names
 
     @property
     def current(self) -> bool:
-        return (self.page_code is not None and self.page_code == self.code
+        return (self.page_code is not None
+                and (self.page_code == self.code or self.blas_class is not None)
                 and self.plan_changed is not True)
 
     def line(self) -> str:
@@ -57,9 +61,13 @@ class PageStatus:
             return f'{self.page}: names no code fingerprint (not made by its script?)'
         made = f'runs of code {self.page_code} (page rendered at {self.revision or "?"})'
         again = f'made again by `{self.command or "its script"}`'
+        if self.current and self.blas_class is not None:
+            return (f'{self.page}: current: {made}, made with OpenBLAS\'s {self.blas_class} '
+                    f'kernels (this machine\'s code fingerprint {self.code}: its runs would '
+                    'differ in their last bits)')
         if self.current:
             return f'{self.page}: current: {made}'
-        if self.page_code == self.code:
+        if self.page_code == self.code or self.blas_class is not None:
             return (f'{self.page}: NOT of today\'s plan: {made}, but {self.plan} changed since '
                     f'{self.revision}; {again}')
         return f'{self.page}: NOT of today\'s code: {made}, today\'s code {self.code}; {again}'
@@ -106,12 +114,14 @@ def page_status(root: Path, page: str, per_robot: bool,
     found = {name: (m.group(1) if (m := pattern.search(head)) else None)
              for name, pattern in (('code', _FINGERPRINT), ('revision', _REVISION),
                                    ('command', _COMMAND))}
-    code = code_fingerprint(root, page_robot(found['command'])) if per_robot else (
-        code_fingerprint(root))
+    robot = page_robot(found['command']) if per_robot else None
+    code = code_fingerprint(root, robot)
+    other = next((c for c in BLAS_CLASSES if found['code'] not in (None, code)
+                  and code_fingerprint(root, robot, c) == found['code']), None)
     plan = command_option(found['command'], '--plan') or plan
     changed = plan_changed(root, found['revision'], plan) if plan else None
     return PageStatus(page, found['code'], found['revision'], found['command'], code, plan,
-                      changed)
+                      changed, other)
 
 
 def main(argv=None) -> int:

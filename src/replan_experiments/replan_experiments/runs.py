@@ -56,16 +56,24 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_experiments/page.py',
                 'replan_ros/view/state_view.py')
 
 
-def code_fingerprint(root: Path, robot: str | None = None) -> str:
+# The OpenBLAS kernel classes scripts/env.sh chooses between (OPENBLAS_CORETYPE).
+BLAS_CLASSES = ('SkylakeX', 'Haswell')
+
+
+def code_fingerprint(root: Path, robot: str | None = None,
+                     blas_class: str | None = None) -> str:
     """A hash of every file under ``root`` (the repository) that shapes a run (``_SHAPING``):
     a change to any of them gives every run a new key, so the cache never serves a run of
     other code. With ``robot`` (a name of ``config/robots/``), of the robot files only those
     that shape that robot's runs count (its own, the scaling rules, the reference robot's):
     a file added or changed for another robot leaves its runs' keys as they were. The BLAS
     kernel class (``OPENBLAS_CORETYPE``, set by scripts/env.sh) counts too: the two classes
-    give runs other last bits (docs/ARCHITECTURE.md, "Bit-exact runs")."""
+    give runs other last bits (docs/ARCHITECTURE.md, "Bit-exact runs"); ``blas_class`` names
+    one (``BLAS_CLASSES``) instead of this process's."""
+    if blas_class is None:
+        blas_class = os.environ.get('OPENBLAS_CORETYPE', '')
     digest = hashlib.sha1()
-    digest.update(b'blas\0' + os.environ.get('OPENBLAS_CORETYPE', '').encode() + b'\0')
+    digest.update(b'blas\0' + blas_class.encode() + b'\0')
     files = {path for pattern in _SHAPING for path in root.glob(pattern) if path.is_file()}
     robot_files = _robot_files(root, robot) if robot else None
     for path in sorted(files):

@@ -64,6 +64,22 @@ def test_an_experiments_page_is_checked_against_its_own_robot(tmp_path):
     assert page_robot('scripts/experiments.sh --robot=a1') == 'a1'
 
 
+def test_a_page_made_with_the_other_blas_kernels_is_current_and_says_so(tmp_path, monkeypatch):
+    """Runs of the same code on a machine of the other OpenBLAS kernel class have another
+    fingerprint (their last bits differ): the page is current, and its line names the class;
+    a change to the code still makes it stale."""
+    root = _checkout(tmp_path)
+    monkeypatch.setenv('OPENBLAS_CORETYPE', 'Haswell')
+    (root / 'docs/results.md').write_text(_page(code_fingerprint(root, 'hyq', 'SkylakeX')))
+    status = page_status(root, 'docs/results.md', per_robot=True)
+    assert status.page_code != status.code and status.blas_class == 'SkylakeX'
+    assert status.current and "made with OpenBLAS's SkylakeX kernels" in status.line()
+    (root / 'src/replan_core/replan_core/mpc/lip.py').write_text('A = 2\n')
+    status = page_status(root, 'docs/results.md', per_robot=True)
+    assert not status.current and status.blas_class is None
+    assert "NOT of today's code" in status.line()
+
+
 def test_a_page_whose_plan_changed_since_its_revision_is_not_current(tmp_path):
     """The robots page's plan (not part of the fingerprint: it says which runs, not how a
     run goes) changed after the revision the page names: not current, and the line says so;
