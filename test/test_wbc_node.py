@@ -13,6 +13,7 @@ import math
 import time
 
 import numpy as np
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from harness import CONFIG_DIR
 from nav_msgs.msg import Odometry
@@ -127,9 +128,9 @@ def test_first_command_waits_for_listeners_then_starts_anyway(launcher, probe):
     assert 'test_probe on odom' not in log and 'test_probe on contacts,' not in log
 
 
-# Wall s between two publishes of a tick not yet answered, as the sim's republish_period
-# (config/sim.yaml).
-REPUBLISH_PERIOD = 0.1
+# Wall s between two publishes of a tick not yet answered: the sim's republish_period.
+REPUBLISH_PERIOD = float(yaml.safe_load((CONFIG_DIR / 'sim.yaml').read_text())
+                         ['sim']['ros__parameters']['republish_period'])
 
 
 class FakeSimAndPlanners:
