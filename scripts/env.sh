@@ -15,12 +15,14 @@ set +u
 source "$REPLAN_ROOT/install/setup.bash"
 [ "$_replan_nounset" = "on" ] && set -u
 unset _replan_nounset
-# Never talk to other machines unless the user asks for it.
-export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+# Never talk to other machines unless the user asks for it: Fast DDS over UDP on the loopback,
+# no shared memory (config/dds/fastdds.xml says why). SYSTEM_DEFAULT leaves the transports to
+# that profile; LOCALHOST would add shared memory (docs/usage.md, "DDS").
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-SYSTEM_DEFAULT}"
 export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
-# Reliable writers announce what they sent every 100 ms (Fast DDS: every 3 s), so a sample lost
-# in transport is sent again before a run's end stops its writer (docs/recording.md, "The end
-# of a run").
+# The loopback transport above, and reliable writers that announce what they sent every 100 ms
+# (Fast DDS: every 3 s), so a sample lost in transport is sent again before a run's end stops
+# its writer (docs/recording.md, "The end of a run").
 export FASTRTPS_DEFAULT_PROFILES_FILE="${FASTRTPS_DEFAULT_PROFILES_FILE:-$REPLAN_ROOT/config/dds/fastdds.xml}"
 export PYTHONUNBUFFERED=1
 # proxsuite's OpenMP threads spin on a 2-core machine shared with the simulator; one thread

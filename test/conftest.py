@@ -40,7 +40,7 @@ def pytest_configure(config):
         _session_domain = DomainReservation()
         os.environ['ROS_DOMAIN_ID'] = str(_session_domain.domain_id)
         os.environ[HELD_ENV] = str(_session_domain.domain_id)    # scripts pass our claim
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'   # scripts/env.sh
 
 
 def pytest_unconfigure(config):

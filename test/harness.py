@@ -74,7 +74,7 @@ def graph_env(domain_id: int) -> dict[str, str]:
     env = dict(os.environ)
     env['ROS_DOMAIN_ID'] = str(domain_id)
     env[HELD_ENV] = str(domain_id)      # the test session holds the claim (DomainReservation)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'     # scripts/env.sh
     env['PYTHONUNBUFFERED'] = '1'
     return env
 

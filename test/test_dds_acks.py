@@ -136,3 +136,26 @@ def test_a_stopping_node_waits_for_its_readers_but_not_for_a_stopped_one(ros_dom
     finally:
         reader.kill()
         reader.wait()
+
+
+def _shared_memory_maps(pid: int) -> list[str]:
+    """The Fast DDS shared-memory segments process ``pid`` has mapped."""
+    with open(f'/proc/{pid}/maps') as maps:
+        return sorted({line.split()[-1] for line in maps if '/dev/shm/fastrtps' in line})
+
+
+def test_the_nodes_talk_over_the_loopback_without_shared_memory(ros_domain):
+    """The profile's transport: UDP on the loopback, no shared-memory segment mapped (a node
+    killed by SIGKILL can leave those so that its restarted process receives nothing), and a
+    reader and a writer in two processes still find each other."""
+    assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
+    topic = f'loopback_test_{os.getpid()}'
+    reader = _start_reader(topic, 12.0)
+    try:
+        rounds = _write(topic, 1)
+        mapped = _shared_memory_maps(reader.pid)
+    finally:
+        out, _ = reader.communicate(timeout=30)
+    assert mapped == [], mapped
+    assert all(acked for acked, _ in rounds), rounds
+    assert 'received 100' in out, out

@@ -153,8 +153,11 @@ def make_run(input_yaml: str, code: str, revision: str, options: list[str],
         die = ['setpriv', '--pdeathsig', 'TERM'] if shutil.which('setpriv') else []
         with domain_slot(domain_base) as (domain, fd), _held(lock_file), \
                 open(folder / 'output.log', 'w') as output:
+            # Each graph on its own machine: the loopback profile of scripts/env.sh.
             env = dict(os.environ, ROS_DOMAIN_ID=str(domain),
-                       ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+                       ROS_AUTOMATIC_DISCOVERY_RANGE='SYSTEM_DEFAULT',
+                       FASTRTPS_DEFAULT_PROFILES_FILE=str(
+                           _node_root() / 'config' / 'dds' / 'fastdds.xml'))
             exit_code = subprocess.run(
                 [*die, sys.executable, '-m', 'replan_experiments.scenario',
                  str(folder / 'input.yaml'), '--out', str(folder), *options],

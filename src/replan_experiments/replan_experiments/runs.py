@@ -336,7 +336,7 @@ class Runner:
             if self.progress:
                 self.progress.update(started=1)
             env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-            env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+            env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SYSTEM_DEFAULT')   # scripts/env.sh
             try:
                 # The graph keeps the domain's claim (fd) if this process is killed.
                 with open(folder / 'output.log', 'w') as output, self.machine_lock():
