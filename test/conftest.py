@@ -29,6 +29,8 @@ from harness import (
     reap_leftovers,
 )
 
+from replan_ros.launch.domain import loopback_dds
+
 __all__ = ['CONFIG_DIR']
 
 _session_domain: DomainReservation | None = None
@@ -40,7 +42,7 @@ def pytest_configure(config):
         _session_domain = DomainReservation()
         os.environ['ROS_DOMAIN_ID'] = str(_session_domain.domain_id)
         os.environ[HELD_ENV] = str(_session_domain.domain_id)    # scripts pass our claim
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'   # scripts/env.sh
+        os.environ.update(loopback_dds(dict(os.environ), CONFIG_DIR, keep_set=False))
 
 
 def pytest_unconfigure(config):

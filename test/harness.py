@@ -25,7 +25,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from replan_ros.launch.domain import HELD_ENV, claim
+from replan_ros.launch.domain import HELD_ENV, claim, loopback_dds
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO_ROOT / 'config'
@@ -71,10 +71,9 @@ class DomainReservation:
 
 
 def graph_env(domain_id: int) -> dict[str, str]:
-    env = dict(os.environ)
+    env = loopback_dds(dict(os.environ), CONFIG_DIR, keep_set=False)
     env['ROS_DOMAIN_ID'] = str(domain_id)
     env[HELD_ENV] = str(domain_id)      # the test session holds the claim (DomainReservation)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'     # scripts/env.sh
     env['PYTHONUNBUFFERED'] = '1'
     return env
 

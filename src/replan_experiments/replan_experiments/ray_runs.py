@@ -30,7 +30,7 @@ from replan_experiments.runs import (
     code_fingerprint,
     git_revision,
 )
-from replan_ros.launch.domain import domain_slot
+from replan_ros.launch.domain import domain_slot, loopback_dds
 
 GRAPH_SLOT = 'graph_slot'      # Ray custom resource: process graphs a node runs at once
 # A run whose worker or node dies is made again by Ray (a system failure); a run is never
@@ -153,11 +153,9 @@ def make_run(input_yaml: str, code: str, revision: str, options: list[str],
         die = ['setpriv', '--pdeathsig', 'TERM'] if shutil.which('setpriv') else []
         with domain_slot(domain_base) as (domain, fd), _held(lock_file), \
                 open(folder / 'output.log', 'w') as output:
-            # Each graph on its own machine: the loopback profile of scripts/env.sh.
-            env = dict(os.environ, ROS_DOMAIN_ID=str(domain),
-                       ROS_AUTOMATIC_DISCOVERY_RANGE='SYSTEM_DEFAULT',
-                       FASTRTPS_DEFAULT_PROFILES_FILE=str(
-                           _node_root() / 'config' / 'dds' / 'fastdds.xml'))
+            # Each graph on its own machine, whatever the worker's environment says.
+            env = loopback_dds(dict(os.environ, ROS_DOMAIN_ID=str(domain)),
+                               _node_root() / 'config', keep_set=False)
             exit_code = subprocess.run(
                 [*die, sys.executable, '-m', 'replan_experiments.scenario',
                  str(folder / 'input.yaml'), '--out', str(folder), *options],

@@ -20,7 +20,7 @@ from pathlib import Path
 import yaml
 
 from replan_experiments.plan import ExperimentError
-from replan_ros.launch.domain import domain_slot
+from replan_ros.launch.domain import domain_slot, loopback_dds
 from replan_ros.launch.param_files import DEFAULT_ROBOT
 
 DEFAULT_DOMAIN_BASE = 150      # the node tests reserve 2..101 (test/harness.py)
@@ -335,8 +335,8 @@ class Runner:
         with self.slots, domain_slot(self.domain_base) as (domain, fd):
             if self.progress:
                 self.progress.update(started=1)
-            env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
-            env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'SYSTEM_DEFAULT')   # scripts/env.sh
+            env = loopback_dds(dict(os.environ, ROS_DOMAIN_ID=str(domain)),
+                               self.config_dir.resolve())
             try:
                 # The graph keeps the domain's claim (fd) if this process is killed.
                 with open(folder / 'output.log', 'w') as output, self.machine_lock():

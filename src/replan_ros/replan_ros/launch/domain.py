@@ -33,6 +33,19 @@ MAX_DOMAIN = 232                   # the largest ROS_DOMAIN_ID with valid DDS po
 DOMAIN_POOL = 16                   # domains domain_slot tries, from its base up
 
 
+
+def loopback_dds(env: dict[str, str], config_dir: Path,
+                 keep_set: bool = True) -> dict[str, str]:
+    """``env`` with DDS on this machine's loopback, as scripts/env.sh sets it for every script:
+    ``ROS_AUTOMATIC_DISCOVERY_RANGE`` SYSTEM_DEFAULT, which leaves the transports to the
+    profile, and ``FASTRTPS_DEFAULT_PROFILES_FILE`` ``config_dir/dds/fastdds.xml``, whose
+    participant talks UDP on 127.0.0.1 only (without it, SYSTEM_DEFAULT would be Fast DDS's own
+    defaults, the network included; docs/usage.md, "DDS"). ``keep_set``: a range or profile
+    already in ``env`` (the user's) stays."""
+    wanted = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SYSTEM_DEFAULT',
+              'FASTRTPS_DEFAULT_PROFILES_FILE': str(config_dir / 'dds' / 'fastdds.xml')}
+    return ({**wanted, **env} if keep_set else {**env, **wanted})
+
 def lock_folder() -> Path:
     """The folder of the lock files: the user's runtime folder, else one per user in /tmp."""
     runtime = os.environ.get('XDG_RUNTIME_DIR')

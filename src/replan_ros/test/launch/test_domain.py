@@ -12,7 +12,14 @@ import time
 
 import pytest
 
-from replan_ros.launch.domain import DOMAIN_POOL, claim, domain_slot, lock_path, main
+from replan_ros.launch.domain import (
+    DOMAIN_POOL,
+    claim,
+    domain_slot,
+    lock_path,
+    loopback_dds,
+    main,
+)
 
 
 def test_a_claimed_domain_is_refused_until_released(tmp_path):
@@ -121,3 +128,17 @@ def test_a_child_that_inherits_the_lock_keeps_the_domain(tmp_path):
         child.wait()
     with domain_slot(150, tmp_path) as (after, _):
         assert after == domain
+
+
+def test_loopback_dds_names_the_range_and_the_profile_together(tmp_path):
+    """SYSTEM_DEFAULT without the loopback profile would be Fast DDS's own defaults (the
+    network): the two come as a pair; a user's setting stays unless told otherwise."""
+    profile = str(tmp_path / 'dds' / 'fastdds.xml')
+    assert loopback_dds({'X': '1'}, tmp_path) == {
+        'X': '1', 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SYSTEM_DEFAULT',
+        'FASTRTPS_DEFAULT_PROFILES_FILE': profile}
+    users = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET', 'FASTRTPS_DEFAULT_PROFILES_FILE': 'mine'}
+    assert loopback_dds(users, tmp_path) == users
+    assert loopback_dds(users, tmp_path, keep_set=False) == {
+        'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SYSTEM_DEFAULT',
+        'FASTRTPS_DEFAULT_PROFILES_FILE': profile}
