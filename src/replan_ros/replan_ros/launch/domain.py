@@ -33,7 +33,6 @@ MAX_DOMAIN = 232                   # the largest ROS_DOMAIN_ID with valid DDS po
 DOMAIN_POOL = 16                   # domains domain_slot tries, from its base up
 
 
-
 def loopback_dds(env: dict[str, str], config_dir: Path,
                  keep_set: bool = True) -> dict[str, str]:
     """``env`` with DDS on this machine's loopback, as scripts/env.sh sets it for every script:
@@ -44,7 +43,8 @@ def loopback_dds(env: dict[str, str], config_dir: Path,
     already in ``env`` (the user's) stays."""
     wanted = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SYSTEM_DEFAULT',
               'FASTRTPS_DEFAULT_PROFILES_FILE': str(config_dir / 'dds' / 'fastdds.xml')}
-    return ({**wanted, **env} if keep_set else {**env, **wanted})
+    return {**wanted, **env} if keep_set else {**env, **wanted}
+
 
 def lock_folder() -> Path:
     """The folder of the lock files: the user's runtime folder, else one per user in /tmp."""
