@@ -18,6 +18,7 @@ POSITIONALS = {
     'bench_sim.sh': ['1'],
     'cmd_vel.sh': ['0.1', '0', '0'],
     'demo.sh': ['runs/never-created'],
+    'gait_report.sh': ['runs/never-created'],
     'paper_results.sh': ['runs/never-created'],
     'push.sh': ['0', '10', '0', '--duration', '0.1'],
     'replay.sh': ['no-such-bag.mcap'],
