@@ -29,8 +29,8 @@ from replan_ros.recording.bag_read import TRUTH_TOPIC, read_messages
 
 SENSED_TOPIC = '/contacts'
 TRUE_CONTACTS_TOPIC = '/ground_truth/contacts'
-# s: a touchdown sensed up to this long before the truth's still pairs with it (the truth is
-# debounced too: two ticks of 4 ms).
+# s: a touchdown sensed up to this long before the truth's still pairs with it (the truth's
+# contact flag is debounced too, sim.debounce_ticks).
 PAIR_SLACK = 0.02
 
 
@@ -100,8 +100,8 @@ def cycle_splits(boundaries: list[float], speed: float, direction: np.ndarray,
     return rows
 
 
-def _touchdowns(times: np.ndarray, touchdown: np.ndarray) -> list[tuple[float, int]]:
-    """(time s, leg) of every touchdown flag of a contact series."""
+def _touchdowns(times, touchdown) -> list[tuple[float, int]]:
+    """(time s, leg) of every touchdown flag: ``touchdown`` (n, 4) bool at ``times`` (n,) s."""
     return [(float(t), int(leg)) for t, row in zip(times, touchdown, strict=True)
             for leg in np.flatnonzero(row)]
 
@@ -112,15 +112,16 @@ def report(run: Path, after: float, late: float) -> list[str]:
     counts as late."""
     metrics = json.loads((run / 'metrics.json').read_text())
     data = read_messages(run / 'bag', topics=(TRUTH_TOPIC, SENSED_TOPIC, TRUE_CONTACTS_TOPIC))
-    sensed_series, true_series = (contact_series(data, SENSED_TOPIC),
-                                  contact_series(data, TRUE_CONTACTS_TOPIC))
+    sensed_series = contact_series(data, SENSED_TOPIC)
+    truth = true_contacts(data)              # stamp -> the true contact state, feet included
     odom = sorted((base_state_from_odom(m) for _, m in data.get(TRUTH_TOPIC, [])),
                   key=lambda b: b.stamp)
-    if not (odom and sensed_series and true_series):
+    if not (odom and sensed_series and truth):
         raise ValueError(f'{run}: the bag holds no {TRUTH_TOPIC}, {SENSED_TOPIC} or '
                          f'{TRUE_CONTACTS_TOPIC}')
+    true_times = sorted(truth)
     sensed = _touchdowns(sensed_series['times'], sensed_series['touchdown'])
-    true = _touchdowns(true_series['times'], true_series['touchdown'])
+    true = _touchdowns(true_times, [truth[t].touchdown for t in true_times])
     lines = _sensing_lines(sensing_delays(sensed, true), after, late)
     times = np.array([t for t, _ in sensed if t >= after])
     if len(times) > 1:
@@ -129,10 +130,8 @@ def report(run: Path, after: float, late: float) -> list[str]:
                      f'{np.median(intervals):.3f}, {intervals.min():.3f}-{intervals.max():.3f}')
     trunk = (np.array([b.stamp for b in odom]), np.array([b.position[:2] for b in odom]))
     yaws = roll_pitch_yaw(np.array([b.quaternion for b in odom]))[:, 2]
-    true_states = true_contacts(data)
-    feet = (np.array(sorted(true_states)),
-            np.array([np.asarray(true_states[t].foot_position)[:, :2]
-                      for t in sorted(true_states)]))
+    feet = (np.array(true_times),
+            np.array([np.asarray(truth[t].foot_position)[:, :2] for t in true_times]))
     sensed_times = np.array([t for t, _ in sensed])
     for segment in metrics.get('velocity_tracking') or []:
         lines += _segment_lines(segment, sensed_times, trunk, yaws, feet)
