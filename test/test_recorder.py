@@ -480,3 +480,54 @@ def test_a_respawned_recorder_continues_the_bag_as_a_split(launcher, probe, tmp_
     counted = bag_completeness(folder)
     assert not counted.complete and counted.topics['/rec/joint_states'].missing >= 50, \
         counted.gaps_text()
+
+
+def test_a_stopped_recorder_gets_every_tick_and_plan_again_from_the_writers(
+        launcher, probe, tmp_path):
+    """A recorder whose process does not run for a second (SIGSTOP: as when a loaded machine
+    does not schedule its receive thread) while the per-tick topics fill its socket misses
+    samples in transport; the writers' histories (``SENSOR_PUB``, ``LATCHED_PUB``) send them
+    again, so the bag holds every tick and every plan (docs/recording.md, "No loss"). With
+    plan writers of depth 1 the plans published while it stopped were lost."""
+    from replan_ros.recording.completeness import bag_completeness
+    from replan_ros.transport.qos import LATCHED_PUB, SENSOR_PUB
+
+    node = probe.node
+    ticks = node.create_publisher(JointState, '/rec/joint_states', SENSOR_PUB)
+    plans = node.create_publisher(MultiDOFJointTrajectory, '/rec/com_plan', LATCHED_PUB)
+    joints = [f'joint_{i}' for i in range(60)]     # about 2.5 kB a tick: 0.6 MB/s at 250 Hz
+    folder = tmp_path / 'bag'
+    recorder = launcher.start('recorder_node', params_file=CONFIG_DIR / 'recorder.yaml',
+                              params={'output_dir': str(folder),
+                                      'topics': ['/rec/joint_states', '/rec/com_plan']})
+    assert _wait_subscribed(probe, ['/rec/joint_states', '/rec/com_plan']), launcher.logs()
+    probe.spin_for(1.0)
+    count, plan_every, stop_at, resume_at = 1000, 25, 250, 500     # ticks; 1 s stopped
+    start = time.monotonic()
+    try:
+        for k in range(count):
+            if k == stop_at:
+                recorder.signal(signal.SIGSTOP)
+            elif k == resume_at:
+                recorder.signal(signal.SIGCONT)
+            msg = JointState(name=joints, position=[0.001 * k] * 60, velocity=[0.0] * 60)
+            msg.header.stamp = _stamp(k)
+            ticks.publish(msg)
+            if k % plan_every == 0:
+                plans.publish(_trajectory(k))
+            delay = start + (k + 1) * TICK - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+    finally:
+        recorder.signal(signal.SIGCONT)
+    probe.spin_for(1.0)
+    assert recorder.stop() == 0, recorder.log()
+    written = {'/rec/joint_states': [], '/rec/com_plan': []}
+    for topic, _, _, msg in iter_decoded(next(folder.glob('*.mcap'))):
+        written[topic].append(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
+    # No /clock here: every log time is 0, so the order within the bag is not checked.
+    assert sorted(written['/rec/joint_states']) == [(k + 1) * 4_000_000 for k in range(count)]
+    assert sorted(written['/rec/com_plan']) == [(k + 1) * 4_000_000
+                                                for k in range(0, count, plan_every)]
+    counted = bag_completeness(folder)
+    assert counted.topics['/rec/com_plan'].missing == 0, counted.gaps_text()

@@ -18,6 +18,7 @@ from pathlib import Path
 from ament_index_python.packages import get_package_prefix
 from rclpy.duration import Duration as RclpyDuration
 
+from replan_ros.launch.domain import loopback_dds
 from replan_ros.launch.param_files import (
     DEFAULT_GAIT,
     DEFAULT_PROFILE,
@@ -30,6 +31,7 @@ from replan_ros.launch.param_files import (
 )
 from replan_ros.launch.progress import ProgressLine, RunProgress
 from replan_ros.launch.watch import ClockWatch
+from replan_ros.params.robot import project_root
 from replan_ros.transport.on_demand import helper_name
 
 NODES = ('sim', 'gait', 'mpc', 'wbc')
@@ -38,9 +40,9 @@ NODES = ('sim', 'gait', 'mpc', 'wbc')
 def wbc_listeners(recording: bool) -> list[str]:
     """Whom the wbc's first command waits for (its ``first_command_waits_for``): the planners
     on the estimate they read and, in a recorded graph, the recorder on all of it. A wbc started
-    again on a running graph is unknown to the other processes for one to three wall s of DDS
-    discovery: stepping meanwhile, the planners would plan nothing and the bag would lose its
-    first ticks. The estimate comes from the wbc, which starts last, so at the graph's start the
+    again on a running graph is unknown to the other processes until DDS discovery has matched
+    its writers with their readers: stepping meanwhile, the planners would plan nothing and the
+    bag would lose its first ticks. The estimate comes from the wbc, which starts last, so at the graph's start the
     wait is the same as for its first plans."""
     planners = [f'{helper_name("gait")}=contacts+odom', f'{helper_name("mpc")}=odom']
     return planners + ([helper_name('recorder')] if recording else [])
@@ -190,8 +192,9 @@ class Graph:
         if layer is not None:
             first.append(layer.write(run_dir / 'robot.yaml'))
         param_files = [*first, *param_files]
-        self.env = dict(env or os.environ)
-        self.env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+        # DDS on the loopback as scripts/env.sh sets it, for a graph started from Python too;
+        # the project's profile, not the run's configuration (a re-run's has none).
+        self.env = loopback_dds(dict(env or os.environ), project_root() / 'config')
         self.env['PYTHONUNBUFFERED'] = '1'
         self.log = log
         self.nodes: list[ManagedNode] = []

@@ -60,7 +60,7 @@ from replan_ros.transport.qos import (
     CONTACTS,
     INTERNAL_PUB_EVENTS,
     INTERNAL_SUB_EVENTS,
-    LATCHED,
+    LATCHED_PUB,
     SCHEDULE,
     SENSOR,
     with_depth,
@@ -92,11 +92,11 @@ class GaitNode(Node):
         self._started = time.monotonic()
         self.model = self._robot_model(p)
 
-        self.footholds_pub = self.create_publisher(PointCloud2, 'footholds', LATCHED,
+        self.footholds_pub = self.create_publisher(PointCloud2, 'footholds', LATCHED_PUB,
                                                    event_callbacks=INTERNAL_PUB_EVENTS)
         self.setpoint_pub = self.create_publisher(TwistStamped, 'velocity_setpoint', SCHEDULE,
                                                   event_callbacks=INTERNAL_PUB_EVENTS)
-        self.markers_pub = self.create_publisher(MarkerArray, 'gait_markers', LATCHED,
+        self.markers_pub = self.create_publisher(MarkerArray, 'gait_markers', LATCHED_PUB,
                                                  event_callbacks=INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
                                               event_callbacks=INTERNAL_PUB_EVENTS)

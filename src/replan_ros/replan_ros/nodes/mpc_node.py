@@ -57,6 +57,7 @@ from replan_ros.transport.qos import (
     INTERNAL_PUB_EVENTS,
     INTERNAL_SUB_EVENTS,
     LATCHED,
+    LATCHED_PUB,
     SENSOR,
     with_depth,
 )
@@ -80,11 +81,11 @@ class MpcNode(Node):
         self.fallback_window_ns = round(float(p['state_fallback_window']) * 1e9)
         self._warn = ThrottledLog(self.get_logger(), float(p['warn_period']))
 
-        self.com_plan_pub = self.create_publisher(MultiDOFJointTrajectory, 'com_plan', LATCHED,
-                                                  event_callbacks=INTERNAL_PUB_EVENTS)
-        self.zmp_pub = self.create_publisher(Path, 'zmp_plan', LATCHED,
+        self.com_plan_pub = self.create_publisher(MultiDOFJointTrajectory, 'com_plan',
+                                                  LATCHED_PUB, event_callbacks=INTERNAL_PUB_EVENTS)
+        self.zmp_pub = self.create_publisher(Path, 'zmp_plan', LATCHED_PUB,
                                              event_callbacks=INTERNAL_PUB_EVENTS)
-        self.com_path_pub = self.create_publisher(Path, 'com_path', LATCHED,
+        self.com_path_pub = self.create_publisher(Path, 'com_path', LATCHED_PUB,
                                                   event_callbacks=INTERNAL_PUB_EVENTS)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', COMMAND,
                                               event_callbacks=INTERNAL_PUB_EVENTS)

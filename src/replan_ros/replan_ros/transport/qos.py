@@ -62,6 +62,14 @@ CLOCK = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
 CONTACTS_PUB = with_depth(CONTACTS, RECORDED_HISTORY)
 COMMAND_PUB = with_depth(COMMAND, RECORDED_HISTORY)
 CLOCK_PUB = with_depth(CLOCK, RECORDED_HISTORY // 5)    # /clock: every 5th tick
+# The writers of plans (footholds, com_plan, zmp_plan, com_path, gait_markers: one of each per
+# re-plan) keep the last PLAN_HISTORY, for the same reason: with depth 1 a plan the recorder
+# missed in transport could be sent again only until the next re-plan replaced it. 20 re-plans
+# are 4 s of sim time or more. A late joiner that reads them LATCHED (depth 1) still keeps the
+# newest only; one that keeps all (a respawned recorder) gets the history (docs/recording.md,
+# "No loss").
+PLAN_HISTORY = 20
+LATCHED_PUB = with_depth(LATCHED, PLAN_HISTORY)
 
 # No QoS-event handlers on the topics between our own nodes, whose profiles all come from this
 # module and so cannot mismatch. rclpy turns each handler into a waitable that its executor walks
