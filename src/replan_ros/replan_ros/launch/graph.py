@@ -42,8 +42,8 @@ def wbc_listeners(recording: bool) -> list[str]:
     on the estimate they read and, in a recorded graph, the recorder on all of it. A wbc started
     again on a running graph is unknown to the other processes until DDS discovery has matched
     its writers with their readers: stepping meanwhile, the planners would plan nothing and the
-    bag would lose its first ticks. The estimate comes from the wbc, which starts last, so at the graph's start the
-    wait is the same as for its first plans."""
+    bag would lose its first ticks. The estimate comes from the wbc, which starts last, so at
+    the graph's start the wait is the same as for its first plans."""
     planners = [f'{helper_name("gait")}=contacts+odom', f'{helper_name("mpc")}=odom']
     return planners + ([helper_name('recorder')] if recording else [])
 
