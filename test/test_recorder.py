@@ -26,6 +26,7 @@ from sensor_msgs.msg import JointState, PointCloud2, PointField
 from test_launch import LaunchProcess
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
+from replan_ros.messages.stamps import stamp_to_ns
 from replan_ros.recording.bag_io import iter_decoded, qos_profiles_yaml
 from replan_ros.recording.bag_writer import BagWriter, recover
 from replan_ros.transport.on_demand import helper_name
@@ -524,10 +525,30 @@ def test_a_stopped_recorder_gets_every_tick_and_plan_again_from_the_writers(
     assert recorder.stop() == 0, recorder.log()
     written = {'/rec/joint_states': [], '/rec/com_plan': []}
     for topic, _, _, msg in iter_decoded(next(folder.glob('*.mcap'))):
-        written[topic].append(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
+        written[topic].append(stamp_to_ns(msg.header.stamp))
     # No /clock here: every log time is 0, so the order within the bag is not checked.
-    assert sorted(written['/rec/joint_states']) == [(k + 1) * 4_000_000 for k in range(count)]
-    assert sorted(written['/rec/com_plan']) == [(k + 1) * 4_000_000
+    assert sorted(written['/rec/joint_states']) == [stamp_to_ns(_stamp(k)) for k in range(count)]
+    assert sorted(written['/rec/com_plan']) == [stamp_to_ns(_stamp(k))
                                                 for k in range(0, count, plan_every)]
     counted = bag_completeness(folder)
     assert counted.topics['/rec/com_plan'].missing == 0, counted.gaps_text()
+
+
+def test_a_late_plan_reader_gets_the_newest_plan_and_a_recorder_the_history(probe):
+    """The plan writers' history (``LATCHED_PUB``, 20) reaches a reader that joins late only
+    if it keeps all (a respawned recorder: ``recorder_qos``); the graph's readers (``LATCHED``,
+    depth 1) still get the newest plan alone (docs/recording.md, "No loss")."""
+    from replan_ros.transport.qos import LATCHED_PUB, PLAN_HISTORY, recorder_qos
+
+    plans = probe.node.create_publisher(MultiDOFJointTrajectory, '/rec/late_plan', LATCHED_PUB)
+    published = [_trajectory(k) for k in range(10)]
+    for msg in published:
+        plans.publish(msg)
+    assert len(published) < PLAN_HISTORY
+    newest = probe.subscribe(MultiDOFJointTrajectory, '/rec/late_plan', LATCHED)
+    every = probe.subscribe(MultiDOFJointTrajectory, '/rec/late_plan',
+                            recorder_qos([LATCHED_PUB])[0])
+    assert probe.spin_until(lambda: len(every) == len(published), timeout=10.0), len(every)
+    probe.spin_for(0.5)                  # nothing more comes to either
+    assert [m.header.stamp for m in every] == [m.header.stamp for m in published]
+    assert [m.header.stamp for m in newest] == [published[-1].header.stamp]

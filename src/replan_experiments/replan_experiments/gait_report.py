@@ -1,6 +1,7 @@
 """What a run's gait did, step by step, read from its bag: when each touchdown was sensed
 against the true contact, the step periods, and each whole cycle's speed split into the feet's
-strides and the trunk's place over them (docs/gait.md, "Response to a set-point change").
+strides and the trunk's place over them, and the velocity feedback's stride correction at the
+end of each set-point (docs/gait.md, "Response to a set-point change").
 
     python -m replan_experiments.gait_report RUN_DIR [--after S] [--late S]
 
@@ -29,6 +30,7 @@ from replan_ros.recording.bag_read import TRUTH_TOPIC, read_messages
 
 SENSED_TOPIC = '/contacts'
 TRUE_CONTACTS_TOPIC = '/ground_truth/contacts'
+DIAGNOSTICS_TOPIC = '/diagnostics'
 # s: a touchdown sensed up to this long before the truth's still pairs with it (the truth's
 # contact flag is debounced too, sim.debounce_ticks).
 PAIR_SLACK = 0.02
@@ -106,12 +108,27 @@ def _touchdowns(times, touchdown) -> list[tuple[float, int]]:
             for leg in np.flatnonzero(row)]
 
 
+def stride_corrections(diagnostics) -> list[tuple[float, float, float]]:
+    """(stamp s, x m, y m) of the gait's velocity-feedback stride correction (body frame), from
+    its ``/diagnostics`` messages ((log time, message) pairs), in stamp order."""
+    rows = []
+    for _, array in diagnostics:
+        for status in array.status:
+            values = {kv.key: kv.value for kv in status.values}
+            if status.name.startswith('gait') and 'stride_correction_x' in values:
+                stamp = array.header.stamp.sec + 1e-9 * array.header.stamp.nanosec
+                rows.append((stamp, float(values['stride_correction_x']),
+                             float(values['stride_correction_y'])))
+    return sorted(rows)
+
+
 def report(run: Path, after: float, late: float) -> list[str]:
     """The report's lines for the run folder ``run``; touchdowns before ``after`` (s, the
     stand-up) are left out; a sensed touchdown later than ``late`` (s) after its true contact
     counts as late."""
     metrics = json.loads((run / 'metrics.json').read_text())
-    data = read_messages(run / 'bag', topics=(TRUTH_TOPIC, SENSED_TOPIC, TRUE_CONTACTS_TOPIC))
+    data = read_messages(run / 'bag', topics=(TRUTH_TOPIC, SENSED_TOPIC, TRUE_CONTACTS_TOPIC,
+                                              DIAGNOSTICS_TOPIC))
     sensed_series = contact_series(data, SENSED_TOPIC)
     truth = true_contacts(data)              # stamp -> the true contact state, feet included
     odom = sorted((base_state_from_odom(m) for _, m in data.get(TRUTH_TOPIC, [])),
@@ -133,8 +150,15 @@ def report(run: Path, after: float, late: float) -> list[str]:
     feet = (np.array(true_times),
             np.array([np.asarray(truth[t].foot_position)[:, :2] for t in true_times]))
     sensed_times = np.array([t for t, _ in sensed])
+    corrections = stride_corrections(data.get(DIAGNOSTICS_TOPIC, []))
     for segment in metrics.get('velocity_tracking') or []:
         lines += _segment_lines(segment, sensed_times, trunk, yaws, feet)
+        settled = [row for row in corrections if row[0] < segment['end_s']]
+        if (any(segment['commanded'])
+                and segment['start_s'] < (settled[-1][0] if settled else -math.inf)):
+            _, x, y = settled[-1]
+            lines.append(f'  stride correction at {settled[-1][0]:.2f} s, the last before '
+                         f'{segment["end_s"]:.2f} s: x {1000 * x:+.1f} mm, y {1000 * y:+.1f} mm')
     return lines
 
 

@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.serialization import serialize_message
 
 from replan_core.common.types import BaseState, ContactState
@@ -34,7 +35,8 @@ def _write_run(run):
     channels = {topic: writer.add_channel(topic, kind) for topic, kind in (
         ('/ground_truth/odom', 'nav_msgs/msg/Odometry'),
         ('/ground_truth/contacts', 'sensor_msgs/msg/PointCloud2'),
-        ('/contacts', 'sensor_msgs/msg/PointCloud2'))}
+        ('/contacts', 'sensor_msgs/msg/PointCloud2'),
+        ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray'))}
     true_ticks = {round((0.5 + 0.75 * k) / TICK): ORDER[k % 4] for k in range(9)}
     sensed_ticks = {n + (19 if leg == LATE_LEG else 0): leg for n, leg in true_ticks.items()}
     sensed_ticks[round(5.2 / TICK)] = 0        # lf sensed again with no new true contact
@@ -59,10 +61,17 @@ def _write_run(run):
                                               np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
                                               np.zeros(3)))
         writer.write(channels['/ground_truth/odom'], serialize_message(odom), ns, ns)
+    for t, x in ((1.0, 0.001), (6.0, -0.0025), (6.9, 0.0)):   # the last one after end_s
+        diag = DiagnosticArray(status=[DiagnosticStatus(name='gait', values=[
+            KeyValue(key='stride_correction_x', value=str(x)),
+            KeyValue(key='stride_correction_y', value='0.0015')])])
+        diag.header.stamp.sec, diag.header.stamp.nanosec = int(t), round((t % 1) * 1e9)
+        ns = round(t * 1e9)
+        writer.write(channels['/diagnostics'], serialize_message(diag), ns, ns)
     writer.close()
     cycles = [{'start_s': 0.5, 'end_s': 3.5}, {'start_s': 3.5, 'end_s': 6.5}]
     (run / 'metrics.json').write_text(json.dumps({'velocity_tracking': [
-        {'start_s': 0.0, 'end_s': DURATION, 'commanded': [0.0, SPEED, 0.0],
+        {'start_s': 0.0, 'end_s': 6.5, 'commanded': [0.0, SPEED, 0.0],
          'cycle_velocities': cycles}]}))
 
 
@@ -103,6 +112,8 @@ def test_the_report_of_a_run_folder(tmp_path):
     assert float(first[7]) - float(first[5]) == pytest.approx(10.0, abs=0.05)
     assert float(first[10]) - float(first[8]) == pytest.approx(10.0, abs=0.05)
     assert float(second[8]) == pytest.approx(float(second[10]), abs=0.05)
+    assert lines[6] == ('  stride correction at 6.00 s, the last before 6.50 s: x -2.5 mm, '
+                        'y +1.5 mm')
 
 
 def test_a_folder_without_a_run_is_one_line(tmp_path, capsys):
