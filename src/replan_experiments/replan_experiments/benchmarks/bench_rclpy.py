@@ -6,7 +6,9 @@
 2. ``bystanders``: a ping-pong like the sim and the controller (3 state messages out, 1 command
    back, each in its own process) with 2 extra processes subscribed to the 3 state topics, spun
    by an executor (a Python wake-up per message) or read on demand (``on_demand.py``, never
-   taken here): milliseconds per round trip.
+   taken here): milliseconds per round trip. Without bystanders, also the CPU time per round
+   of each side (the process's user + system time over the timed rounds): what rclpy alone
+   costs the sim and the wbc node per tick, before either does any work.
 
 Prints one JSON line.   python -m replan_experiments.benchmarks.bench_rclpy [--rounds N]
 """
@@ -17,6 +19,7 @@ import argparse
 import json
 import os
 import signal
+import struct
 import subprocess
 import sys
 import time
@@ -24,6 +27,7 @@ import time
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
 
@@ -85,6 +89,29 @@ def _role_controller() -> None:
     rclpy.spin(node)
 
 
+def _role_controller_lean() -> None:
+    """As ``_role_controller``, the way the wbc node reads and writes: serialized messages
+    (``raw=True``, bytes published; the node's own CDR code is not timed here), no QoS-event
+    handlers, and 3 messages out per round (command, odom, contacts)."""
+    node = Node('bench_controller')
+    outputs = [node.create_publisher(JointState, topic, qos.COMMAND,
+                                      event_callbacks=qos.INTERNAL_PUB_EVENTS)
+               for topic in ('bench_command', 'bench_output_1', 'bench_output_2')]
+    seen: dict[int, int] = {}
+
+    def on_state(data: bytes) -> None:
+        k = struct.unpack_from('<i', data, 4)[0]      # header.stamp.sec, after the CDR header
+        seen[k] = seen.get(k, 0) + 1
+        if seen[k] == len(STATE_TOPICS):
+            del seen[k]
+            for publisher in outputs:
+                publisher.publish(data)
+    for topic in STATE_TOPICS:
+        node.create_subscription(JointState, topic, on_state, qos.SENSOR,
+                                 event_callbacks=qos.INTERNAL_SUB_EVENTS, raw=True)
+    rclpy.spin(node)
+
+
 def _role_bystander(on_demand: bool) -> None:
     node = Node('bench_bystander')
     if on_demand:
@@ -97,17 +124,44 @@ def _role_bystander(on_demand: bool) -> None:
     rclpy.spin(node)
 
 
-def _round_trip(bystanders: int, on_demand: bool, rounds: int) -> float:
-    """Milliseconds per round: 3 state messages out, the command back."""
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU time (s) of process ``pid`` so far (``/proc/<pid>/stat``)."""
+    with open(f'/proc/{pid}/stat') as stat:
+        fields = stat.read().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def _round_trip(bystanders: int, on_demand: bool, rounds: int,
+                lean: bool = False) -> tuple[float, float, float]:
+    """Per round (3 state messages out, the command back): wall ms, and CPU ms of this
+    process (the sim's side) and of the controller process (``lean``: the wbc node's way,
+    ``_role_controller_lean``)."""
     role = 'bystander_on_demand' if on_demand else 'bystander_spun'
     me = [sys.executable, '-m', 'replan_experiments.benchmarks.bench_rclpy', '--role']
-    children = [subprocess.Popen([*me, 'controller'])]
+    children = [subprocess.Popen([*me, 'controller_lean' if lean else 'controller'])]
     children += [subprocess.Popen([*me, role]) for _ in range(bystanders)]
     node = Node('bench_simulator')
-    publishers = [node.create_publisher(JointState, t, qos.SENSOR) for t in STATE_TOPICS]
     answered: list[int] = []
-    node.create_subscription(JointState, 'bench_command',
-                             lambda msg: answered.append(msg.header.stamp.sec), qos.COMMAND)
+    if lean:
+        # Serialized states (the sim's CDR code is not timed: a template with the round's
+        # number written in), no QoS-event handlers, the command read serialized.
+        publishers = [node.create_publisher(JointState, t, qos.SENSOR,
+                                            event_callbacks=qos.INTERNAL_PUB_EVENTS)
+                      for t in STATE_TOPICS]
+        template = bytearray(serialize_message(_state(0)))
+
+        def state(k: int) -> bytes:
+            struct.pack_into('<i', template, 4, k)
+            return bytes(template)
+        node.create_subscription(
+            JointState, 'bench_command',
+            lambda data: answered.append(struct.unpack_from('<i', data, 4)[0]), qos.COMMAND,
+            event_callbacks=qos.INTERNAL_SUB_EVENTS, raw=True)
+    else:
+        publishers = [node.create_publisher(JointState, t, qos.SENSOR) for t in STATE_TOPICS]
+        state = _state
+        node.create_subscription(JointState, 'bench_command',
+                                 lambda msg: answered.append(msg.header.stamp.sec), qos.COMMAND)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
@@ -117,18 +171,23 @@ def _round_trip(bystanders: int, on_demand: bool, rounds: int) -> float:
             if time.monotonic() > deadline:
                 raise RuntimeError('bench_rclpy: the helper processes did not come up')
             executor.spin_once(timeout_sec=0.1)
-        start = 0.0
+        start = cpu_sim = cpu_controller = 0.0
         for k in range(WARM_UP + rounds):
             if k == WARM_UP:
                 start = time.perf_counter()
+                cpu_sim = time.process_time()
+                cpu_controller = _cpu_seconds(children[0].pid)
             for publisher in publishers:
-                publisher.publish(_state(k))
+                publisher.publish(state(k))
             while not answered or answered[-1] != k:
                 executor.spin_once(timeout_sec=0.5)
                 if not answered or answered[-1] != k:
                     for publisher in publishers:      # best effort: a lost one is resent
-                        publisher.publish(_state(k))
-        return (time.perf_counter() - start) / rounds * 1e3
+                        publisher.publish(state(k))
+        wall = time.perf_counter() - start
+        cpu_sim = time.process_time() - cpu_sim
+        cpu_controller = _cpu_seconds(children[0].pid) - cpu_controller
+        return wall / rounds * 1e3, cpu_sim / rounds * 1e3, cpu_controller / rounds * 1e3
     finally:
         executor.remove_node(node)
         node.destroy_node()
@@ -145,7 +204,7 @@ def _round_trip(bystanders: int, on_demand: bool, rounds: int) -> float:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--rounds', type=int, default=2000)
-    parser.add_argument('--role', choices=('controller', 'bystander_spun',
+    parser.add_argument('--role', choices=('controller', 'controller_lean', 'bystander_spun',
                                            'bystander_on_demand'), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     rclpy.init()
@@ -153,15 +212,27 @@ def main(argv=None) -> int:
         if args.role == 'controller':
             _role_controller()
             return 0
+        if args.role == 'controller_lean':
+            _role_controller_lean()
+            return 0
         if args.role is not None:
             _role_bystander(args.role == 'bystander_on_demand')
             return 0
         result = {
             'executor_us_per_message_default_event_handlers': _executor_cost(False, args.rounds),
             'executor_us_per_message_no_event_handlers': _executor_cost(True, args.rounds),
-            'round_trip_ms_no_bystander': _round_trip(0, False, args.rounds),
-            'round_trip_ms_2_spun_bystanders': _round_trip(2, False, args.rounds),
-            'round_trip_ms_2_on_demand_bystanders': _round_trip(2, True, args.rounds),
+        }
+        alone = _round_trip(0, False, args.rounds)
+        lean = _round_trip(0, False, args.rounds, lean=True)
+        result |= {
+            'round_trip_ms_no_bystander': alone[0],
+            'round_trip_cpu_ms_sim_side': alone[1],
+            'round_trip_cpu_ms_controller_side': alone[2],
+            'lean_round_trip_ms': lean[0],
+            'lean_round_trip_cpu_ms_sim_side': lean[1],
+            'lean_round_trip_cpu_ms_controller_side': lean[2],
+            'round_trip_ms_2_spun_bystanders': _round_trip(2, False, args.rounds)[0],
+            'round_trip_ms_2_on_demand_bystanders': _round_trip(2, True, args.rounds)[0],
             'cpus': os.cpu_count(),
         }
         print(json.dumps({k: round(v, 3) if isinstance(v, float) else v
