@@ -92,7 +92,8 @@ def _role_controller() -> None:
 def _role_controller_lean() -> None:
     """As ``_role_controller``, the way the wbc node reads and writes: serialized messages
     (``raw=True``, bytes published; the node's own CDR code is not timed here), no QoS-event
-    handlers, and 3 messages out per round (command, odom, contacts)."""
+    handlers, and 3 messages out per round (command, odom, contacts; only the command has a
+    reader here, where the node's odom and contacts have the gait's: a floor of its cost)."""
     node = Node('bench_controller')
     outputs = [node.create_publisher(JointState, topic, qos.COMMAND,
                                       event_callbacks=qos.INTERNAL_PUB_EVENTS)
