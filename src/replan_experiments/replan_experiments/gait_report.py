@@ -26,6 +26,7 @@ from replan_core.common.types import LEGS
 from replan_core.evaluation.metrics import roll_pitch_yaw
 from replan_experiments.analysis import contact_series, true_contacts
 from replan_ros.messages.odom import base_state_from_odom
+from replan_ros.messages.stamps import stamp_to_sec
 from replan_ros.recording.bag_read import TRUTH_TOPIC, read_messages
 
 SENSED_TOPIC = '/contacts'
@@ -116,8 +117,8 @@ def stride_corrections(diagnostics) -> list[tuple[float, float, float]]:
         for status in array.status:
             values = {kv.key: kv.value for kv in status.values}
             if status.name.startswith('gait') and 'stride_correction_x' in values:
-                stamp = array.header.stamp.sec + 1e-9 * array.header.stamp.nanosec
-                rows.append((stamp, float(values['stride_correction_x']),
+                rows.append((stamp_to_sec(array.header.stamp),
+                             float(values['stride_correction_x']),
                              float(values['stride_correction_y'])))
     return sorted(rows)
 
@@ -146,18 +147,18 @@ def report(run: Path, after: float, late: float) -> list[str]:
         lines.append(f'intervals between sensed touchdowns after {after:g} s (s): median '
                      f'{np.median(intervals):.3f}, {intervals.min():.3f}-{intervals.max():.3f}')
     trunk = (np.array([b.stamp for b in odom]), np.array([b.position[:2] for b in odom]))
+    trunk_velocity = np.array([b.linear_velocity[:2] for b in odom])     # m/s, world
     yaws = roll_pitch_yaw(np.array([b.quaternion for b in odom]))[:, 2]
     feet = (np.array(true_times),
             np.array([np.asarray(truth[t].foot_position)[:, :2] for t in true_times]))
     sensed_times = np.array([t for t, _ in sensed])
     corrections = stride_corrections(data.get(DIAGNOSTICS_TOPIC, []))
     for segment in metrics.get('velocity_tracking') or []:
-        lines += _segment_lines(segment, sensed_times, trunk, yaws, feet)
-        settled = [row for row in corrections if row[0] < segment['end_s']]
-        if (any(segment['commanded'])
-                and segment['start_s'] < (settled[-1][0] if settled else -math.inf)):
-            _, x, y = settled[-1]
-            lines.append(f'  stride correction at {settled[-1][0]:.2f} s, the last before '
+        lines += _segment_lines(segment, sensed_times, trunk, trunk_velocity, yaws, feet)
+        last = next((row for row in reversed(corrections) if row[0] < segment['end_s']), None)
+        if any(segment['commanded']) and last is not None and last[0] > segment['start_s']:
+            stamp, x, y = last
+            lines.append(f'  stride correction at {stamp:.2f} s, the last before '
                          f'{segment["end_s"]:.2f} s: x {1000 * x:+.1f} mm, y {1000 * y:+.1f} mm')
     return lines
 
@@ -182,8 +183,8 @@ def _sensing_lines(delays: list[Sensing], after: float, late: float) -> list[str
     return lines
 
 
-def _segment_lines(segment: dict, sensed_times: np.ndarray, trunk, yaws: np.ndarray,
-                   feet) -> list[str]:
+def _segment_lines(segment: dict, sensed_times: np.ndarray, trunk, trunk_velocity: np.ndarray,
+                   yaws: np.ndarray, feet) -> list[str]:
     command = np.asarray(segment['commanded'], dtype=float)
     speed = float(np.hypot(*command[:2]))
     cycles = segment.get('cycle_velocities') or []
@@ -209,6 +210,11 @@ def _segment_lines(segment: dict, sensed_times: np.ndarray, trunk, yaws: np.ndar
                      f'{row.feet_percent:6.1f}  {1000 * row.over_feet[0]:6.1f} -> '
                      f'{1000 * row.over_feet[1]:6.1f}  {1000 * row.over_reference[0]:6.1f} -> '
                      f'{1000 * row.over_reference[1]:6.1f}')
+    inside = (trunk[0] >= boundaries[0]) & (trunk[0] <= boundaries[-1])
+    along = trunk_velocity[inside] @ direction                 # m/s
+    if len(along):
+        lines.append(f'  trunk speed along the set-point over these cycles: {along.min():.3f} '
+                     f'to {along.max():.3f} m/s')
     return lines
 
 

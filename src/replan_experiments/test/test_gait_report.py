@@ -29,6 +29,11 @@ def _trunk_y(t: float) -> float:
     return SPEED * t + (0.01 if t >= 1.5 else 0.0)
 
 
+def _trunk_vy(t: float) -> float:
+    """Its speed surges: 0.02 m/s above SPEED in the first half of each step, below after."""
+    return SPEED + (0.02 if t % 0.75 < 0.375 else -0.02)
+
+
 def _write_run(run):
     (run / 'bag').mkdir()
     writer = BagWriter(run / 'bag' / 'run.mcap')
@@ -58,8 +63,8 @@ def _write_run(run):
                                                np.zeros(4, dtype=bool)))
             writer.write(channels[topic], serialize_message(msg), ns, ns)
         odom = odom_from_base_state(BaseState(t, np.array([0.0, _trunk_y(t), 0.5]),
-                                              np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3),
-                                              np.zeros(3)))
+                                              np.array([0.0, 0.0, 0.0, 1.0]),
+                                              np.array([0.0, _trunk_vy(t), 0.0]), np.zeros(3)))
         writer.write(channels['/ground_truth/odom'], serialize_message(odom), ns, ns)
     for t, x in ((1.0, 0.001), (6.0, -0.0025), (6.9, 0.0)):   # the last one after end_s
         diag = DiagnosticArray(status=[DiagnosticStatus(name='gait', values=[
@@ -112,7 +117,8 @@ def test_the_report_of_a_run_folder(tmp_path):
     assert float(first[7]) - float(first[5]) == pytest.approx(10.0, abs=0.05)
     assert float(first[10]) - float(first[8]) == pytest.approx(10.0, abs=0.05)
     assert float(second[8]) == pytest.approx(float(second[10]), abs=0.05)
-    assert lines[6] == ('  stride correction at 6.00 s, the last before 6.50 s: x -2.5 mm, '
+    assert lines[6] == '  trunk speed along the set-point over these cycles: 0.030 to 0.070 m/s'
+    assert lines[7] == ('  stride correction at 6.00 s, the last before 6.50 s: x -2.5 mm, '
                         'y +1.5 mm')
 
 

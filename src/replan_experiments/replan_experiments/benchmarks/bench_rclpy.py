@@ -72,44 +72,44 @@ def _state(k: int) -> JointState:
     return msg
 
 
-def _role_controller() -> None:
-    """Answer each round once its 3 state messages are in (as the wbc does)."""
+def _round_of(msg) -> int:
+    """The round a state or command belongs to: its header.stamp.sec, read from the bytes of a
+    serialized message (after the 4-byte CDR header) or from a message object."""
+    if isinstance(msg, bytes):
+        return struct.unpack_from('<i', msg, 4)[0]
+    return msg.header.stamp.sec
+
+
+def _ways(lean: bool) -> tuple[dict, dict]:
+    """Publisher and subscription keywords: rclpy's defaults, or (``lean``) the nodes' way:
+    serialized messages (``raw=True``, bytes published) and no QoS-event handlers."""
+    if not lean:
+        return {}, {}
+    return ({'event_callbacks': qos.INTERNAL_PUB_EVENTS},
+            {'event_callbacks': qos.INTERNAL_SUB_EVENTS, 'raw': True})
+
+
+def _role_controller(lean: bool) -> None:
+    """Answer each round once its 3 state messages are in (as the wbc does). ``lean``: the wbc
+    node's way (``_ways``; its own CDR code is not timed here), with 3 messages out per round
+    (command, odom, contacts; only the command has a reader here, where the node's odom and
+    contacts have the gait's: a floor of its cost)."""
     node = Node('bench_controller')
-    command = node.create_publisher(JointState, 'bench_command', qos.COMMAND)
+    pub_kw, sub_kw = _ways(lean)
+    topics = ('bench_command', 'bench_output_1', 'bench_output_2') if lean else ('bench_command',)
+    outputs = [node.create_publisher(JointState, t, qos.COMMAND, **pub_kw) for t in topics]
     seen: dict[int, int] = {}
 
-    def on_state(msg: JointState) -> None:
-        k = msg.header.stamp.sec
+    def on_state(msg) -> None:
+        k = _round_of(msg)
         seen[k] = seen.get(k, 0) + 1
         if seen[k] == len(STATE_TOPICS):
             del seen[k]
-            command.publish(_state(k))
-    for topic in STATE_TOPICS:
-        node.create_subscription(JointState, topic, on_state, qos.SENSOR)
-    rclpy.spin(node)
-
-
-def _role_controller_lean() -> None:
-    """As ``_role_controller``, the way the wbc node reads and writes: serialized messages
-    (``raw=True``, bytes published; the node's own CDR code is not timed here), no QoS-event
-    handlers, and 3 messages out per round (command, odom, contacts; only the command has a
-    reader here, where the node's odom and contacts have the gait's: a floor of its cost)."""
-    node = Node('bench_controller')
-    outputs = [node.create_publisher(JointState, topic, qos.COMMAND,
-                                      event_callbacks=qos.INTERNAL_PUB_EVENTS)
-               for topic in ('bench_command', 'bench_output_1', 'bench_output_2')]
-    seen: dict[int, int] = {}
-
-    def on_state(data: bytes) -> None:
-        k = struct.unpack_from('<i', data, 4)[0]      # header.stamp.sec, after the CDR header
-        seen[k] = seen.get(k, 0) + 1
-        if seen[k] == len(STATE_TOPICS):
-            del seen[k]
+            reply = msg if lean else _state(k)
             for publisher in outputs:
-                publisher.publish(data)
+                publisher.publish(reply)
     for topic in STATE_TOPICS:
-        node.create_subscription(JointState, topic, on_state, qos.SENSOR,
-                                 event_callbacks=qos.INTERNAL_SUB_EVENTS, raw=True)
+        node.create_subscription(JointState, topic, on_state, qos.SENSOR, **sub_kw)
     rclpy.spin(node)
 
 
@@ -135,34 +135,28 @@ def _cpu_seconds(pid: int) -> float:
 def _round_trip(bystanders: int, on_demand: bool, rounds: int,
                 lean: bool = False) -> tuple[float, float, float]:
     """Per round (3 state messages out, the command back): wall ms, and CPU ms of this
-    process (the sim's side) and of the controller process (``lean``: the wbc node's way,
-    ``_role_controller_lean``)."""
+    process (the sim's side) and of the controller process (``lean``: both the nodes' way,
+    ``_ways``)."""
     role = 'bystander_on_demand' if on_demand else 'bystander_spun'
     me = [sys.executable, '-m', 'replan_experiments.benchmarks.bench_rclpy', '--role']
     children = [subprocess.Popen([*me, 'controller_lean' if lean else 'controller'])]
     children += [subprocess.Popen([*me, role]) for _ in range(bystanders)]
     node = Node('bench_simulator')
     answered: list[int] = []
+    pub_kw, sub_kw = _ways(lean)
+    publishers = [node.create_publisher(JointState, t, qos.SENSOR, **pub_kw)
+                  for t in STATE_TOPICS]
     if lean:
-        # Serialized states (the sim's CDR code is not timed: a template with the round's
-        # number written in), no QoS-event handlers, the command read serialized.
-        publishers = [node.create_publisher(JointState, t, qos.SENSOR,
-                                            event_callbacks=qos.INTERNAL_PUB_EVENTS)
-                      for t in STATE_TOPICS]
+        # The sim's CDR code is not timed: a template with the round's number written in.
         template = bytearray(serialize_message(_state(0)))
 
         def state(k: int) -> bytes:
             struct.pack_into('<i', template, 4, k)
             return bytes(template)
-        node.create_subscription(
-            JointState, 'bench_command',
-            lambda data: answered.append(struct.unpack_from('<i', data, 4)[0]), qos.COMMAND,
-            event_callbacks=qos.INTERNAL_SUB_EVENTS, raw=True)
     else:
-        publishers = [node.create_publisher(JointState, t, qos.SENSOR) for t in STATE_TOPICS]
         state = _state
-        node.create_subscription(JointState, 'bench_command',
-                                 lambda msg: answered.append(msg.header.stamp.sec), qos.COMMAND)
+    node.create_subscription(JointState, 'bench_command',
+                             lambda msg: answered.append(_round_of(msg)), qos.COMMAND, **sub_kw)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
@@ -210,11 +204,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     rclpy.init()
     try:
-        if args.role == 'controller':
-            _role_controller()
-            return 0
-        if args.role == 'controller_lean':
-            _role_controller_lean()
+        if args.role in ('controller', 'controller_lean'):
+            _role_controller(lean=args.role == 'controller_lean')
             return 0
         if args.role is not None:
             _role_bystander(args.role == 'bystander_on_demand')
