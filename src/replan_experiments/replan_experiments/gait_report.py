@@ -25,6 +25,8 @@ import numpy as np
 from replan_core.common.types import LEGS
 from replan_core.evaluation.metrics import roll_pitch_yaw
 from replan_experiments.analysis import contact_series, true_contacts
+from replan_experiments.robots_page import response_axis
+from replan_experiments.robots_render import response_misses
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.stamps import stamp_to_sec
 from replan_ros.recording.bag_read import TRUTH_TOPIC, read_messages
@@ -155,6 +157,12 @@ def report(run: Path, after: float, late: float) -> list[str]:
     corrections = stride_corrections(data.get(DIAGNOSTICS_TOPIC, []))
     for segment in metrics.get('velocity_tracking') or []:
         lines += _segment_lines(segment, sensed_times, trunk, trunk_velocity, yaws, feet)
+        if any(segment['commanded']):
+            axis, cell = response_axis(segment)
+            misses = response_misses(cell)
+            lines.append(f'  {axis}: each whole cycle as docs/robots.md measures it, % of the '
+                         'set-point: ' + ' '.join(f'{100 * x:.0f}' for x in cell['shares'])
+                         + (f' ({", ".join(misses)} off)' if misses else ' (met)'))
         last = next((row for row in reversed(corrections) if row[0] < segment['end_s']), None)
         if any(segment['commanded']) and last is not None and last[0] > segment['start_s']:
             stamp, x, y = last

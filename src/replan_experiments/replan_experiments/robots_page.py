@@ -133,18 +133,26 @@ def response_row(result: RunResult) -> dict:
     segments = [s for s in result.metrics.get('velocity_tracking') or []
                 if any(s.get('commanded') or [])]
     for segment in segments:
-        commanded = segment['commanded']
-        k = int(np.argmax(np.abs(commanded)))
-        shares = [c['velocity'][k] / commanded[k] for c in segment.get('cycle_velocities')
-                  or []]
-        row['axes'][ROBOT_KEYS[k]] = {
-            'commanded': commanded[k], 'start_s': segment.get('start_s'),
-            'shares': [round(x, 4) for x in shares],
-            'first_error': round(abs(shares[0] - 1.0), 4) if shares else None,
-            'later_error': (round(max(abs(x - 1.0) for x in shares[1:]), 4)
-                            if len(shares) > 1 else None),
-            'overshoot': round(max(shares) - 1.0, 4) if shares else None}
+        axis, cell = response_axis(segment)
+        row['axes'][axis] = cell
     return row
+
+
+def response_axis(segment: dict) -> tuple[str, dict]:
+    """The commanded component of one set-point of ``metrics.json``'s ``velocity_tracking``
+    (its largest, one of ``ROBOT_KEYS``) and its response cell: its mean over each whole crawl
+    cycle as a share of the set-point, the first cycle's and the worst later cycle's distance
+    from 1, and the largest share less 1 (``robots_render.response_misses`` judges it)."""
+    commanded = segment['commanded']
+    k = int(np.argmax(np.abs(commanded)))
+    shares = [c['velocity'][k] / commanded[k] for c in segment.get('cycle_velocities') or []]
+    return ROBOT_KEYS[k], {
+        'commanded': commanded[k], 'start_s': segment.get('start_s'),
+        'shares': [round(x, 4) for x in shares],
+        'first_error': round(abs(shares[0] - 1.0), 4) if shares else None,
+        'later_error': (round(max(abs(x - 1.0) for x in shares[1:]), 4)
+                        if len(shares) > 1 else None),
+        'overshoot': round(max(shares) - 1.0, 4) if shares else None}
 
 
 def cached_stand_measures(folder: Path, drift_from: float) -> dict | None:
