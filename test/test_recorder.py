@@ -534,10 +534,13 @@ def test_a_stopped_recorder_gets_every_tick_and_plan_again_from_the_writers(
     assert counted.topics['/rec/com_plan'].missing == 0, counted.gaps_text()
 
 
-def test_a_late_plan_reader_gets_the_newest_plan_and_a_recorder_the_history(probe):
-    """The plan writers' history (``LATCHED_PUB``, 20) reaches a reader that joins late only
-    if it keeps all (a respawned recorder: ``recorder_qos``); the graph's readers (``LATCHED``,
-    depth 1) still get the newest plan alone (docs/recording.md, "No loss")."""
+def test_a_late_plan_reader_ends_on_the_newest_plan_and_a_recorder_gets_the_history(probe):
+    """The plan writers' history (``LATCHED_PUB``, 20) reaches a reader that joins late whole
+    only if it keeps all (a respawned recorder: ``recorder_qos``). A graph reader (``LATCHED``,
+    depth 1) may take some of the older plans too: its depth drops only the samples it has not
+    taken yet, and the executor takes each one as it comes. What it gets is in publication
+    order and ends on the newest, which is what the controller needs: it keeps plans by stamp
+    and adopts the newest pair (``tick_protocol``; docs/recording.md, "No loss")."""
     from replan_ros.transport.qos import LATCHED_PUB, PLAN_HISTORY, recorder_qos
 
     plans = probe.node.create_publisher(MultiDOFJointTrajectory, '/rec/late_plan', LATCHED_PUB)
@@ -550,5 +553,8 @@ def test_a_late_plan_reader_gets_the_newest_plan_and_a_recorder_the_history(prob
                             recorder_qos([LATCHED_PUB])[0])
     assert probe.spin_until(lambda: len(every) == len(published), timeout=10.0), len(every)
     probe.spin_for(0.5)                  # nothing more comes to either
-    assert [m.header.stamp for m in every] == [m.header.stamp for m in published]
-    assert [m.header.stamp for m in newest] == [published[-1].header.stamp]
+    order = [stamp_to_ns(m.header.stamp) for m in published]
+    assert [stamp_to_ns(m.header.stamp) for m in every] == order
+    taken = [order.index(stamp_to_ns(m.header.stamp)) for m in newest]
+    assert taken and taken[-1] == len(published) - 1, taken
+    assert taken == sorted(set(taken)), taken
