@@ -5,13 +5,13 @@ what it does on the realistic profile, from scenario runs.
 
 For each robot of ``config/robots_page.yaml`` (or those of ``--robot``): a stand at zero
 set-point from launch (travel of the trunk on the truth, touchdowns), a walk from standing at
-each of its forward, lateral and yaw set-points (achieved against commanded), one run through
-the three set-points in turn (each whole crawl cycle after a change against the set-point),
-lateral pushes while walking forward, given as the velocity they give the free body (force =
-mass x dv / duration), at phases over its crawl cycle, level after level up to the first level
-that fells it at some phase, and blind step downs of shares of its leg length. Real-time
-factor and MPC solve time come from all its runs. A robot that falls walking on flat ground is
-reported so, and is not pushed or sent down a step.
+each of its forward, lateral and yaw set-points (achieved against commanded), a run through
+the three set-points in turn on each of several noise seeds (each whole crawl cycle after a
+change against the set-point), lateral pushes while walking forward, given as the velocity
+they give the free body (force = mass x dv / duration), at phases over its crawl cycle, level
+after level up to the first level that fells it at some phase, and blind step downs of shares
+of its leg length. Real-time factor and MPC solve time come from all its runs. A robot that
+falls walking on flat ground is reported so, and is not pushed or sent down a step.
 
 Then each other gait of the plan (``gaits:``, e.g. the trot and the walking trot) at set-points
 from the robot's leg length (the trot's forward at a Froude number) or its crawl set-point: a
@@ -240,7 +240,9 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
         walks = {axis: pool.submit(runner.run, walk_doc(walk_base, info, plan, axis))
                  for axis in ROBOT_KEYS}
         stand = pool.submit(runner.run, stand_doc(stand_base, info, plan), True)
-        response = pool.submit(runner.run, response_doc(response_base, info, plan))
+        responses = [(seed, pool.submit(runner.run, response_doc(response_base, info, plan,
+                                                                  seed)))
+                     for seed in plan.tests['response']['seeds']]
         forward = walks['forward'].result()
         steps, row['push'] = [], None
         walks_on_flat = forward.ok and not forward.fell
@@ -259,8 +261,10 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
                         **((cached_stand_measures(stand_run.folder,
                                                   plan.tests['stand']['drift_from']) or {})
                            if stand_run.ok else {})}
-        made.append(response.result())
-        row['response'] = response_row(made[-1])
+        row['response'] = []
+        for seed, future in responses:
+            made.append(future.result())
+            row['response'].append({'seed': seed, **response_row(made[-1])})
         row['step_down'] = []
         for share, future in steps:
             made.append(future.result())
@@ -277,13 +281,15 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
 
 
 def planned_runs(plan: RobotsPlan) -> int:
-    """Upper bound of the runs: per robot three walks, the stand, the response, every step
-    down and every push level at every phase (the pushes stop at the first level that fells
-    it); per other gait the walk and stop, the turn, every step down and every push."""
+    """Upper bound of the runs: per robot three walks, the stand, the response on each seed,
+    every step down and every push level at every phase (the pushes stop at the first level
+    that fells it); per other gait the walk and stop, the turn, every step down and every
+    push."""
     def ladders(tests: dict) -> int:
         push = tests['push']
         return len(tests['step_down']['shares']) + len(push['levels']) * push['phases']
-    per_robot = len(ROBOT_KEYS) + 2 + ladders(plan.tests)
+    per_robot = (len(ROBOT_KEYS) + 1 + len(plan.tests['response']['seeds'])
+                 + ladders(plan.tests))
     per_robot += sum(2 + ('fast' in g['tests']) + ladders(g['tests'])
                      for g in plan.gaits.values())
     return per_robot * len(plan.robots)

@@ -26,7 +26,7 @@ ROBOT_KEYS = ('forward', 'lateral', 'yaw')
 TEST_KEYS = {
     'stand': {'scenario', 'duration', 'drift_from'},
     'walk': {'scenario', 'duration'},
-    'response': {'scenario', 'segment_cycles'},
+    'response': {'scenario', 'segment_cycles', 'seeds'},
     'push': {'levels', 'phases', 'push_duration', 'direction', 'first_push_cycles',
              'after_push_cycles'},
     'step_down': {'scenario', 'shares', 'step_x_legs', 'cross_legs', 'time_margin'},
@@ -107,6 +107,14 @@ def _check_test(name: str, cfg, source: str, where: str, known: dict | None = No
             if not isinstance(value, int) or isinstance(value, bool) or value < least:
                 raise _fail(source, at, f'expected a whole number >= {least}, got {value!r}')
             out[key] = value
+        elif key == 'seeds':
+            # The sim's noise seeds of the response runs: one run each.
+            if (not isinstance(value, list) or not value
+                    or any(not isinstance(v, int) or isinstance(v, bool) or v < 0
+                           for v in value) or len(set(value)) != len(value)):
+                raise _fail(source, at, 'expected a non-empty list of distinct whole numbers '
+                                        f'>= 0, got {value!r}')
+            out[key] = list(value)
         elif key == 'drift_from':
             out[key] = _number(value, source, at, positive=False)
             if out[key] < 0:
@@ -279,10 +287,10 @@ def walk_doc(base: dict, info: RobotInfo, plan: RobotsPlan, axis: str) -> dict:
                               setpoint=tuple(setpoint)), info, axis, plan.gait)
 
 
-def response_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
+def response_doc(base: dict, info: RobotInfo, plan: RobotsPlan, seed: int) -> dict:
     """From standing, the robot's forward set-point, then its lateral one, then its yaw one,
     each for ``segment_cycles`` of its crawl cycles from the base scenario's first
-    set-point."""
+    set-point, with the sim's noise seed ``seed`` (one of ``response.seeds``)."""
     span = plan.tests['response']['segment_cycles'] * info.cycle_s
     start = walk_start(base)
     events = []
@@ -290,10 +298,11 @@ def response_doc(base: dict, info: RobotInfo, plan: RobotsPlan) -> dict:
         setpoint = [0.0, 0.0, 0.0]
         setpoint[k] = float(plan.robots[info.name][axis])
         events.append({'t': round(start + k * span, 4), 'cmd_vel': setpoint})
-    doc = variant(base, world=plan.profile, seed=plan.seed,
+    doc = variant(base, world=plan.profile, seed=seed,
                   duration=round(start + len(ROBOT_KEYS) * span, 4))
     doc['events'] = events
-    return _robot_doc(doc, info, 'response', plan.gait)
+    return _robot_doc(doc, info, 'response' if seed == plan.seed else f'response_seed{seed}',
+                      plan.gait)
 
 
 def push_times(base: dict, info: RobotInfo, plan: RobotsPlan) -> list[float]:

@@ -84,18 +84,35 @@ def response_misses(cell: dict | None) -> list[str]:
     return misses
 
 
-def response_cell(row: dict | None, axis: str) -> str:
-    """Each whole crawl cycle after the change to ``axis``'s set-point, in per cent of it;
-    met: the first within 10 %, every later one within 5 %, none more than 5 % above; else the
-    cell says what is not."""
-    if (said := _not_measured(row)) is not None:
-        return said
-    cell = row['axes'].get(axis)
-    misses = response_misses(cell)
-    if misses == ['no whole cycle']:
-        return 'no whole cycle'
-    shares = ' '.join(f'{100.0 * x:.0f}' for x in cell['shares'])
-    return f'{shares} %' + (f' (**{" and ".join(misses)} off**)' if misses else '')
+def response_cell(rows: list[dict] | None, axis: str) -> str:
+    """Each whole crawl cycle after the change to ``axis``'s set-point, in per cent of it, one
+    run per noise seed (``response.seeds``, in order, separated by /); met: on every seed the
+    first within 10 %, every later one within 5 %, none more than 5 % above; else the cell
+    says what is not, and on which seeds."""
+    if not rows:
+        return '-'
+    parts, missed = [], {}
+    for row in rows:
+        if (said := _not_measured(row)) is not None:
+            parts.append(said)
+            continue
+        cell = row['axes'].get(axis)
+        misses = response_misses(cell)
+        if misses == ['no whole cycle']:
+            parts.append('no whole cycle')
+            continue
+        parts.append(' '.join(f'{100.0 * x:.0f}' for x in cell['shares']) + ' %')
+        for miss in misses:
+            missed.setdefault(miss, []).append(row['seed'])
+    text = ' / '.join(parts)
+    if not missed:
+        return text
+    if len(rows) == 1:
+        return f'{text} (**{" and ".join(missed)} off**)'
+    said = '; '.join(f'{miss} off on seed{"s" if len(seeds) > 1 else ""} '
+                     f'{", ".join(str(seed) for seed in seeds)}'
+                     for miss, seeds in missed.items())
+    return f'{text} (**{said}**)'
 
 
 def push_cell(push: dict | None, skipped: str | None) -> str:
@@ -208,13 +225,16 @@ def how_section(meta: dict) -> list[str]:
         'average out; the trunk takes a few cycles from standing to get to the speed, which '
         'the steady state leaves out; the run\'s `velocity_tracking`, `achieved_steady`, '
         '`cycle_velocities`; yaw: the turn rate).',
-        f'- **Response**: one run of `{response["scenario"]}` from standing: the robot\'s '
+        f'- **Response**: a run of `{response["scenario"]}` from standing: the robot\'s '
         f'forward set-point, then its lateral one, then its yaw one, each for '
-        f'{response["segment_cycles"]} of its crawl cycles; each cell gives the commanded '
-        'component\'s mean over each whole crawl cycle after the change (a true touchdown of a '
-        'leg to its next, the first starting at the first touchdown after the change), in per '
-        'cent of the set-point. Met: the first cycle within 10 %, every later one within '
-        '5 %, and no cycle more than 5 % above the set-point; a cell says what is not.',
+        f'{response["segment_cycles"]} of its crawl cycles, on each of the sim\'s noise seeds '
+        f'{", ".join(str(seed) for seed in response["seeds"])} (one run each, separated by / '
+        'in that order: which cycles miss moves from seed to seed); each cell gives the '
+        'commanded component\'s mean over each whole crawl cycle after the change (a true '
+        'touchdown of a leg to its next, the first starting at the first touchdown after the '
+        'change), in per cent of the set-point. Met: on every seed, the first cycle within '
+        '10 %, every later one within 5 %, and no cycle more than 5 % above the set-point; a '
+        'cell says what is not, and on which seeds.',
         f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s '
         f'from launch; travel = the largest horizontal distance of the trunk on the truth from '
         f'its place at {stand["drift_from"]:g} s; touchdowns = true contact flags that rise '
@@ -253,12 +273,15 @@ def _short_walk(row: dict | None) -> str:
     return f'{100.0 * (row["achieved"] - row["commanded"]) / row["commanded"]:+.1f}'
 
 
-def _short_response(row: dict | None) -> str:
-    """'met' or the axes whose cycles after a change miss the bounds of ``response_cell``."""
-    if (said := _not_measured(row)) is not None:
-        return said
+def _short_response(rows: list[dict] | None) -> str:
+    """'met' or the axes whose cycles after a change miss the bounds of ``response_cell`` on
+    some seed."""
+    if not rows:
+        return '-'
+    if any(_not_measured(row) is not None for row in rows):
+        return next(said for row in rows if (said := _not_measured(row)) is not None)
     missed = [label for axis, (label, _) in _AXES.items()
-              if response_misses(row['axes'].get(axis))]
+              if any(response_misses(row['axes'].get(axis)) for row in rows)]
     return 'met' if not missed else 'off: ' + ', '.join(missed)
 
 

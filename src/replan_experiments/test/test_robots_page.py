@@ -91,10 +91,12 @@ def test_a_robot_that_falls_walking_is_reported_and_not_pushed(tmp_path):
     assert row['walks']['forward']['fell'] and row['walks']['forward']['fall_time_s'] == 2.9
     assert row['push'] is None and row['step_down'] == []
     assert row['skipped'] == 'falls walking forward on flat ground'
-    assert len(runner.docs) == 5             # three walks, the stand and the response
+    seeds = plan.tests['response']['seeds']
+    assert len(runner.docs) == 4 + len(seeds)        # three walks, the stand, the responses
     assert not row['stand']['fell'] and 'drift_m' not in row['stand']     # no bag here
-    assert row['response']['fell']
-    assert row['timing']['runs'] == 5
+    assert [r['seed'] for r in row['response']] == seeds
+    assert all(r['fell'] for r in row['response'])
+    assert row['timing']['runs'] == 4 + len(seeds)
 
 
 def test_a_robot_that_walks_is_measured_on_every_test(tmp_path):
@@ -107,7 +109,7 @@ def test_a_robot_that_walks_is_measured_on_every_test(tmp_path):
     assert [s['crossed'] for s in row['step_down']] == [True]
     # 5 + 1 share + 1 level x 1 phase; the other gaits' runs are measure_gait's
     assert len(runner.docs) == planned_runs(replace(plan, gaits={}))
-    assert row['response']['axes']['forward']['shares'] == []     # no cycles here
+    assert [r['axes']['forward']['shares'] for r in row['response']] == [[]]   # no cycles
     assert row['timing'] == {'runs': 7, 'rtf_median': 1.2, 'rtf_min': 1.2,
                              'mpc_median_ms': 1.5, 'mpc_p99_max_ms': 4.0}
 

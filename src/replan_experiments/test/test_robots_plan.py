@@ -71,6 +71,9 @@ def _mutated(tmp_path: Path, change) -> Path:
     (lambda d: d['full']['step_down'].update(shares=[0.05, 'x']), 'full.step_down.shares[1]'),
     (lambda d: d['full']['stand'].update(drift_from=20.0), 'full.stand.drift_from'),
     (lambda d: d['full'].pop('walk'), 'full.walk: missing'),
+    (lambda d: d['full']['response'].update(seeds=[0, 0]), 'full.response.seeds: expected'),
+    (lambda d: d['full']['response'].update(seeds=[]), 'full.response.seeds: expected'),
+    (lambda d: d['full']['response'].update(seeds=[1, -2]), 'full.response.seeds: expected'),
     (lambda d: d['robots']['go1'].pop('yaw'), 'robots.go1.yaw: missing'),
     (lambda d: d['robots']['go1'].update(forward=-0.1), 'robots.go1.forward: expected a pos'),
     (lambda d: d.update(robot={}), 'robot: unknown key'),
@@ -252,8 +255,20 @@ def test_the_crawls_documents_are_as_before_gaits_had_plans():
     """No gait key and the same names: the crawl's run keys, and so its cached runs, stay."""
     plan = load_robots_plan(PLAN)
     info = synthetic()
-    docs = [walk_doc(WALK, info, plan, 'forward'), response_doc(WALK, info, plan),
+    docs = [walk_doc(WALK, info, plan, 'forward'), response_doc(WALK, info, plan, plan.seed),
             push_doc(WALK, info, plan, 0.3, 4.0), step_doc(WALK, info, plan, 0.05)]
     assert all('gait' not in d for d in docs)
     assert [d['name'] for d in docs] == ['go1_forward', 'go1_response', 'go1_push_0.3',
                                          'go1_step_down_0.05']
+
+
+def test_the_response_runs_once_per_seed_and_the_page_seeds_run_is_as_before():
+    plan = load_robots_plan(PLAN)
+    info = synthetic()
+    assert plan.tests['response']['seeds'][0] == plan.seed
+    docs = [response_doc(WALK, info, plan, seed) for seed in plan.tests['response']['seeds']]
+    assert [d['params']['sim']['noise_seed'] for d in docs] == plan.tests['response']['seeds']
+    assert docs[0]['name'] == 'go1_response'
+    assert [d['name'] for d in docs[1:]] == [f'go1_response_seed{seed}'
+                                             for seed in plan.tests['response']['seeds'][1:]]
+    assert all(d['events'] == docs[0]['events'] for d in docs)

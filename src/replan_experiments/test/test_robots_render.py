@@ -50,11 +50,11 @@ GO1 = {'robot': 'go1', 'skipped': None, 'cycle_s': 2.347,
        'stand': {'run': 'r', 'ok': True, 'fell': False, 'drift_m': 0.0035,
                  'travel_m': 0.0061, 'drift_window_s': [0.0, 12.0], 'touchdowns': 0,
                  'last_touchdown_s': None},
-       'response': {'run': 'r', 'ok': True, 'fell': False, 'axes': {
+       'response': [{'seed': 0, 'run': 'r', 'ok': True, 'fell': False, 'axes': {
            'forward': {'shares': [0.93, 0.98, 1.01], 'first_error': 0.07, 'later_error': 0.02,
                        'overshoot': 0.01},
            'lateral': {'shares': [0.85, 0.93, 0.99], 'first_error': 0.15, 'later_error': 0.07,
-                       'overshoot': -0.01}}},
+                       'overshoot': -0.01}}}],
        'push': {'levels': [{'dv_mps': 0.2, 'force_n': 10.48, 'impulse_ns': 2.62,
                             'phases': _phases([])},
                            {'dv_mps': 0.3, 'force_n': 15.72, 'impulse_ns': 3.93,
@@ -111,8 +111,20 @@ def test_push_and_step_cells_at_the_edges():
     first_falls['levels'] = [{**first_falls['levels'][0], 'phases': _phases([0])}]
     overshoot = {'shares': [1.07, 0.99, 1.0], 'first_error': 0.07, 'later_error': 0.01,
                  'overshoot': 0.07}
-    row = {'ok': True, 'fell': False, 'axes': {'forward': overshoot}}
-    assert response_cell(row, 'forward') == '107 99 100 % (**overshoot off**)'
+    row = {'seed': 0, 'ok': True, 'fell': False, 'axes': {'forward': overshoot}}
+    assert response_cell([row], 'forward') == '107 99 100 % (**overshoot off**)'
+    met = {'shares': [0.95, 1.02, 1.0], 'first_error': 0.05, 'later_error': 0.02,
+           'overshoot': 0.02}
+    late = {'shares': [0.85, 0.93, 1.0], 'first_error': 0.15, 'later_error': 0.07,
+            'overshoot': 0.0}
+    seeds = [{**row, 'seed': 1, 'axes': {'forward': met}}, row,
+             {**row, 'seed': 2, 'axes': {'forward': late}},
+             {'seed': 3, 'ok': True, 'fell': True, 'fall_time_s': 9.5}]
+    assert response_cell(seeds, 'forward') == (
+        '95 102 100 % / 107 99 100 % / 85 93 100 % / **fell** at 9.5 s '
+        '(**overshoot off on seed 0; first off on seed 2; later off on seed 2**)')
+    assert response_cell(seeds[:1], 'forward') == '95 102 100 %'
+    assert response_cell([], 'forward') == '-'
     assert push_cell(first_falls, None) == ('none of the levels tried (< 0.2 m/s); 0.2 m/s '
                                             'fell at phase 0 of 4')
     all_survived = {**GO1['push'], 'fell_dv': None}
