@@ -23,9 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from replan_core.common.types import LEGS
-from replan_core.evaluation.metrics import roll_pitch_yaw
-from replan_experiments.analysis import contact_series, true_contacts
+from replan_core.evaluation.metrics import achieved_velocity, executed_steps, roll_pitch_yaw
+from replan_experiments.analysis import contact_series, planned_steps, true_contacts
 from replan_experiments.robots_page import response_axis
+from replan_experiments.robots_plan import ROBOT_KEYS
 from replan_experiments.robots_render import response_misses
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.stamps import stamp_to_sec
@@ -34,6 +35,7 @@ from replan_ros.recording.bag_read import TRUTH_TOPIC, read_messages
 SENSED_TOPIC = '/contacts'
 TRUE_CONTACTS_TOPIC = '/ground_truth/contacts'
 DIAGNOSTICS_TOPIC = '/diagnostics'
+FOOTHOLDS_TOPIC = '/footholds'
 # s: a touchdown sensed up to this long before the truth's still pairs with it (the truth's
 # contact flag is debounced too, sim.debounce_ticks).
 PAIR_SLACK = 0.02
@@ -105,6 +107,25 @@ def cycle_splits(boundaries: list[float], speed: float, direction: np.ndarray,
     return rows
 
 
+def first_cycles_by_leg(steps: list[tuple[float, int]], start: float, end: float, axis: int,
+                        commanded: float, trunk: tuple[np.ndarray, np.ndarray, np.ndarray]
+                        ) -> list[tuple[int, float, float]]:
+    """The first whole cycle of a set-point [``start``, ``end``] (s) opened by each leg: from
+    that leg's first touchdown in it to its next (``steps``: (true touchdown s, leg) of the
+    executed steps, as the run's metrics take them), the trunk's mean body velocity component
+    ``axis`` (0 x, 1 y, 2 yaw) as a share of ``commanded``. ``trunk``: times, positions, yaws of
+    the truth. (leg, touchdown s, share) in the order the legs open their cycles."""
+    rows = []
+    for leg in sorted({leg for _, leg in steps}):
+        times = sorted(t for t, other in steps if other == leg and start <= t <= end)
+        if len(times) < 2:
+            continue
+        velocity = achieved_velocity(*trunk, times[0], times[1])
+        if velocity is not None:
+            rows.append((leg, times[0], velocity[axis] / commanded))
+    return sorted(rows, key=lambda row: row[1])
+
+
 def _touchdowns(times, touchdown) -> list[tuple[float, int]]:
     """(time s, leg) of every touchdown flag: ``touchdown`` (n, 4) bool at ``times`` (n,) s."""
     return [(float(t), int(leg)) for t, row in zip(times, touchdown, strict=True)
@@ -131,7 +152,7 @@ def report(run: Path, after: float, late: float) -> list[str]:
     counts as late."""
     metrics = json.loads((run / 'metrics.json').read_text())
     data = read_messages(run / 'bag', topics=(TRUTH_TOPIC, SENSED_TOPIC, TRUE_CONTACTS_TOPIC,
-                                              DIAGNOSTICS_TOPIC))
+                                              DIAGNOSTICS_TOPIC, FOOTHOLDS_TOPIC))
     sensed_series = contact_series(data, SENSED_TOPIC)
     truth = true_contacts(data)              # stamp -> the true contact state, feet included
     odom = sorted((base_state_from_odom(m) for _, m in data.get(TRUTH_TOPIC, [])),
@@ -155,6 +176,10 @@ def report(run: Path, after: float, late: float) -> list[str]:
             np.array([np.asarray(truth[t].foot_position)[:, :2] for t in true_times]))
     sensed_times = np.array([t for t, _ in sensed])
     corrections = stride_corrections(data.get(DIAGNOSTICS_TOPIC, []))
+    # Each executed step's true touchdown, as the run's metrics take them (analysis.analyse_run).
+    steps = [(actual, leg) for leg, _, _, actual in executed_steps(true, planned_steps(data))
+             if actual is not None]
+    truth_pose = (trunk[0], np.array([b.position for b in odom]), yaws)
     for segment in metrics.get('velocity_tracking') or []:
         lines += _segment_lines(segment, sensed_times, trunk, trunk_velocity, yaws, feet)
         if any(segment['commanded']):
@@ -163,6 +188,18 @@ def report(run: Path, after: float, late: float) -> list[str]:
             lines.append(f'  {axis}: each whole cycle as docs/robots.md measures it, % of the '
                          'set-point: ' + ' '.join(f'{100 * x:.0f}' for x in cell['shares'])
                          + (f' ({", ".join(misses)} off)' if misses else ' (met)'))
+            k = ROBOT_KEYS.index(axis)
+            opened = first_cycles_by_leg(steps, segment['start_s'], segment['end_s'], k,
+                                         segment['commanded'][k], truth_pose)
+            cycles = segment.get('cycle_velocities') or []
+            page = next((LEGS[leg] for leg, t, _ in opened
+                         if cycles and t == cycles[0]['start_s']), None)
+            if opened:
+                lines.append('  first whole cycle opened by each leg\'s first touchdown after the '
+                             'change, % of the set-point: '
+                             + ', '.join(f'{LEGS[leg]} at {t - segment["start_s"]:.2f} s '
+                                         f'{100 * share:.0f}' for leg, t, share in opened)
+                             + f' (the page\'s: {page or "none"})')
         last = next((row for row in reversed(corrections) if row[0] < segment['end_s']), None)
         if any(segment['commanded']) and last is not None and last[0] > segment['start_s']:
             stamp, x, y = last

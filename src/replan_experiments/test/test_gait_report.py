@@ -9,7 +9,13 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.serialization import serialize_message
 
 from replan_core.common.types import BaseState, ContactState
-from replan_experiments.gait_report import cycle_splits, main, report, sensing_delays
+from replan_experiments.gait_report import (
+    cycle_splits,
+    first_cycles_by_leg,
+    main,
+    report,
+    sensing_delays,
+)
 from replan_experiments.runs import code_fingerprint
 from replan_ros.messages.contacts import contacts_to_msg
 from replan_ros.messages.odom import odom_from_base_state
@@ -101,6 +107,21 @@ def test_a_cycle_splits_into_the_feet_and_the_trunks_place():
     assert row.feet_percent == pytest.approx(100.0)
     assert row.over_feet[1] - row.over_feet[0] == pytest.approx(0.01)
     assert row.over_reference == pytest.approx((0.0, 0.01), abs=1e-12)
+
+
+def test_each_leg_opens_its_own_first_cycle():
+    # The trunk stands until 1 s, then walks at SPEED along y; the legs touch down in ORDER
+    # every 0.75 s from 0.5 s, rf once only (no whole cycle of its own).
+    times = np.arange(2500) * TICK
+    positions = np.stack([np.zeros_like(times), SPEED * np.maximum(times - 1.0, 0.0),
+                          np.full_like(times, 0.5)], axis=1)
+    steps = [(0.5 + 0.75 * k, ORDER[k % 4]) for k in range(9) if k == 3 or ORDER[k % 4] != 1]
+    rows = first_cycles_by_leg(steps, 0.2, 9.0, 1, SPEED, (times, positions, np.zeros_like(times)))
+    assert [(leg, t) for leg, t, _ in rows] == [(2, 0.5), (0, 1.25), (3, 2.0)]
+    # lh's cycle holds the standing half second: 2.5 s of walking in 3 s.
+    assert [share for _, _, share in rows] == pytest.approx([2.5 / 3.0, 1.0, 1.0], abs=1e-3)
+    assert first_cycles_by_leg(steps, 7.0, 9.0, 1, SPEED,
+                               (times, positions, np.zeros_like(times))) == []
 
 
 def test_the_report_of_a_run_folder(tmp_path):
