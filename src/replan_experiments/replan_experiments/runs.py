@@ -49,8 +49,9 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_experiments/page.py',
                 'replan_experiments/robots_render.py',
                 'replan_experiments/page_status.py',
                 'replan_experiments/benchmarks/', 'replan_experiments/planner_loop.py',
-                # Reads a finished run's bag; no run imports it.
+                # Read finished runs' bags; no run imports them.
                 'replan_experiments/gait_report.py',
+                'replan_experiments/response_variants.py',
                 # Which domain a graph runs on, never what it does (one graph per domain).
                 'replan_ros/launch/domain.py',
                 # What a viewer is shown (the bag's derived /tf and markers), never what the

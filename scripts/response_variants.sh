@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# A setting's effect on the response to set-point changes: each robot's response run of the
+# robots page with parameters overridden, on noise seeds, per set-point each whole cycle as the
+# page measures it and the first cycle opened by each leg (docs/gait.md).
+#   scripts/response_variants.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--seed N ...]
+#                                [--jobs N] [--out DIR]
+source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
+help_before_setup "$@"
+replan_env
+exec python -m replan_experiments.response_variants "$@"

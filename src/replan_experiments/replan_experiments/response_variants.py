@@ -1,0 +1,142 @@
+"""A setting's effect on the response to set-point changes: each robot's response run of the
+robots page (``config/robots_page.yaml``: forward from standing, then sideways, then turning)
+with parameters overridden, on noise seeds, read as docs/robots.md and ``gait_report`` read it.
+
+    scripts/response_variants.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--seed N ...]
+                                 [--jobs N] [--out DIR]
+
+Per robot and seed, per set-point: each whole cycle as the page measures it, and the first
+whole cycle opened by each leg's first touchdown after the change (docs/gait.md, "Response to
+a set-point change"). Without ``--set``: today's settings. Runs go through the experiments'
+runner with their bags kept: a run made before with the same scenario and code is read, not
+made again (default folder ``runs/response_variants``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import yaml
+
+from replan_experiments.gait_report import report
+from replan_experiments.plan import ExperimentError
+from replan_experiments.robot_info import robot_info
+from replan_experiments.robots_plan import RobotsPlan, load_robots_plan, response_doc
+from replan_experiments.runs import DEFAULT_DOMAIN_BASE, Runner
+
+# gait_report's lines that judge a set-point: the page's cycles and each leg's first one.
+_JUDGED = ('as docs/robots.md measures it', 'opened by each leg')
+
+
+def parse_settings(items: list[str]) -> dict[str, dict]:
+    """``NODE.KEY=VALUE`` items (VALUE read as YAML) as scenario ``params``: node -> {key:
+    value}. The sim's noise seed is ``--seed``'s, not a setting."""
+    params: dict[str, dict] = {}
+    for item in items:
+        name, sep, text = item.partition('=')
+        node, dot, key = name.partition('.')
+        if not (sep and dot and node and key and text.strip()):
+            raise ExperimentError(f'--set {item!r}: expected NODE.KEY=VALUE')
+        if (node, key) == ('sim', 'noise_seed'):
+            raise ExperimentError('--set sim.noise_seed: give the seeds with --seed')
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError as err:
+            raise ExperimentError(f'--set {item!r}: {err}') from err
+        if key in params.get(node, {}):
+            raise ExperimentError(f'--set {name}: given twice')
+        params.setdefault(node, {})[key] = value
+    return params
+
+
+def variant_doc(base: dict, info, plan: RobotsPlan, seed: int, params: dict) -> dict:
+    """The page's response document of ``info``'s robot on noise seed ``seed`` with ``params``
+    (node -> {key: value}) on top of the scenario's own."""
+    doc = response_doc(base, info, plan, seed)
+    merged = doc.setdefault('params', {})
+    for node, values in params.items():
+        merged.setdefault(node, {}).update(values)
+    return doc
+
+
+def judged_lines(lines: list[str]) -> list[str]:
+    """The lines of a ``gait_report`` that judge each set-point."""
+    return [line for line in lines if any(mark in line for mark in _JUDGED)]
+
+
+def _arguments(argv) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog='response_variants.sh', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--set', action='append', default=[], metavar='NODE.KEY=VALUE',
+                        help='a parameter of the runs (repeatable), e.g. '
+                             'gait.correction_threshold=0.3')
+    parser.add_argument('--robot', action='append', default=[], metavar='NAME',
+                        help='a robot of the plan (repeatable; default all)')
+    parser.add_argument('--seed', action='append', type=int, default=[], metavar='N',
+                        help="the sim's noise seed (repeatable; default the plan's response "
+                             'seeds)')
+    parser.add_argument('--jobs', type=int, default=1,
+                        help='runs at once, each on its own ROS_DOMAIN_ID (default 1)')
+    parser.add_argument('--out', type=Path, help='run folder (default runs/response_variants)')
+    parser.add_argument('--domain-base', type=int,
+                        default=int(os.environ.get('REPLAN_EXPERIMENTS_DOMAIN',
+                                                   DEFAULT_DOMAIN_BASE)),
+                        help='each run takes the first ROS_DOMAIN_ID from here up that no '
+                             f'graph holds (default {DEFAULT_DOMAIN_BASE})')
+    args = parser.parse_args(argv)
+    if not 1 <= args.jobs <= 8:
+        parser.error(f'--jobs must be 1-8, got {args.jobs}')
+    if any(seed < 0 for seed in args.seed):
+        parser.error('--seed must be >= 0')
+    return args
+
+
+def main(argv=None) -> int:
+    from replan_ros.params import ConfigError
+
+    args = _arguments(argv)
+    root = Path(os.environ.get('REPLAN_ROOT', '.')).resolve()
+    config_dir = Path(os.environ.get('REPLAN_CONFIG', root / 'config'))
+    try:
+        params = parse_settings(args.set)
+        plan = load_robots_plan(config_dir / 'robots_page.yaml', False, args.robot)
+        infos = [robot_info(config_dir, name, plan.profile) for name in plan.robots]
+    except (ExperimentError, ConfigError, ValueError) as err:
+        print(f'response_variants: {err}', file=sys.stderr)
+        return 2
+    seeds = args.seed or plan.tests['response']['seeds']
+    out = args.out or root / 'runs' / 'response_variants'
+    out.mkdir(parents=True, exist_ok=True)
+    runner = Runner(out, config_dir, jobs=args.jobs, domain_base=args.domain_base)
+    base = runner.scenario(plan.tests['response']['scenario'])
+    docs = [(info.name, seed, variant_doc(base, info, plan, seed, params))
+            for info in infos for seed in seeds]
+    print(f'[response_variants] {", ".join(plan.robots)}, seeds {seeds}, settings '
+          f'{params or "as configured"}; {args.jobs} runs at a time, in {out}', flush=True)
+    with ThreadPoolExecutor(max(len(docs), 1)) as pool:
+        results = list(pool.map(lambda d: runner.run(d[2], True), docs))
+    failed = 0
+    for (name, seed, _), result in zip(docs, results, strict=True):
+        print(f'{name}, seed {seed} ({result.folder}):')
+        if not result.ok:
+            failed += 1
+            print('  the run failed: see its output.log')
+            continue
+        try:
+            lines = judged_lines(report(result.folder, after=2.0, late=0.04))
+        except (OSError, ValueError) as err:
+            failed += 1
+            print(f'  no report: {err}')
+            continue
+        print('\n'.join(lines))
+    for failure in runner.failures:
+        print(f'[response_variants] run failed: {failure}', file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
