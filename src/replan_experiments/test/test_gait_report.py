@@ -154,9 +154,11 @@ def test_a_folder_without_a_run_is_one_line(tmp_path, capsys):
     assert 'is not a run folder' in capsys.readouterr().err
 
 
-def test_the_report_does_not_shape_a_run(tmp_path):
-    """It reads finished runs only: editing it keeps every run's key (runs.py _NOT_SHAPING)."""
-    report_file = tmp_path / 'src/replan_experiments/replan_experiments/gait_report.py'
+@pytest.mark.parametrize('reader', ['gait_report.py', 'response_variants.py'])
+def test_a_reader_of_finished_runs_does_not_shape_a_run(tmp_path, reader):
+    """The report and response_variants read finished runs only: editing them keeps every
+    run's key (runs.py _NOT_SHAPING)."""
+    report_file = tmp_path / 'src/replan_experiments/replan_experiments' / reader
     shaping = tmp_path / 'src/replan_experiments/replan_experiments/analysis.py'
     report_file.parent.mkdir(parents=True)
     for path in (report_file, shaping):

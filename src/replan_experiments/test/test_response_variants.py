@@ -12,7 +12,6 @@ from replan_experiments.gait_report import report
 from replan_experiments.plan import ExperimentError
 from replan_experiments.response_variants import judged_lines, parse_settings, variant_doc
 from replan_experiments.robots_plan import load_robots_plan, response_doc
-from replan_experiments.runs import code_fingerprint
 
 
 def test_settings_are_node_key_values_read_as_yaml():
@@ -57,16 +56,3 @@ def test_it_keeps_the_report_lines_that_judge_each_set_point(tmp_path):
     assert kept == ['  lateral: each whole cycle as docs/robots.md measures it, % of the '
                     'set-point: 107 100 (overshoot off)']
 
-
-def test_it_does_not_shape_a_run(tmp_path):
-    """It reads finished runs only: editing it keeps every run's key (runs.py _NOT_SHAPING)."""
-    tool = tmp_path / 'src/replan_experiments/replan_experiments/response_variants.py'
-    shaping = tmp_path / 'src/replan_experiments/replan_experiments/robots_plan_x.py'
-    tool.parent.mkdir(parents=True)
-    for path in (tool, shaping):
-        path.write_text('a = 1\n')
-    first = code_fingerprint(tmp_path)
-    tool.write_text('a = 2\n')
-    assert code_fingerprint(tmp_path) == first
-    shaping.write_text('a = 2\n')
-    assert code_fingerprint(tmp_path) != first
