@@ -106,6 +106,26 @@ def phase_impulses(impulse, phases: int) -> list[float]:
     return values
 
 
+
+def parse_settings(items: list[str]) -> dict[str, dict]:
+    """``--set NODE.KEY=VALUE`` items (VALUE read as YAML) as scenario ``params``: node ->
+    {key: value}. ExperimentError for an item that is not of that form or a key given twice;
+    whether the node has the key is the launcher's check, at the run's start."""
+    params: dict[str, dict] = {}
+    for item in items:
+        name, sep, text = item.partition('=')
+        node, dot, key = name.partition('.')
+        if not (sep and dot and node and key and text.strip()):
+            raise ExperimentError(f'--set {item!r}: expected NODE.KEY=VALUE')
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError as err:
+            raise ExperimentError(f'--set {item!r}: {err}') from err
+        if key in params.get(node, {}):
+            raise ExperimentError(f'--set {name}: given twice')
+        params.setdefault(node, {})[key] = value
+    return params
+
 def variant(base: dict, *, params: dict | None = None,
             world: str = 'realistic', seed: int | None = None, terrain: dict | None = None,
             setpoint: tuple[float, float, float] | None = None, duration: float | None = None,

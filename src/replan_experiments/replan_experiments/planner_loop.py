@@ -33,8 +33,8 @@ from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
-import yaml
 
+from replan_experiments.plan import parse_settings
 from replan_ros.params.robot import project_root
 
 
@@ -161,17 +161,6 @@ def trunk_offsets(log: list[tuple[float, np.ndarray, float, np.ndarray]], start:
             for cycle in _whole_cycles(log, start, legs)]
 
 
-def _overrides(items: list[str]) -> dict[str, dict]:
-    out: dict[str, dict] = {}
-    for item in items:
-        name, sep, text = item.partition('=')
-        node, dot, key = name.partition('.')
-        if not sep or not dot or not key:
-            raise ValueError(f'--set {item!r}: expected node.key=VALUE')
-        out.setdefault(node, {})[key] = yaml.safe_load(text)
-    return out
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog='scripts/planner_loop.sh',
@@ -201,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
     schedule = sorted((a[0], np.array(a[1:])) for a in args.at) or [
         (0.5, np.array([0.15, 0.0, 0.0]))]
     try:
-        log = walk(args.robot, args.profile, schedule, args.duration, _overrides(args.set),
+        log = walk(args.robot, args.profile, schedule, args.duration, parse_settings(args.set),
                    args.late, base_offset=args.base_offset)
     except (ValueError, KeyError, OSError) as err:
         print(f'config error: planner_loop: {err}', file=sys.stderr)

@@ -20,10 +20,8 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import yaml
-
 from replan_experiments.gait_report import report
-from replan_experiments.plan import ExperimentError
+from replan_experiments.plan import ExperimentError, parse_settings, variant
 from replan_experiments.robot_info import robot_info
 from replan_experiments.robots_plan import RobotsPlan, load_robots_plan, response_doc
 from replan_experiments.runs import DEFAULT_DOMAIN_BASE, Runner
@@ -32,35 +30,19 @@ from replan_experiments.runs import DEFAULT_DOMAIN_BASE, Runner
 _JUDGED = ('as docs/robots.md measures it', 'opened by each leg')
 
 
-def parse_settings(items: list[str]) -> dict[str, dict]:
-    """``NODE.KEY=VALUE`` items (VALUE read as YAML) as scenario ``params``: node -> {key:
-    value}. The sim's noise seed is ``--seed``'s, not a setting."""
-    params: dict[str, dict] = {}
-    for item in items:
-        name, sep, text = item.partition('=')
-        node, dot, key = name.partition('.')
-        if not (sep and dot and node and key and text.strip()):
-            raise ExperimentError(f'--set {item!r}: expected NODE.KEY=VALUE')
-        if (node, key) == ('sim', 'noise_seed'):
-            raise ExperimentError('--set sim.noise_seed: give the seeds with --seed')
-        try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError as err:
-            raise ExperimentError(f'--set {item!r}: {err}') from err
-        if key in params.get(node, {}):
-            raise ExperimentError(f'--set {name}: given twice')
-        params.setdefault(node, {})[key] = value
+def settings(items: list[str]) -> dict[str, dict]:
+    """``plan.parse_settings`` of the ``--set`` items; the sim's noise seed is ``--seed``'s,
+    not a setting."""
+    params = parse_settings(items)
+    if 'noise_seed' in params.get('sim', {}):
+        raise ExperimentError('--set sim.noise_seed: give the seeds with --seed')
     return params
 
 
 def variant_doc(base: dict, info, plan: RobotsPlan, seed: int, params: dict) -> dict:
     """The page's response document of ``info``'s robot on noise seed ``seed`` with ``params``
     (node -> {key: value}) on top of the scenario's own."""
-    doc = response_doc(base, info, plan, seed)
-    merged = doc.setdefault('params', {})
-    for node, values in params.items():
-        merged.setdefault(node, {}).update(values)
-    return doc
+    return variant(response_doc(base, info, plan, seed), params=params, world=plan.profile)
 
 
 def judged_lines(lines: list[str]) -> list[str]:
@@ -102,7 +84,7 @@ def main(argv=None) -> int:
     root = Path(os.environ.get('REPLAN_ROOT', '.')).resolve()
     config_dir = Path(os.environ.get('REPLAN_CONFIG', root / 'config'))
     try:
-        params = parse_settings(args.set)
+        params = settings(args.set)
         plan = load_robots_plan(config_dir / 'robots_page.yaml', False, args.robot)
         infos = [robot_info(config_dir, name, plan.profile) for name in plan.robots]
     except (ExperimentError, ConfigError, ValueError) as err:

@@ -80,6 +80,12 @@ def _number(value, source: str, key: str, positive: bool = True) -> float:
     return float(value)
 
 
+def _whole(value, source: str, key: str, least: int) -> int:
+    if not isinstance(value, int) or isinstance(value, bool) or value < least:
+        raise _fail(source, key, f'expected a whole number >= {least}, got {value!r}')
+    return value
+
+
 def _check_test(name: str, cfg, source: str, where: str, known: dict | None = None) -> dict:
     if not isinstance(cfg, dict):
         raise _fail(source, where, 'must be a mapping')
@@ -103,18 +109,15 @@ def _check_test(name: str, cfg, source: str, where: str, known: dict | None = No
                         for i, v in enumerate(value)]
         elif key in ('phases', 'segment_cycles', 'forward_cycles', 'steady_cycles'):
             # A response needs a first cycle and later ones to tell rise from steady state.
-            least = 2 if key in ('segment_cycles', 'forward_cycles') else 1
-            if not isinstance(value, int) or isinstance(value, bool) or value < least:
-                raise _fail(source, at, f'expected a whole number >= {least}, got {value!r}')
-            out[key] = value
+            out[key] = _whole(value, source, at,
+                              2 if key in ('segment_cycles', 'forward_cycles') else 1)
         elif key == 'seeds':
             # The sim's noise seeds of the response runs: one run each.
-            if (not isinstance(value, list) or not value
-                    or any(not isinstance(v, int) or isinstance(v, bool) or v < 0
-                           for v in value) or len(set(value)) != len(value)):
-                raise _fail(source, at, 'expected a non-empty list of distinct whole numbers '
-                                        f'>= 0, got {value!r}')
-            out[key] = list(value)
+            if not isinstance(value, list) or not value:
+                raise _fail(source, at, f'expected a non-empty list of seeds, got {value!r}')
+            out[key] = [_whole(v, source, f'{at}[{i}]', 0) for i, v in enumerate(value)]
+            if len(set(out[key])) != len(out[key]):
+                raise _fail(source, at, 'each seed once')
         elif key == 'drift_from':
             out[key] = _number(value, source, at, positive=False)
             if out[key] < 0:
@@ -201,9 +204,7 @@ def load_robots_plan(path: Path, quick: bool = False, only: list[str] | None = N
     profile = doc.get('profile', 'realistic')
     if not isinstance(profile, str) or not profile:
         raise _fail(source, 'profile', f'expected a profile name, got {profile!r}')
-    seed = doc.get('seed', 0)
-    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
-        raise _fail(source, 'seed', f'expected a whole number >= 0, got {seed!r}')
+    seed = _whole(doc.get('seed', 0), source, 'seed', 0)
     parameters = doc.get('parameters') or []
     if not isinstance(parameters, list):
         raise _fail(source, 'parameters', 'expected a list of node.key names')

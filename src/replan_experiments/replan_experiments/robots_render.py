@@ -282,8 +282,9 @@ def _short_response(rows: list[dict] | None) -> str:
     some seed."""
     if not rows:
         return '-'
-    if any(_not_measured(row) is not None for row in rows):
-        return next(said for row in rows if (said := _not_measured(row)) is not None)
+    for row in rows:
+        if (said := _not_measured(row)) is not None:
+            return said
     missed = [label for axis, (label, _) in _AXES.items()
               if any(response_misses(row['axes'].get(axis)) for row in rows)]
     return 'met' if not missed else 'off: ' + ', '.join(missed)

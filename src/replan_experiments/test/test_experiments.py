@@ -18,6 +18,7 @@ from replan_experiments.plan import (
     claim_hashes,
     load_plan,
     node_settings,
+    parse_settings,
     phase_impulses,
     planned_runs,
     variant,
@@ -40,6 +41,30 @@ from replan_experiments.stats import (
 
 CONFIG = Path(__file__).resolve().parents[3] / 'config'
 BASE = {'name': 'walk', 'duration': 14.0, 'events': [{'t': 0.5, 'cmd_vel': [0.1, 0.0, 0.0]}]}
+
+
+def test_settings_are_node_key_values_read_as_yaml():
+    assert parse_settings(['gait.correction_threshold=0.3', 'mpc.position_sway=0',
+                           'gait.haptic=false', 'mpc.com_offset=[0.01, 0]']) == {
+        'gait': {'correction_threshold': 0.3, 'haptic': False},
+        'mpc': {'position_sway': 0, 'com_offset': [0.01, 0]}}
+    assert parse_settings([]) == {}
+
+
+@pytest.mark.parametrize('item, said', [
+    ('correction_threshold=0.3', 'expected NODE.KEY=VALUE'),
+    ('gait.correction_threshold', 'expected NODE.KEY=VALUE'),
+    ('gait.correction_threshold=', 'expected NODE.KEY=VALUE'),
+    ('gait.step_height=[0.1', 'gait.step_height=[0.1'),
+])
+def test_a_wrong_setting_is_one_message(item, said):
+    with pytest.raises(ExperimentError, match=re.escape(said)):
+        parse_settings([item])
+
+
+def test_a_setting_given_twice_is_refused():
+    with pytest.raises(ExperimentError, match=r'gait\.step_height: given twice'):
+        parse_settings(['gait.step_height=0.1', 'gait.step_height=0.2'])
 
 
 def test_variant_changes_only_what_it_is_asked_to():
