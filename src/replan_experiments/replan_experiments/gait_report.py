@@ -1,7 +1,10 @@
 """What a run's gait did, step by step, read from its bag: when each touchdown was sensed
-against the true contact, the step periods, and each whole cycle's speed split into the feet's
-strides and the trunk's place over them, and the velocity feedback's stride correction at the
-end of each set-point (docs/gait.md, "Response to a set-point change").
+against the true contact, the step periods, each whole cycle's speed split into the feet's
+strides and the trunk's place over them, each set-point's cycles as the robots page judges
+them and the first cycle each leg opens after the change, the re-plans of that cycle (each
+leg's first stride, the CoM plan's travel against the truth's), and the velocity feedback's
+stride correction at the end of each set-point (docs/gait.md, "Response to a set-point
+change").
 
     python -m replan_experiments.gait_report RUN_DIR [--after S] [--late S]
 
@@ -28,6 +31,8 @@ from replan_experiments.analysis import contact_series, planned_steps, true_cont
 from replan_experiments.robots_page import response_axis
 from replan_experiments.robots_plan import ROBOT_KEYS
 from replan_experiments.robots_render import response_misses
+from replan_ros.messages.com_plan import com_plan_from_msg
+from replan_ros.messages.footholds import footholds_from_msg
 from replan_ros.messages.odom import base_state_from_odom
 from replan_ros.messages.stamps import stamp_to_sec
 from replan_ros.recording.bag_read import TRUTH_TOPIC, read_messages
@@ -36,6 +41,7 @@ SENSED_TOPIC = '/contacts'
 TRUE_CONTACTS_TOPIC = '/ground_truth/contacts'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 FOOTHOLDS_TOPIC = '/footholds'
+COM_PLAN_TOPIC = '/com_plan'
 # s: a touchdown sensed up to this long before the truth's still pairs with it (the truth's
 # contact flag is debounced too, sim.debounce_ticks).
 PAIR_SLACK = 0.02
@@ -126,10 +132,43 @@ def first_cycles_by_leg(steps: list[tuple[float, int]], start: float, end: float
     return sorted(rows, key=lambda row: row[1])
 
 
+def first_strides(plan, direction: np.ndarray) -> list[tuple[int, float]]:
+    """Each leg's first step in the foothold plan ``plan``: (leg, its stride along
+    ``direction`` (unit, world xy), m, from the foot where it stands), in touchdown order."""
+    first: dict = {}
+    for step in plan.steps:
+        first.setdefault(step.leg, step)
+    feet = np.asarray(plan.initial_feet, dtype=float)
+    return [(leg, float(np.dot(step.target[:2] - feet[leg, :2], direction)))
+            for leg, step in sorted(first.items(), key=lambda item: item[1].touchdown_time)]
+
+
+def travel_at(times: np.ndarray, xy: np.ndarray, t0: float, span: float,
+              direction: np.ndarray) -> list[float]:
+    """Travel (m) along ``direction`` from ``t0`` to ``t0`` plus a quarter, a half, three
+    quarters and the whole of ``span`` (s), linear between the samples (``times``, ``xy``)."""
+    def along(t: float) -> float:
+        return float(np.dot([np.interp(t, times, xy[:, 0]), np.interp(t, times, xy[:, 1])],
+                            direction))
+    return [along(t0 + f * span) - along(t0) for f in (0.25, 0.5, 0.75, 1.0)]
+
+
 def _touchdowns(times, touchdown) -> list[tuple[float, int]]:
     """(time s, leg) of every touchdown flag: ``touchdown`` (n, 4) bool at ``times`` (n,) s."""
     return [(float(t), int(leg)) for t, row in zip(times, touchdown, strict=True)
             for leg in np.flatnonzero(row)]
+
+
+def _decoded(messages, decode) -> list:
+    """``decode`` of each (log time, message) pair, in plan-stamp order; messages it refuses
+    are left out."""
+    plans = []
+    for _, msg in messages:
+        try:
+            plans.append(decode(msg))
+        except ValueError:
+            continue
+    return sorted(plans, key=lambda plan: plan.start_time)
 
 
 def stride_corrections(diagnostics) -> list[tuple[float, float, float]]:
@@ -152,7 +191,8 @@ def report(run: Path, after: float, late: float) -> list[str]:
     counts as late."""
     metrics = json.loads((run / 'metrics.json').read_text())
     data = read_messages(run / 'bag', topics=(TRUTH_TOPIC, SENSED_TOPIC, TRUE_CONTACTS_TOPIC,
-                                              DIAGNOSTICS_TOPIC, FOOTHOLDS_TOPIC))
+                                              DIAGNOSTICS_TOPIC, FOOTHOLDS_TOPIC,
+                                              COM_PLAN_TOPIC))
     sensed_series = contact_series(data, SENSED_TOPIC)
     truth = true_contacts(data)              # stamp -> the true contact state, feet included
     odom = sorted((base_state_from_odom(m) for _, m in data.get(TRUTH_TOPIC, [])),
@@ -180,8 +220,11 @@ def report(run: Path, after: float, late: float) -> list[str]:
     steps = [(actual, leg) for leg, _, _, actual in executed_steps(true, planned_steps(data))
              if actual is not None]
     truth_pose = (trunk[0], np.array([b.position for b in odom]), yaws)
+    plans = (_decoded(data.get(FOOTHOLDS_TOPIC, []), footholds_from_msg),
+             _decoded(data.get(COM_PLAN_TOPIC, []), com_plan_from_msg))
     for segment in metrics.get('velocity_tracking') or []:
-        lines += _segment_lines(segment, sensed_times, trunk, trunk_velocity, yaws, feet)
+        lines += _segment_lines(segment, sensed_times, trunk, trunk_velocity, yaws, feet,
+                                plans)
         if any(segment['commanded']):
             axis, cell = response_axis(segment)
             misses = response_misses(cell)
@@ -229,7 +272,7 @@ def _sensing_lines(delays: list[Sensing], after: float, late: float) -> list[str
 
 
 def _segment_lines(segment: dict, sensed_times: np.ndarray, trunk, trunk_velocity: np.ndarray,
-                   yaws: np.ndarray, feet) -> list[str]:
+                   yaws: np.ndarray, feet, plans: tuple[list, list] = ([], [])) -> list[str]:
     command = np.asarray(segment['commanded'], dtype=float)
     speed = float(np.hypot(*command[:2]))
     cycles = segment.get('cycle_velocities') or []
@@ -255,11 +298,42 @@ def _segment_lines(segment: dict, sensed_times: np.ndarray, trunk, trunk_velocit
                      f'{row.feet_percent:6.1f}  {1000 * row.over_feet[0]:6.1f} -> '
                      f'{1000 * row.over_feet[1]:6.1f}  {1000 * row.over_reference[0]:6.1f} -> '
                      f'{1000 * row.over_reference[1]:6.1f}')
+    lines += _replan_lines(t0, boundaries[1] - boundaries[0], speed, direction, trunk, plans)
     inside = (trunk[0] >= boundaries[0]) & (trunk[0] <= boundaries[-1])
     along = trunk_velocity[inside] @ direction                 # m/s
     if len(along):
         lines.append(f'  trunk speed along the set-point over these cycles: {along.min():.3f} '
                      f'to {along.max():.3f} m/s')
+    return lines
+
+
+def _replan_lines(t0: float, span: float, speed: float, direction: np.ndarray, trunk,
+                  plans: tuple[list, list]) -> list[str]:
+    """The re-plans from the one at ``t0`` (the change's) to one cycle (``span`` s) later:
+    each leg's first stride and the CoM plan's travel against the truth's and the set-point's
+    (``plans``: the foothold plans and CoM plans of the bag)."""
+    footholds, com_plans = plans
+    lines = []
+    for plan in footholds:
+        if not t0 - 1e-6 <= plan.start_time <= t0 + span:
+            continue
+        strides = ', '.join(f'{LEGS[leg]} {1000 * m:.0f}'
+                            for leg, m in first_strides(plan, direction))
+        text = f'    {plan.start_time:6.2f} s: {strides}'
+        com = next((c for c in com_plans if abs(c.start_time - plan.start_time) < 1e-6), None)
+        if com is not None:
+            times = com.start_time + com.dt * np.arange(len(com.position))
+            planned = travel_at(times, com.position[:, :2], plan.start_time, span, direction)
+            true = travel_at(*trunk, plan.start_time, span, direction)
+            text += ('; plan ' + ' / '.join(f'{1000 * m:.0f}' for m in planned)
+                     + ', truth ' + ' / '.join(f'{1000 * m:.0f}' for m in true)
+                     + ', set-point ' + ' / '.join(f'{1000 * speed * f * span:.0f}'
+                                                   for f in (0.25, 0.5, 0.75, 1.0)))
+        lines.append(text)
+    if lines:
+        lines.insert(0, '  re-plans in the first cycle: each leg\'s first stride along the '
+                        'set-point (mm); the CoM plan\'s travel along it at 1/4, 1/2, 3/4 and '
+                        '1 cycle, against the truth\'s and the set-point\'s (mm)')
     return lines
 
 

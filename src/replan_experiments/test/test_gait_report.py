@@ -8,13 +8,15 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.serialization import serialize_message
 
-from replan_core.common.types import BaseState, ContactState
+from replan_core.common.types import BaseState, ContactState, FootholdPlan, Step
 from replan_experiments.gait_report import (
     cycle_splits,
     first_cycles_by_leg,
+    first_strides,
     main,
     report,
     sensing_delays,
+    travel_at,
 )
 from replan_experiments.runs import code_fingerprint
 from replan_ros.messages.contacts import contacts_to_msg
@@ -122,6 +124,21 @@ def test_each_leg_opens_its_own_first_cycle():
     assert [share for _, _, share in rows] == pytest.approx([2.5 / 3.0, 1.0, 1.0], abs=1e-3)
     assert first_cycles_by_leg(steps, 7.0, 9.0, 1, SPEED,
                                (times, positions, np.zeros_like(times))) == []
+
+
+def test_a_plans_first_strides_and_a_paths_travel_along_the_set_point():
+    plan = FootholdPlan(start_time=1.0, initial_feet=FEET.copy(), initial_yaw=0.0)
+    for k, (leg, dy) in enumerate([(3, 0.05), (0, 0.10), (3, 0.20), (1, -0.01)]):
+        target = FEET[leg] + [0.3, dy, 0.0]          # 0.3 m across the set-point's direction
+        plan.steps.append(Step(leg, 1.2 + k, 1.6 + k, target, 0.1, True, False, 0.0))
+    # rh's first step only, in touchdown order; the later rh step is not a first one.
+    strides = first_strides(plan, np.array([0.0, 1.0]))
+    assert [leg for leg, _ in strides] == [3, 0, 1]
+    assert [m for _, m in strides] == pytest.approx([0.05, 0.10, -0.01])
+    times = np.arange(0.0, 5.0, 0.004)
+    xy = np.stack([np.zeros_like(times), SPEED * times ** 2], axis=1)
+    assert travel_at(times, xy, 1.0, 2.0, np.array([0.0, 1.0])) == pytest.approx(
+        [SPEED * (t * t - 1.0) for t in (1.5, 2.0, 2.5, 3.0)], abs=1e-6)
 
 
 def test_the_report_of_a_run_folder(tmp_path):
