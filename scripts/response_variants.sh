@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A setting's effect on the response to set-point changes: each robot's response run of the
-# robots page with parameters overridden, on noise seeds, per set-point each whole cycle as the
-# page measures it and the first cycle opened by each leg (docs/gait.md).
+# robots page with parameters overridden, on noise seeds, per set-point each whole cycle opened
+# by each leg, judged as the page judges them (docs/gait.md).
 #   scripts/response_variants.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--seed N ...]
 #                                [--jobs N] [--out DIR]
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"

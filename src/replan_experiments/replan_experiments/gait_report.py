@@ -1,7 +1,7 @@
 """What a run's gait did, step by step, read from its bag: when each touchdown was sensed
 against the true contact, the step periods, each whole cycle's speed split into the feet's
-strides and the trunk's place over them, each set-point's cycles as the robots page judges
-them and the first cycle each leg opens after the change, the re-plans of that cycle (each
+strides and the trunk's place over them, each set-point's cycles opened by each leg as the
+robots page judges them, the re-plans of that cycle (each
 leg's first stride, the CoM plan's travel against the truth's), and the velocity feedback's
 stride correction at the end of each set-point (docs/gait.md, "Response to a set-point
 change").
@@ -9,8 +9,8 @@ change").
     python -m replan_experiments.gait_report RUN_DIR [--after S] [--late S]
 
 RUN_DIR is a run's folder (``scripts/scenario.sh --out``, or a page's run cache): its ``bag``
-and ``metrics.json`` (the cycles of ``velocity_tracking``). It reads a finished run; no run
-imports it, so it shapes none.
+and ``metrics.json`` (the cycles of ``velocity_tracking``, each leg's among them). It reads a
+finished run; no run imports it, so it shapes none.
 """
 
 from __future__ import annotations
@@ -26,10 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from replan_core.common.types import LEGS
-from replan_core.evaluation.metrics import achieved_velocity, executed_steps, roll_pitch_yaw
-from replan_experiments.analysis import contact_series, planned_steps, true_contacts
+from replan_core.evaluation.metrics import roll_pitch_yaw
+from replan_experiments.analysis import contact_series, true_contacts
 from replan_experiments.robots_page import response_axis
-from replan_experiments.robots_plan import ROBOT_KEYS
 from replan_experiments.robots_render import response_misses
 from replan_ros.messages.com_plan import com_plan_from_msg
 from replan_ros.messages.footholds import footholds_from_msg
@@ -113,23 +112,17 @@ def cycle_splits(boundaries: list[float], speed: float, direction: np.ndarray,
     return rows
 
 
-def first_cycles_by_leg(steps: list[tuple[float, int]], start: float, end: float, axis: int,
-                        commanded: float, trunk: tuple[np.ndarray, np.ndarray, np.ndarray]
-                        ) -> list[tuple[int, float, float]]:
-    """The first whole cycle of a set-point [``start``, ``end``] (s) opened by each leg: from
-    that leg's first touchdown in it to its next (``steps``: (true touchdown s, leg) of the
-    executed steps, as the run's metrics take them), the trunk's mean body velocity component
-    ``axis`` (0 x, 1 y, 2 yaw) as a share of ``commanded``. ``trunk``: times, positions, yaws of
-    the truth. (leg, touchdown s, share) in the order the legs open their cycles."""
-    rows = []
-    for leg in sorted({leg for _, leg in steps}):
-        times = sorted(t for t, other in steps if other == leg and start <= t <= end)
-        if len(times) < 2:
-            continue
-        velocity = achieved_velocity(*trunk, times[0], times[1])
-        if velocity is not None:
-            rows.append((leg, times[0], velocity[axis] / commanded))
-    return sorted(rows, key=lambda row: row[1])
+def judged_line(segment: dict) -> str:
+    """A set-point's whole cycles opened by each leg (the run's ``leg_cycle_velocities``), in
+    per cent of the set-point, judged as docs/robots.md judges them."""
+    axis, cell = response_axis(segment)
+    misses = response_misses(cell)
+    legs = '; '.join(f'{leg["leg"]} at {leg["start_s"] - segment["start_s"]:.2f} s '
+                     + ' '.join(f'{100 * x:.0f}' for x in leg['shares'])
+                     for leg in cell['legs'])
+    return (f'  {axis}: each whole cycle opened by each leg, % of the set-point, as '
+            f'docs/robots.md judges them: {legs or "none"}'
+            + (f' ({", ".join(misses)} off)' if misses else ' (met)'))
 
 
 def first_strides(plan, direction: np.ndarray) -> list[tuple[int, float]]:
@@ -216,33 +209,13 @@ def report(run: Path, after: float, late: float) -> list[str]:
             np.array([np.asarray(truth[t].foot_position)[:, :2] for t in true_times]))
     sensed_times = np.array([t for t, _ in sensed])
     corrections = stride_corrections(data.get(DIAGNOSTICS_TOPIC, []))
-    # Each executed step's true touchdown, as the run's metrics take them (analysis.analyse_run).
-    steps = [(actual, leg) for leg, _, _, actual in executed_steps(true, planned_steps(data))
-             if actual is not None]
-    truth_pose = (trunk[0], np.array([b.position for b in odom]), yaws)
     plans = (_decoded(data.get(FOOTHOLDS_TOPIC, []), footholds_from_msg),
              _decoded(data.get(COM_PLAN_TOPIC, []), com_plan_from_msg))
     for segment in metrics.get('velocity_tracking') or []:
         lines += _segment_lines(segment, sensed_times, trunk, trunk_velocity, yaws, feet,
                                 plans)
         if any(segment['commanded']):
-            axis, cell = response_axis(segment)
-            misses = response_misses(cell)
-            lines.append(f'  {axis}: each whole cycle as docs/robots.md measures it, % of the '
-                         'set-point: ' + ' '.join(f'{100 * x:.0f}' for x in cell['shares'])
-                         + (f' ({", ".join(misses)} off)' if misses else ' (met)'))
-            k = ROBOT_KEYS.index(axis)
-            opened = first_cycles_by_leg(steps, segment['start_s'], segment['end_s'], k,
-                                         segment['commanded'][k], truth_pose)
-            cycles = segment.get('cycle_velocities') or []
-            page = next((LEGS[leg] for leg, t, _ in opened
-                         if cycles and t == cycles[0]['start_s']), None)
-            if opened:
-                lines.append('  first whole cycle opened by each leg\'s first touchdown after the '
-                             'change, % of the set-point: '
-                             + ', '.join(f'{LEGS[leg]} at {t - segment["start_s"]:.2f} s '
-                                         f'{100 * share:.0f}' for leg, t, share in opened)
-                             + f' (the page\'s: {page or "none"})')
+            lines.append(judged_line(segment))
         last = next((row for row in reversed(corrections) if row[0] < segment['end_s']), None)
         if any(segment['commanded']) and last is not None and last[0] > segment['start_s']:
             stamp, x, y = last

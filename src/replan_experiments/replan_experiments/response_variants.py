@@ -5,11 +5,10 @@ with parameters overridden, on noise seeds, read as docs/robots.md and ``gait_re
     scripts/response_variants.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--seed N ...]
                                  [--jobs N] [--out DIR]
 
-Per robot and seed, per set-point: each whole cycle as the page measures it, and the first
-whole cycle opened by each leg's first touchdown after the change (docs/gait.md, "Response to
-a set-point change"). Without ``--set``: today's settings. Runs go through the experiments'
-runner with their bags kept: a run made before with the same scenario and code is read, not
-made again (default folder ``runs/response_variants``).
+Per robot and seed, per set-point: each whole cycle opened by each leg, judged as the page
+judges them (docs/gait.md, "Response to a set-point change"). Without ``--set``: today's
+settings. Runs go through the experiments' runner with their bags kept: a run made before with
+the same scenario and code is read, not made again (default folder ``runs/response_variants``).
 """
 
 from __future__ import annotations
@@ -26,8 +25,8 @@ from replan_experiments.robot_info import robot_info
 from replan_experiments.robots_plan import RobotsPlan, load_robots_plan, response_doc
 from replan_experiments.runs import DEFAULT_DOMAIN_BASE, Runner
 
-# gait_report's lines that judge a set-point: the page's cycles and each leg's first one.
-_JUDGED = ('as docs/robots.md measures it', 'opened by each leg')
+# gait_report's line that judges a set-point: each leg's cycles, as the page judges them.
+_JUDGED = 'as docs/robots.md judges them'
 
 
 def settings(items: list[str]) -> dict[str, dict]:
@@ -47,7 +46,7 @@ def variant_doc(base: dict, info, plan: RobotsPlan, seed: int, params: dict) -> 
 
 def judged_lines(lines: list[str]) -> list[str]:
     """The lines of a ``gait_report`` that judge each set-point."""
-    return [line for line in lines if any(mark in line for mark in _JUDGED)]
+    return [line for line in lines if _JUDGED in line]
 
 
 def _arguments(argv) -> argparse.Namespace:

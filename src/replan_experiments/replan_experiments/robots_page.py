@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from replan_core.common.types import LEGS
 from replan_core.evaluation.metrics import steady_velocity as last_cycles_velocity
 from replan_experiments.plan import ExperimentError
 from replan_experiments.push_effects import read_truth
@@ -125,9 +126,10 @@ def drift_and_touchdowns(positions: list, contacts: list, drift_from: float) -> 
 
 def response_row(result: RunResult) -> dict:
     """Per set-point of a response run (forward, lateral, yaw, in ``ROBOT_KEYS`` order): the
-    commanded component's mean over each whole crawl cycle after the change, as a share of the
-    set-point (``cycle_velocities`` of the truth), the first cycle's and the worst later
-    cycle's distance from 1, and the largest share (overshoot above 1); or the fall."""
+    commanded component's mean over each whole crawl cycle after the change opened by each
+    leg, as a share of the set-point (``leg_cycle_velocities`` of the truth), the worst first
+    cycle's and the worst later cycle's distance from 1, and the largest share (overshoot
+    above 1); or the fall."""
     row = {'run': result.key, 'ok': result.ok, 'fell': result.fell,
            'fall_time_s': result.metrics.get('fall_time_s'), 'axes': {}}
     segments = [s for s in result.metrics.get('velocity_tracking') or []
@@ -140,19 +142,24 @@ def response_row(result: RunResult) -> dict:
 
 def response_axis(segment: dict) -> tuple[str, dict]:
     """The commanded component of one set-point of ``metrics.json``'s ``velocity_tracking``
-    (its largest, one of ``ROBOT_KEYS``) and its response cell: its mean over each whole crawl
-    cycle as a share of the set-point, the first cycle's and the worst later cycle's distance
-    from 1, and the largest share less 1 (``robots_render.response_misses`` judges it)."""
+    (its largest, one of ``ROBOT_KEYS``) and its response cell: per leg, in the order the legs
+    open their cycles, its first touchdown after the change (s) and the mean of the component
+    over each whole crawl cycle it opens, as a share of the set-point (``legs``); the worst
+    first cycle's and the worst later cycle's distance from 1 over the legs, and the largest
+    share less 1 (``robots_render.response_misses`` judges it). Every leg is judged alike: the
+    first cycles of the four legs start a step apart on the way to the new speed."""
     commanded = segment['commanded']
     k = int(np.argmax(np.abs(commanded)))
-    shares = [c['velocity'][k] / commanded[k] for c in segment.get('cycle_velocities') or []]
+    legs = [{'leg': LEGS[row['leg']], 'start_s': row['cycles'][0]['start_s'],
+             'shares': [round(c['velocity'][k] / commanded[k], 4) for c in row['cycles']]}
+            for row in segment.get('leg_cycle_velocities') or []]
+    firsts = [leg['shares'][0] for leg in legs]
+    laters = [x for leg in legs for x in leg['shares'][1:]]
     return ROBOT_KEYS[k], {
-        'commanded': commanded[k], 'start_s': segment.get('start_s'),
-        'shares': [round(x, 4) for x in shares],
-        'first_error': round(abs(shares[0] - 1.0), 4) if shares else None,
-        'later_error': (round(max(abs(x - 1.0) for x in shares[1:]), 4)
-                        if len(shares) > 1 else None),
-        'overshoot': round(max(shares) - 1.0, 4) if shares else None}
+        'commanded': commanded[k], 'start_s': segment.get('start_s'), 'legs': legs,
+        'first_error': round(max(abs(x - 1.0) for x in firsts), 4) if firsts else None,
+        'later_error': round(max(abs(x - 1.0) for x in laters), 4) if laters else None,
+        'overshoot': round(max(firsts + laters) - 1.0, 4) if firsts else None}
 
 
 def cached_stand_measures(folder: Path, drift_from: float) -> dict | None:

@@ -69,10 +69,10 @@ def stand_cell(row: dict | None) -> str:
 
 
 def response_misses(cell: dict | None) -> list[str]:
-    """What a response axis misses: 'first' (first cycle off by more than 10 %), 'later' (a
-    later one off by more than 5 %), 'overshoot' (a cycle more than 5 % above the set-point);
-    ['no whole cycle'] without cycles."""
-    if not cell or not cell['shares']:
+    """What a response axis misses: 'first' (a leg's first cycle off by more than 10 %),
+    'later' (a later one off by more than 5 %), 'overshoot' (a cycle more than 5 % above the
+    set-point); ['no whole cycle'] without cycles."""
+    if not cell or not cell['legs']:
         return ['no whole cycle']
     misses = []
     if cell['first_error'] > 0.10:
@@ -84,11 +84,25 @@ def response_misses(cell: dict | None) -> list[str]:
     return misses
 
 
+def cycle_ranges(cell: dict) -> str:
+    """A response axis's cycles in per cent of the set-point: for the first cycle of every
+    leg, then the second, and so on, the lowest and highest over the legs ('82-99'), or one
+    figure where they round alike."""
+    count = max(len(leg['shares']) for leg in cell['legs'])
+    out = []
+    for k in range(count):
+        shares = [leg['shares'][k] for leg in cell['legs'] if len(leg['shares']) > k]
+        low, high = f'{100.0 * min(shares):.0f}', f'{100.0 * max(shares):.0f}'
+        out.append(low if low == high else f'{low}-{high}')
+    return ' '.join(out)
+
+
 def response_cell(rows: list[dict] | None, axis: str) -> str:
-    """Each whole crawl cycle after the change to ``axis``'s set-point, in per cent of it, one
-    run per noise seed (``response.seeds``, in order, separated by /); met: on every seed the
-    first within 10 %, every later one within 5 %, none more than 5 % above; else the cell
-    says what is not, and on which seeds."""
+    """Each whole crawl cycle after the change to ``axis``'s set-point, in per cent of it, the
+    range over the legs that open them (``cycle_ranges``), one run per noise seed
+    (``response.seeds``, in order, separated by /); met: on every seed every leg's first
+    within 10 %, every later one within 5 %, none more than 5 % above; else the cell says what
+    is not, and on which seeds."""
     if not rows:
         return '-'
     parts, missed = [], {}
@@ -101,7 +115,7 @@ def response_cell(rows: list[dict] | None, axis: str) -> str:
         if misses == ['no whole cycle']:
             parts.append('no whole cycle')
             continue
-        parts.append(' '.join(f'{100.0 * x:.0f}' for x in cell['shares']) + ' %')
+        parts.append(cycle_ranges(cell) + ' %')
         for miss in misses:
             missed.setdefault(miss, []).append(row['seed'])
     text = ' / '.join(parts)
@@ -230,15 +244,16 @@ def how_section(meta: dict) -> list[str]:
         f'{response["segment_cycles"]} of its crawl cycles, on each of the sim\'s noise seeds '
         f'{", ".join(str(seed) for seed in response["seeds"])} (one run each, separated by / '
         'in that order); each cell gives the commanded component\'s mean over each whole '
-        'crawl cycle after the change, in per cent of the set-point. A cycle runs from a true '
-        'touchdown of one leg to its next, of the leg whose touchdowns span the set-point '
-        'longest. Legs with as many whole cycles span it within milliseconds of each other, '
-        'so the sim\'s noise picks the leg, and with it whether the first cycle starts at the '
-        'change or a step or more later, which moves the first cycle\'s figure by more than '
-        'its bound (docs/gait.md, "Response to a set-point change", per leg; '
-        '`scripts/gait_report.sh RUN_DIR` prints it). Met: on every seed, the first '
-        'cycle within 10 %, every later one within 5 %, and no cycle more than 5 % above the '
-        'set-point; a cell says what is not, and on which seeds.',
+        'crawl cycle after the change, in per cent of the set-point. Each leg opens its own '
+        'cycles: from each of its true touchdowns to its next (the run\'s '
+        '`leg_cycle_velocities`). The legs land a step apart, so their first cycles start at '
+        'different points of the way to the new speed: one leg\'s can hold a lag and its '
+        'catch-up and read the set-point, another\'s only the catch-up (docs/gait.md, '
+        '"Response to a set-point change"). A cell gives, for the first cycle of every leg, '
+        'then the second, and so on, the lowest and the highest over the legs. Met: on every '
+        'seed, every leg\'s first cycle within 10 %, every later one within 5 %, and no cycle '
+        'more than 5 % above the set-point; a cell says what is not, and on which seeds. '
+        '`scripts/gait_report.sh RUN_DIR` prints each leg\'s cycles.',
         f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s '
         f'from launch; travel = the largest horizontal distance of the trunk on the truth from '
         f'its place at {stand["drift_from"]:g} s; touchdowns = true contact flags that rise '

@@ -32,6 +32,7 @@ def test_the_variant_is_the_pages_response_run_with_the_settings_on_top():
 def test_it_keeps_the_report_lines_that_judge_each_set_point(tmp_path):
     _write_run(tmp_path)
     kept = judged_lines(report(tmp_path, after=0.0, late=0.04))
-    assert kept == ['  lateral: each whole cycle as docs/robots.md measures it, % of the '
-                    'set-point: 107 100 (overshoot off)']
+    assert kept == ['  lateral: each whole cycle opened by each leg, % of the set-point, as '
+                    'docs/robots.md judges them: lh at 0.50 s 107 100; lf at 1.25 s 100 '
+                    '(overshoot off)']
 

@@ -19,6 +19,7 @@ from replan_experiments.robots_page import (
     measure_robot,
     planned_runs,
     push_ladder,
+    response_axis,
     response_row,
     timing,
     walk_row,
@@ -109,7 +110,7 @@ def test_a_robot_that_walks_is_measured_on_every_test(tmp_path):
     assert [s['crossed'] for s in row['step_down']] == [True]
     # 5 + 1 share + 1 level x 1 phase; the other gaits' runs are measure_gait's
     assert len(runner.docs) == planned_runs(replace(plan, gaits={}))
-    assert [r['axes']['forward']['shares'] for r in row['response']] == [[]]   # no cycles
+    assert [r['axes']['forward']['legs'] for r in row['response']] == [[]]   # no cycles
     assert row['timing'] == {'runs': 7, 'rtf_median': 1.2, 'rtf_min': 1.2,
                              'mpc_median_ms': 1.5, 'mpc_p99_max_ms': 4.0}
 
@@ -132,24 +133,30 @@ def test_standing_travel_is_the_trunks_largest_distance_and_every_touchdown_coun
     assert drift_and_touchdowns(positions[:1], contacts, 0.0) is None
 
 
-def test_a_response_gives_each_whole_cycle_as_a_share_of_its_set_point():
-    def segment(start, commanded, per_cycle):
-        return {'start_s': start, 'commanded': commanded,
-                'cycle_velocities': [{'start_s': 0.0, 'end_s': 1.0, 'velocity': v}
-                                     for v in per_cycle]}
+def test_a_response_gives_each_legs_whole_cycles_as_shares_of_its_set_point():
+    def segment(start, commanded, per_leg):
+        return {'start_s': start, 'commanded': commanded, 'leg_cycle_velocities': [
+            {'leg': leg, 'cycles': [{'start_s': start + 0.1 * (k + 1) + j, 'end_s': 0.0,
+                                     'velocity': v} for j, v in enumerate(per_cycle)]}
+            for k, (leg, per_cycle) in enumerate(per_leg)]}
     metrics = {'fell': False, 'completed': True, 'sim_time_s': 30.0, 'velocity_tracking': [
         segment(0.0, [0.0, 0.0, 0.0], []),
-        segment(0.5, [0.1, 0.0, 0.0], [[0.092, 0.0, 0.0], [0.1, 0.0, 0.0], [0.104, 0, 0]]),
-        segment(10.5, [0.0, 0.05, 0.0], [[0.0, 0.04, 0.0], [0.0, 0.0475, 0.0]]),
-        segment(20.5, [0.0, 0.0, 0.2], [[0.0, 0.0, 0.2]])]}
+        # lh's cycles read 92, 100, 104 %; rf's first one 106 %.
+        segment(0.5, [0.1, 0.0, 0.0], [(2, [[0.092, 0.0, 0.0], [0.1, 0.0, 0.0],
+                                            [0.104, 0, 0]]),
+                                       (1, [[0.106, 0.0, 0.0], [0.1, 0.0, 0.0]])]),
+        segment(10.5, [0.0, 0.05, 0.0], [(0, [[0.0, 0.04, 0.0], [0.0, 0.0475, 0.0]])]),
+        segment(20.5, [0.0, 0.0, 0.2], [(3, [[0.0, 0.0, 0.2]])])]}
     row = response_row(RunResult('r', {}, metrics, Path('r')))
     forward, lateral, yaw = (row['axes'][a] for a in ('forward', 'lateral', 'yaw'))
-    assert forward['shares'] == [0.92, 1.0, 1.04]
-    assert forward['first_error'] == pytest.approx(0.08)
+    assert forward['legs'] == [{'leg': 'lh', 'start_s': 0.6, 'shares': [0.92, 1.0, 1.04]},
+                               {'leg': 'rf', 'start_s': 0.7, 'shares': [1.06, 1.0]}]
+    assert forward['first_error'] == pytest.approx(0.08)        # the worst leg's first cycle
     assert forward['later_error'] == pytest.approx(0.04)
-    assert forward['overshoot'] == pytest.approx(0.04)
+    assert forward['overshoot'] == pytest.approx(0.06)          # rf's first cycle
     assert lateral['first_error'] == pytest.approx(0.2) and lateral['later_error'] == 0.05
     assert yaw['later_error'] is None and yaw['overshoot'] == 0.0
+    assert response_axis({'commanded': [0.1, 0.0, 0.0]})[1]['legs'] == []   # no contacts
 
 
 def test_timing_leaves_out_runs_that_failed():

@@ -39,6 +39,13 @@ def _walk(commanded: float, achieved: float | None, fell: bool = False, ok: bool
             'fall_time_s': 2.9 if fell else None}
 
 
+def _legs(*per_leg: list[float]) -> list[dict]:
+    """A response axis's ``legs``: each leg's cycle shares, lh first."""
+    names = ('lh', 'lf', 'rh', 'rf')[:len(per_leg)]
+    return [{'leg': name, 'start_s': 0.5 + k, 'shares': shares}
+            for k, (name, shares) in enumerate(zip(names, per_leg, strict=True))]
+
+
 def _phases(fell_at: list[int], n: int = 4) -> list[dict]:
     return [{'t': 4.0 + k, 'phase': k, 'ok': True, 'fell': k in fell_at, 'run': 'r'}
             for k in range(n)]
@@ -51,10 +58,10 @@ GO1 = {'robot': 'go1', 'skipped': None, 'cycle_s': 2.347,
                  'travel_m': 0.0061, 'drift_window_s': [0.0, 12.0], 'touchdowns': 0,
                  'last_touchdown_s': None},
        'response': [{'seed': 0, 'run': 'r', 'ok': True, 'fell': False, 'axes': {
-           'forward': {'shares': [0.93, 0.98, 1.01], 'first_error': 0.07, 'later_error': 0.02,
-                       'overshoot': 0.01},
-           'lateral': {'shares': [0.85, 0.93, 0.99], 'first_error': 0.15, 'later_error': 0.07,
-                       'overshoot': -0.01}}}],
+           'forward': {'legs': _legs([0.93, 0.98, 1.01]), 'first_error': 0.07,
+                       'later_error': 0.02, 'overshoot': 0.01},
+           'lateral': {'legs': _legs([0.85, 0.93, 0.99]), 'first_error': 0.15,
+                       'later_error': 0.07, 'overshoot': -0.01}}}],
        'push': {'levels': [{'dv_mps': 0.2, 'force_n': 10.48, 'impulse_ns': 2.62,
                             'phases': _phases([])},
                            {'dv_mps': 0.3, 'force_n': 15.72, 'impulse_ns': 3.93,
@@ -109,19 +116,20 @@ def test_push_and_step_cells_at_the_edges():
     first_falls = {**GO1['push'], 'levels': GO1['push']['levels'][:1], 'survived_dv': None,
                    'fell_dv': 0.2}
     first_falls['levels'] = [{**first_falls['levels'][0], 'phases': _phases([0])}]
-    overshoot = {'shares': [1.07, 0.99, 1.0], 'first_error': 0.07, 'later_error': 0.01,
-                 'overshoot': 0.07}
+    # Two legs: the first cycles 93 and 107 %, the second 99 and 99.2 %, lh's third 100 %.
+    overshoot = {'legs': _legs([0.93, 0.99, 1.0], [1.07, 0.992]), 'first_error': 0.07,
+                 'later_error': 0.01, 'overshoot': 0.07}
     row = {'seed': 0, 'ok': True, 'fell': False, 'axes': {'forward': overshoot}}
-    assert response_cell([row], 'forward') == '107 99 100 % (**overshoot off**)'
-    met = {'shares': [0.95, 1.02, 1.0], 'first_error': 0.05, 'later_error': 0.02,
+    assert response_cell([row], 'forward') == '93-107 99 100 % (**overshoot off**)'
+    met = {'legs': _legs([0.95, 1.02, 1.0]), 'first_error': 0.05, 'later_error': 0.02,
            'overshoot': 0.02}
-    late = {'shares': [0.85, 0.93, 1.0], 'first_error': 0.15, 'later_error': 0.07,
+    late = {'legs': _legs([0.85, 0.93, 1.0]), 'first_error': 0.15, 'later_error': 0.07,
             'overshoot': 0.0}
     seeds = [{**row, 'seed': 1, 'axes': {'forward': met}}, row,
              {**row, 'seed': 2, 'axes': {'forward': late}},
              {'seed': 3, 'ok': True, 'fell': True, 'fall_time_s': 9.5}]
     assert response_cell(seeds, 'forward') == (
-        '95 102 100 % / 107 99 100 % / 85 93 100 % / **fell** at 9.5 s '
+        '95 102 100 % / 93-107 99 100 % / 85 93 100 % / **fell** at 9.5 s '
         '(**overshoot off on seed 0; first off on seed 2; later off on seed 2**)')
     assert response_cell(seeds[:1], 'forward') == '95 102 100 %'
     assert response_cell([], 'forward') == '-'

@@ -119,7 +119,29 @@ def cycle_velocities(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
     order: ``{'start_s', 'end_s', 'velocity': [vx, vy, wz]}`` (m/s, rad/s), from one touchdown
     of a leg to its next (the leg of ``whole_cycles``). After a set-point change the first
     cycles show how the trunk gets to the new speed; the last ones are its steady state."""
-    cycle_times = _cycle_leg(touchdowns, start, end)
+    return _cycles_between(times, positions, yaws, _cycle_leg(touchdowns, start, end))
+
+
+def leg_cycle_velocities(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
+                         touchdowns: list[tuple[float, int]], start: float,
+                         end: float) -> list[dict]:
+    """The whole cycles within [start, end] (s) opened by each leg: ``{'leg', 'cycles'}``
+    (``cycles`` as ``cycle_velocities``' rows, from each touchdown of that leg to its next),
+    legs in the order of their first touchdown there. The legs land a step apart, so each
+    leg's first cycle starts at a different point of the way to a new speed: one leg's cycles
+    alone can show a lag and miss the catch-up that follows it, or the reverse."""
+    rows = []
+    for leg in sorted({leg for _, leg in touchdowns}):
+        legs_times = sorted(t for t, other in touchdowns if other == leg and start <= t <= end)
+        cycles = _cycles_between(times, positions, yaws, legs_times)
+        if cycles:
+            rows.append({'leg': int(leg), 'cycles': cycles})
+    return sorted(rows, key=lambda row: row['cycles'][0]['start_s'])
+
+
+def _cycles_between(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
+                    cycle_times: list[float]) -> list[dict]:
+    """``cycle_velocities``' rows between each pair of consecutive ``cycle_times`` (s)."""
     rows = []
     for t0, t1 in itertools.pairwise(cycle_times):
         v = achieved_velocity(times, positions, yaws, t0, t1)
@@ -150,9 +172,10 @@ def tracking_errors(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
     crawl cycles after the settling (``achieved_cycles``, its span ``cycles_span_s`` and
     ``cycles``: the crawl's sway averaged out), the velocity of each whole cycle from the
     segment's start (``cycle_velocities``) and the steady state over its last
-    ``steady_cycles`` cycles (``achieved_steady``; None with fewer). After a set-point change
-    the trunk takes a few cycles to get to the new speed (it falls behind its feet while it
-    accelerates); an average from ``settle`` s on keeps part of that."""
+    ``steady_cycles`` cycles (``achieved_steady``; None with fewer), and each leg's whole
+    cycles (``leg_cycle_velocities``). After a set-point change the trunk takes a few cycles
+    to get to the new speed (it falls behind its feet while it accelerates); an average from
+    ``settle`` s on keeps part of that."""
     rows = []
     for seg in segments:
         start = min(seg.start + settle, seg.start + 0.5 * (seg.end - seg.start))
@@ -168,6 +191,8 @@ def tracking_errors(times: np.ndarray, positions: np.ndarray, yaws: np.ndarray,
                        cycles_span_s=[span[0], span[1]] if cycles else None,
                        cycles=span[2] if cycles else 0,
                        cycle_velocities=per_cycle,
+                       leg_cycle_velocities=leg_cycle_velocities(
+                           times, positions, yaws, touchdowns, seg.start, seg.end),
                        achieved_steady=steady_velocity(per_cycle, steady_cycles),
                        steady_cycles=steady_cycles)
         if achieved is not None:

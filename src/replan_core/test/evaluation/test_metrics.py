@@ -8,6 +8,7 @@ from replan_core.evaluation.metrics import (
     command_segments,
     detect_fall,
     distance_travelled,
+    leg_cycle_velocities,
     rise_time,
     roll_pitch_yaw,
     steady_velocity,
@@ -81,6 +82,33 @@ def test_whole_cycles_take_out_the_sway():
     assert row['cycles_span_s'][1] - row['cycles_span_s'][0] == pytest.approx(3 * cycle)
     assert whole_cycles(touchdowns, 3.0, 5.0) is None             # no leg touches down twice
     assert whole_cycles([], 0.0, 10.0) is None
+
+
+def test_each_legs_cycles_show_a_catch_up_that_one_legs_cycles_hide():
+    """Told 0.1 m/s sideways at 1 s, a trunk walks 0.05 m/s for a second (a 5 cm lag), then
+    0.15 m/s for a second (the catch-up), then 0.1 m/s. The legs land 0.8 s apart in a 3.2 s
+    cycle: leg 0's first cycle holds the lag and the catch-up and reads the set-point; leg
+    1's and 2's hold only part of the lag and all of the catch-up."""
+    dt, cycle = 0.004, 3.2
+    t = np.arange(0.0, 14.0, dt)
+    vy = np.select([t < 1.0, t < 2.0, t < 3.0], [0.0, 0.05, 0.15], 0.1)
+    pos = np.stack([np.zeros_like(t), np.concatenate([[0.0], np.cumsum(vy[:-1] * dt)])], 1)
+    yaw = np.zeros_like(t)
+    touchdowns = [(1.0 + cycle * k + 0.8 * leg, leg) for k in range(4) for leg in range(4)]
+    row, = [r for r in tracking_errors(t, pos, yaw, command_segments(
+        [(1.0, (0.0, 0.1, 0.0))], end_time=14.0), settle=2.0, touchdowns=touchdowns)
+        if any(r['commanded'])]
+    assert row['cycle_velocities'][0]['velocity'][1] == pytest.approx(0.1, abs=1e-3)
+    legs = row['leg_cycle_velocities']
+    assert legs == leg_cycle_velocities(t, pos, yaw, touchdowns, 1.0, 14.0)
+    assert [leg['leg'] for leg in legs] == [0, 1, 2, 3]           # in the order they land
+    first = [leg['cycles'][0]['velocity'][1] for leg in legs]
+    # leg 1: (0.2 s x 0.05 + 0.15 + 2 s x 0.1) / 3.2 s; leg 2: (0.4 s x 0.15 + 2.8 s x 0.1) / 3.2
+    assert first == pytest.approx([0.1, 0.36 / 3.2, 0.34 / 3.2, 0.1], abs=1e-3)
+    assert [len(leg['cycles']) for leg in legs] == [3, 3, 3, 3]
+    assert all(c['velocity'][1] == pytest.approx(0.1, abs=1e-3)
+               for leg in legs for c in leg['cycles'][1:])
+    assert leg_cycle_velocities(t, pos, yaw, touchdowns, 3.0, 5.0) == []   # none lands twice
 
 
 def test_achieved_velocity_on_a_known_arc():

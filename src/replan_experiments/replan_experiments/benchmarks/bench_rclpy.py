@@ -31,6 +31,7 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
 
+from replan_ros.launch.graph import process_cpu_seconds
 from replan_ros.transport import qos
 from replan_ros.transport.on_demand import OnDemandSubscriptions
 
@@ -125,11 +126,12 @@ def _role_bystander(on_demand: bool) -> None:
     rclpy.spin(node)
 
 
-def _cpu_seconds(pid: int) -> float:
-    """User + system CPU time (s) of process ``pid`` so far (``/proc/<pid>/stat``)."""
-    with open(f'/proc/{pid}/stat') as stat:
-        fields = stat.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+def _controller_cpu(pid: int) -> float:
+    """CPU s the controller process ``pid`` has used so far; it must still run."""
+    seconds = process_cpu_seconds(pid)
+    if seconds is None:
+        raise RuntimeError(f'bench_rclpy: the controller process {pid} is gone')
+    return seconds
 
 
 def _round_trip(bystanders: int, on_demand: bool, rounds: int,
@@ -171,7 +173,7 @@ def _round_trip(bystanders: int, on_demand: bool, rounds: int,
             if k == WARM_UP:
                 start = time.perf_counter()
                 cpu_sim = time.process_time()
-                cpu_controller = _cpu_seconds(children[0].pid)
+                cpu_controller = _controller_cpu(children[0].pid)
             for publisher in publishers:
                 publisher.publish(state(k))
             while not answered or answered[-1] != k:
@@ -181,7 +183,7 @@ def _round_trip(bystanders: int, on_demand: bool, rounds: int,
                         publisher.publish(state(k))
         wall = time.perf_counter() - start
         cpu_sim = time.process_time() - cpu_sim
-        cpu_controller = _cpu_seconds(children[0].pid) - cpu_controller
+        cpu_controller = _controller_cpu(children[0].pid) - cpu_controller
         return wall / rounds * 1e3, cpu_sim / rounds * 1e3, cpu_controller / rounds * 1e3
     finally:
         executor.remove_node(node)

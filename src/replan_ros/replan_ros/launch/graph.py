@@ -64,6 +64,9 @@ RESPAWN_DELAY = 1.0     # s, wall: first back-off, doubled at each further death
 RESPAWN_LIMIT = 3       # deaths of one node within RESPAWN_WINDOW that stop the graph
 RESPAWN_WINDOW = 30.0   # s, wall
 LOG_TAIL = 20           # lines of a node's log printed when it keeps dying
+# s of sim from the first tick: a shorter run's real-time factor and CPU time per sim s would
+# be mostly its first ticks' (plans, discovery), not the graph's rate, so none is given.
+MIN_MEASURED_SIM_S = 1.0
 EXIT_DONE, EXIT_DIED, EXIT_CONFIG, EXIT_WALL_TIME, EXIT_RESPAWN_LIMIT = 0, 1, 2, 3, 4
 
 
@@ -335,18 +338,13 @@ class Graph:
     def cpu_seconds(self) -> dict[str, float]:
         """CPU time used so far (user + system, s) by each running node process, by pid, so
         that a respawned node does not count its predecessor's."""
-        ticks = os.sysconf('SC_CLK_TCK')
         used = {}
         for node in self.nodes:
             if node.process is None or node.process.poll() is not None:
                 continue
-            try:
-                stat = Path(f'/proc/{node.process.pid}/stat').read_text()
-            except OSError:
-                continue
-            # Fields after the command name (which may hold spaces): utime, stime are 14, 15.
-            fields = stat.rsplit(')', 1)[1].split()
-            used[f'{node.name}:{node.process.pid}'] = (int(fields[11]) + int(fields[12])) / ticks
+            seconds = process_cpu_seconds(node.process.pid)
+            if seconds is not None:
+                used[f'{node.name}:{node.process.pid}'] = seconds
         return used
 
     def memory_peaks_mb(self) -> dict[str, float]:
@@ -460,11 +458,15 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
         if stop_requested:
             graph.log(f'[launch {_stamp()}] signal {stop_requested[0]}: stopping')
         graph.peak_memory_mb = graph.memory_peaks_mb()
-        if first_tick is not None and watch.sim_time > first_tick[1]:
-            wall = time.monotonic() - first_tick[0]
-            sim = watch.sim_time - first_tick[1]
-            graph.real_time_factor = sim / wall
-            graph.cpu_ms_per_sim_s = cpu_per_sim_s(cpu_at_first_tick, graph.cpu_seconds(), sim)
+        sim = watch.sim_time - first_tick[1] if first_tick is not None else 0.0
+        if sim > 0.0:
+            graph.real_time_factor, graph.cpu_ms_per_sim_s = closing_figures(
+                sim, time.monotonic() - first_tick[0], cpu_at_first_tick, graph.cpu_seconds())
+        if sim > 0.0 and graph.real_time_factor is None:
+            graph.log(f'[launch {_stamp()}] {watch.sim_time:.1f} s of sim time: too short to '
+                      f'measure the real-time factor and the CPU time per sim s (under '
+                      f'{MIN_MEASURED_SIM_S:g} s from the first tick)')
+        elif sim > 0.0:
             graph.log(f'[launch {_stamp()}] {watch.sim_time:.1f} s of sim time, real-time '
                       f'factor {graph.real_time_factor:.2f} (from the first tick); peak memory '
                       f'{sum(graph.peak_memory_mb.values()):.0f} MB in '
@@ -483,6 +485,28 @@ def run_graph(graph: Graph, duration: float | None, wall_timeout: float | None =
         signal.signal(signal.SIGINT, old_int)
         signal.signal(signal.SIGTERM, old_term)
     return code
+
+
+def closing_figures(sim_seconds: float, wall_seconds: float, cpu_before: dict[str, float],
+                    cpu_after: dict[str, float]) -> tuple[float | None, dict[str, float]]:
+    """A run's real-time factor (sim s per wall s) and CPU ms per sim s of each node
+    (``cpu_per_sim_s``) over the span from its first tick; (None, {}) for a span under
+    ``MIN_MEASURED_SIM_S``."""
+    if sim_seconds < MIN_MEASURED_SIM_S:
+        return None, {}
+    return sim_seconds / wall_seconds, cpu_per_sim_s(cpu_before, cpu_after, sim_seconds)
+
+
+def process_cpu_seconds(pid: int) -> float | None:
+    """User + system CPU time (s) process ``pid`` has used so far (``/proc/<pid>/stat``);
+    None if it is gone."""
+    try:
+        stat = Path(f'/proc/{pid}/stat').read_text()
+    except OSError:
+        return None
+    # Fields after the command name (which may hold spaces): utime, stime are 14, 15.
+    fields = stat.rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def cpu_per_sim_s(before: dict[str, float], after: dict[str, float],

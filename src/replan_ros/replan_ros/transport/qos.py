@@ -65,9 +65,10 @@ CLOCK_PUB = with_depth(CLOCK, RECORDED_HISTORY // 5)    # /clock: every 5th tick
 # The writers of plans (footholds, com_plan, zmp_plan, com_path, gait_markers: one of each per
 # re-plan) keep the last PLAN_HISTORY, for the same reason: with depth 1 a plan the recorder
 # missed in transport could be sent again only until the next re-plan replaced it. 20 re-plans
-# are 4 s of sim time or more. A late joiner that reads them LATCHED (depth 1) still keeps the
-# newest only; one that keeps all (a respawned recorder) gets the history (docs/recording.md,
-# "No loss").
+# are 4 s of sim time or more. A late joiner that reads them LATCHED (depth 1) gets them in
+# order and the newest last, but not always the newest alone: its depth drops only what it has
+# not taken yet, and its executor may take older ones first (benchmarks/late_reader.py). One
+# that keeps all (a respawned recorder) gets the history (docs/recording.md, "No loss").
 PLAN_HISTORY = 20
 LATCHED_PUB = with_depth(LATCHED, PLAN_HISTORY)
 

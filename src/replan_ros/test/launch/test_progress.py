@@ -1,10 +1,17 @@
 """The launcher's progress line: its text, its real-time factors, terminal or plain lines."""
 
 import io
+import os
+import subprocess
 
 import pytest
 
-from replan_ros.launch.graph import cpu_per_sim_s
+from replan_ros.launch.graph import (
+    MIN_MEASURED_SIM_S,
+    closing_figures,
+    cpu_per_sim_s,
+    process_cpu_seconds,
+)
 from replan_ros.launch.progress import (
     EVENT_WORDS,
     PROGRESS_PLAIN_PERIOD,
@@ -98,3 +105,17 @@ def test_cpu_per_sim_s_counts_each_node_once_and_a_respawn_from_its_start():
     after = {'sim:100': 3.0, 'wbc:101': 4.5, 'mpc:200': 0.4}      # mpc respawned as pid 200
     assert cpu_per_sim_s(before, after, 10.0) == pytest.approx(
         {'sim': 200.0, 'wbc': 250.0, 'mpc': 40.0})
+
+
+def test_a_run_too_short_to_measure_gives_no_closing_figures():
+    before, after = {'sim:1': 1.0, 'wbc:2': 2.0}, {'sim:1': 1.5, 'wbc:2': 2.2}
+    assert closing_figures(0.5 * MIN_MEASURED_SIM_S, 1.0, before, after) == (None, {})
+    rtf, cpu = closing_figures(2.0, 4.0, before, after)
+    assert rtf == 0.5 and cpu == pytest.approx({'sim': 250.0, 'wbc': 100.0})
+
+
+def test_a_process_cpu_time_is_read_while_it_runs():
+    assert process_cpu_seconds(os.getpid()) >= 0.0
+    child = subprocess.Popen(['true'])
+    child.wait()
+    assert process_cpu_seconds(child.pid) is None          # gone (reaped)
