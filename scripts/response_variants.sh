@@ -3,7 +3,7 @@
 # robots page with parameters overridden, on noise seeds, per set-point each whole cycle opened
 # by each leg, judged as the page judges them (docs/gait.md).
 #   scripts/response_variants.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--seed N ...]
-#                                [--jobs N] [--out DIR]
+#                                [--phase K ...] [--jobs N] [--out DIR]
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env

@@ -3,12 +3,13 @@ robots page (``config/robots_page.yaml``: forward from standing, then sideways, 
 with parameters overridden, on noise seeds, read as docs/robots.md and ``gait_report`` read it.
 
     scripts/response_variants.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--seed N ...]
-                                 [--jobs N] [--out DIR]
+                                 [--phase K ...] [--jobs N] [--out DIR]
 
-Per robot and seed, per set-point: each whole cycle opened by each leg, judged as the page
-judges them (docs/gait.md, "Response to a set-point change"). Without ``--set``: today's
-settings. Runs go through the experiments' runner with their bags kept: a run made before with
-the same scenario and code is read, not made again (default folder ``runs/response_variants``).
+Per robot, seed and phase of the changes, per set-point: each whole cycle opened by each leg,
+judged as the page judges them (docs/gait.md, "Response to a set-point change"). Without
+``--set``: today's settings. Runs go through the experiments' runner with their bags kept: a
+run made before with the same scenario and code is read, not made again (default folder
+``runs/response_variants``).
 """
 
 from __future__ import annotations
@@ -38,10 +39,13 @@ def settings(items: list[str]) -> dict[str, dict]:
     return params
 
 
-def variant_doc(base: dict, info, plan: RobotsPlan, seed: int, params: dict) -> dict:
-    """The page's response document of ``info``'s robot on noise seed ``seed`` with ``params``
-    (node -> {key: value}) on top of the scenario's own."""
-    return variant(response_doc(base, info, plan, seed), params=params, world=plan.profile)
+def variant_doc(base: dict, info, plan: RobotsPlan, seed: int, params: dict,
+                phase: int = 0) -> dict:
+    """The page's response document of ``info``'s robot on noise seed ``seed`` with its
+    changes at ``phase`` (``robots_plan.response_doc``) and ``params`` (node -> {key: value})
+    on top of the scenario's own."""
+    return variant(response_doc(base, info, plan, seed, phase), params=params,
+                   world=plan.profile)
 
 
 def judged_lines(lines: list[str]) -> list[str]:
@@ -60,6 +64,9 @@ def _arguments(argv) -> argparse.Namespace:
     parser.add_argument('--seed', action='append', type=int, default=[], metavar='N',
                         help="the sim's noise seed (repeatable; default the plan's response "
                              'seeds)')
+    parser.add_argument('--phase', action='append', type=int, default=[], metavar='K',
+                        help='the phase of the changes, 0 to the plan\'s response phases - 1 '
+                             '(repeatable; default every phase of the plan)')
     parser.add_argument('--jobs', type=int, default=1,
                         help='runs at once, each on its own ROS_DOMAIN_ID (default 1)')
     parser.add_argument('--out', type=Path, help='run folder (default runs/response_variants)')
@@ -90,19 +97,26 @@ def main(argv=None) -> int:
         print(f'response_variants: {err}', file=sys.stderr)
         return 2
     seeds = args.seed or plan.tests['response']['seeds']
+    phases = args.phase or list(range(plan.tests['response']['phases']))
     out = args.out or root / 'runs' / 'response_variants'
     out.mkdir(parents=True, exist_ok=True)
     runner = Runner(out, config_dir, jobs=args.jobs, domain_base=args.domain_base)
     base = runner.scenario(plan.tests['response']['scenario'])
-    docs = [(info.name, seed, variant_doc(base, info, plan, seed, params))
-            for info in infos for seed in seeds]
-    print(f'[response_variants] {", ".join(plan.robots)}, seeds {seeds}, settings '
-          f'{params or "as configured"}; {args.jobs} runs at a time, in {out}', flush=True)
+    try:
+        docs = [(f'{info.name}, seed {seed}, phase {phase}',
+                 variant_doc(base, info, plan, seed, params, phase))
+                for info in infos for seed in seeds for phase in phases]
+    except ExperimentError as err:
+        print(f'response_variants: {err}', file=sys.stderr)
+        return 2
+    print(f'[response_variants] {", ".join(plan.robots)}, seeds {seeds}, phases {phases}, '
+          f'settings {params or "as configured"}; {args.jobs} runs at a time, in {out}',
+          flush=True)
     with ThreadPoolExecutor(max(len(docs), 1)) as pool:
-        results = list(pool.map(lambda d: runner.run(d[2], True), docs))
+        results = list(pool.map(lambda d: runner.run(d[1], True), docs))
     failed = 0
-    for (name, seed, _), result in zip(docs, results, strict=True):
-        print(f'{name}, seed {seed} ({result.folder}):')
+    for (label, _), result in zip(docs, results, strict=True):
+        print(f'{label} ({result.folder}):')
         if not result.ok:
             failed += 1
             print('  the run failed: see its output.log')

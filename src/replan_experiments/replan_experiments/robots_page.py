@@ -6,12 +6,13 @@ what it does on the realistic profile, from scenario runs.
 For each robot of ``config/robots_page.yaml`` (or those of ``--robot``): a stand at zero
 set-point from launch (travel of the trunk on the truth, touchdowns), a walk from standing at
 each of its forward, lateral and yaw set-points (achieved against commanded), a run through
-the three set-points in turn on each of several noise seeds (each whole crawl cycle after a
-change against the set-point), lateral pushes while walking forward, given as the velocity
-they give the free body (force = mass x dv / duration), at phases over its crawl cycle, level
-after level up to the first level that fells it at some phase, and blind step downs of shares
-of its leg length. Real-time factor and MPC solve time come from all its runs. A robot that
-falls walking on flat ground is reported so, and is not pushed or sent down a step.
+the three set-points in turn, the changes at several phases of its crawl cycle and on each of
+its noise seeds (each whole crawl cycle of each leg after a change against the set-point),
+lateral pushes while walking forward, given as the velocity they give the free body (force =
+mass x dv / duration), at phases over its crawl cycle, level after level up to the first level
+that fells it at some phase, and blind step downs of shares of its leg length. Real-time
+factor and MPC solve time come from all its runs. A robot that falls walking on flat ground is
+reported so, and is not pushed or sent down a step.
 
 Then each other gait of the plan (``gaits:``, e.g. the trot and the walking trot) at set-points
 from the robot's leg length (the trot's forward at a Froude number) or its crawl set-point: a
@@ -247,9 +248,10 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
         walks = {axis: pool.submit(runner.run, walk_doc(walk_base, info, plan, axis))
                  for axis in ROBOT_KEYS}
         stand = pool.submit(runner.run, stand_doc(stand_base, info, plan), True)
-        responses = [(seed, pool.submit(runner.run, response_doc(response_base, info, plan,
-                                                                  seed)))
-                     for seed in plan.tests['response']['seeds']]
+        responses = [(seed, phase, pool.submit(runner.run, response_doc(
+            response_base, info, plan, seed, phase)))
+            for seed in plan.tests['response']['seeds']
+            for phase in range(plan.tests['response']['phases'])]
         forward = walks['forward'].result()
         steps, row['push'] = [], None
         walks_on_flat = forward.ok and not forward.fell
@@ -269,9 +271,9 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
                                                   plan.tests['stand']['drift_from']) or {})
                            if stand_run.ok else {})}
         row['response'] = []
-        for seed, future in responses:
+        for seed, phase, future in responses:
             made.append(future.result())
-            row['response'].append({'seed': seed, **response_row(made[-1])})
+            row['response'].append({'seed': seed, 'phase': phase, **response_row(made[-1])})
         row['step_down'] = []
         for share, future in steps:
             made.append(future.result())
@@ -288,15 +290,15 @@ def measure_robot(runner: Runner, plan: RobotsPlan, info: RobotInfo) -> dict:
 
 
 def planned_runs(plan: RobotsPlan) -> int:
-    """Upper bound of the runs: per robot three walks, the stand, the response on each seed,
-    every step down and every push level at every phase (the pushes stop at the first level
-    that fells it); per other gait the walk and stop, the turn, every step down and every
-    push."""
+    """Upper bound of the runs: per robot three walks, the stand, the response on each seed at
+    each phase, every step down and every push level at every phase (the pushes stop at the
+    first level that fells it); per other gait the walk and stop, the turn, every step down
+    and every push."""
     def ladders(tests: dict) -> int:
         push = tests['push']
         return len(tests['step_down']['shares']) + len(push['levels']) * push['phases']
     per_robot = (len(ROBOT_KEYS) + 1 + len(plan.tests['response']['seeds'])
-                 + ladders(plan.tests))
+                 * plan.tests['response']['phases'] + ladders(plan.tests))
     per_robot += sum(2 + ('fast' in g['tests']) + ladders(g['tests'])
                      for g in plan.gaits.values())
     return per_robot * len(plan.robots)

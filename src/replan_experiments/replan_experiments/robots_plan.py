@@ -26,7 +26,7 @@ ROBOT_KEYS = ('forward', 'lateral', 'yaw')
 TEST_KEYS = {
     'stand': {'scenario', 'duration', 'drift_from'},
     'walk': {'scenario', 'duration'},
-    'response': {'scenario', 'segment_cycles', 'seeds'},
+    'response': {'scenario', 'segment_cycles', 'seeds', 'phases'},
     'push': {'levels', 'phases', 'push_duration', 'direction', 'first_push_cycles',
              'after_push_cycles'},
     'step_down': {'scenario', 'shares', 'step_x_legs', 'cross_legs', 'time_margin'},
@@ -288,22 +288,32 @@ def walk_doc(base: dict, info: RobotInfo, plan: RobotsPlan, axis: str) -> dict:
                               setpoint=tuple(setpoint)), info, axis, plan.gait)
 
 
-def response_doc(base: dict, info: RobotInfo, plan: RobotsPlan, seed: int) -> dict:
+def response_doc(base: dict, info: RobotInfo, plan: RobotsPlan, seed: int,
+                 phase: int = 0) -> dict:
     """From standing, the robot's forward set-point, then its lateral one, then its yaw one,
     each for ``segment_cycles`` of its crawl cycles from the base scenario's first
-    set-point, with the sim's noise seed ``seed`` (one of ``response.seeds``)."""
-    span = plan.tests['response']['segment_cycles'] * info.cycle_s
+    set-point, with the sim's noise seed ``seed`` (one of ``response.seeds``). ``phase`` (0 to
+    ``response.phases`` - 1) delays the two changes by that many ``phases``-th of a crawl
+    cycle: each phase, another leg is the first to land after a change and to re-plan for it.
+    The page's seed at phase 0 keeps the run's name of a single response run."""
+    cfg = plan.tests['response']
+    if not 0 <= phase < cfg['phases']:
+        raise ExperimentError(f'response phase {phase} is not one of 0-{cfg["phases"] - 1}')
+    span = cfg['segment_cycles'] * info.cycle_s
     start = walk_start(base)
+    delay = phase * info.cycle_s / cfg['phases']
     events = []
     for k, axis in enumerate(ROBOT_KEYS):
         setpoint = [0.0, 0.0, 0.0]
         setpoint[k] = float(plan.robots[info.name][axis])
-        events.append({'t': round(start + k * span, 4), 'cmd_vel': setpoint})
+        events.append({'t': round(start + k * span + (delay if k else 0.0), 4),
+                       'cmd_vel': setpoint})
     doc = variant(base, world=plan.profile, seed=seed,
-                  duration=round(start + len(ROBOT_KEYS) * span, 4))
+                  duration=round(start + len(ROBOT_KEYS) * span + delay, 4))
     doc['events'] = events
-    return _robot_doc(doc, info, 'response' if seed == plan.seed else f'response_seed{seed}',
-                      plan.gait)
+    name = ('response' + ('' if seed == plan.seed else f'_seed{seed}')
+            + (f'_phase{phase}' if phase else ''))
+    return _robot_doc(doc, info, name, plan.gait)
 
 
 def push_times(base: dict, info: RobotInfo, plan: RobotsPlan) -> list[float]:

@@ -97,12 +97,25 @@ def cycle_ranges(cell: dict) -> str:
     return ' '.join(out)
 
 
+def run_labels(runs: list[dict], rows: list[dict]) -> str:
+    """The response ``runs`` (some of a robot's ``rows``) by what tells them apart: 'phases
+    1, 3' where every run has one seed, 'seeds 0, 2' where every run has one phase of the
+    changes, else 'seed 0 phase 1, seed 2 phase 0'."""
+    one_seed = len({row['seed'] for row in rows}) == 1
+    one_phase = len({row.get('phase', 0) for row in rows}) == 1
+    if one_seed or one_phase:
+        kind = 'phase' if one_seed and not one_phase else 'seed'
+        values = [str(run.get(kind, 0)) for run in runs]
+        return f'{kind}{"s" if len(values) > 1 else ""} {", ".join(values)}'
+    return ', '.join(f'seed {run["seed"]} phase {run.get("phase", 0)}' for run in runs)
+
+
 def response_cell(rows: list[dict] | None, axis: str) -> str:
     """Each whole crawl cycle after the change to ``axis``'s set-point, in per cent of it, the
-    range over the legs that open them (``cycle_ranges``), one run per noise seed
-    (``response.seeds``, in order, separated by /); met: on every seed every leg's first
-    within 10 %, every later one within 5 %, none more than 5 % above; else the cell says what
-    is not, and on which seeds."""
+    range over the legs that open them (``cycle_ranges``), one run per noise seed and phase
+    of the changes (``response.seeds`` and ``phases``, in order, separated by /); met: in every
+    run every leg's first within 10 %, every later one within 5 %, none more than 5 % above;
+    else the cell says what is not, and in which runs (``run_label``)."""
     if not rows:
         return '-'
     parts, missed = [], {}
@@ -117,15 +130,13 @@ def response_cell(rows: list[dict] | None, axis: str) -> str:
             continue
         parts.append(cycle_ranges(cell) + ' %')
         for miss in misses:
-            missed.setdefault(miss, []).append(row['seed'])
+            missed.setdefault(miss, []).append(row)
     text = ' / '.join(parts)
     if not missed:
         return text
     if len(rows) == 1:
         return f'{text} (**{" and ".join(missed)} off**)'
-    said = '; '.join(f'{miss} off on seed{"s" if len(seeds) > 1 else ""} '
-                     f'{", ".join(str(seed) for seed in seeds)}'
-                     for miss, seeds in missed.items())
+    said = '; '.join(f'{miss} off on {run_labels(runs, rows)}' for miss, runs in missed.items())
     return f'{text} (**{said}**)'
 
 
@@ -226,6 +237,20 @@ def results_table(robots: dict) -> list[str]:
     return _table(['', *names], rows)
 
 
+def _response_runs(response: dict) -> str:
+    """How the response runs differ: the phases of the changes and the noise seeds."""
+    seeds = ', '.join(str(seed) for seed in response['seeds'])
+    phases = response.get('phases', 1)
+    seeds_text = (f'the sim\'s noise seed {seeds}' if len(response['seeds']) == 1
+                  else f'each of the sim\'s noise seeds {seeds}')
+    if phases == 1:
+        return f'one run on {seeds_text}'
+    return (f'one run per phase 0 to {phases - 1} on {seeds_text}: phase k delays the two '
+            f'changes by k / {phases} of a crawl cycle, so that each leg in turn is the first '
+            'to land after a change and the first to re-plan for it (the response depends on '
+            'which: docs/gait.md, "Response to a set-point change")')
+
+
 def how_section(meta: dict) -> list[str]:
     tests = meta['tests']
     stand, push, step = tests['stand'], tests['push'], tests['step_down']
@@ -241,18 +266,18 @@ def how_section(meta: dict) -> list[str]:
         '`cycle_velocities`; yaw: the turn rate).',
         f'- **Response**: a run of `{response["scenario"]}` from standing: the robot\'s '
         f'forward set-point, then its lateral one, then its yaw one, each for '
-        f'{response["segment_cycles"]} of its crawl cycles, on each of the sim\'s noise seeds '
-        f'{", ".join(str(seed) for seed in response["seeds"])} (one run each, separated by / '
-        'in that order); each cell gives the commanded component\'s mean over each whole '
-        'crawl cycle after the change, in per cent of the set-point. Each leg opens its own '
+        f'{response["segment_cycles"]} of its crawl cycles; {_response_runs(response)}, '
+        'separated by / in that order. Each cell gives the commanded component\'s mean over '
+        'each whole crawl cycle after the change, in per cent of the set-point. Each leg opens '
+        'its own '
         'cycles: from each of its true touchdowns to its next (the run\'s '
         '`leg_cycle_velocities`). The legs land a step apart, so their first cycles start at '
         'different points of the way to the new speed: one leg\'s can hold a lag and its '
         'catch-up and read the set-point, another\'s only the catch-up (docs/gait.md, '
         '"Response to a set-point change"). A cell gives, for the first cycle of every leg, '
-        'then the second, and so on, the lowest and the highest over the legs. Met: on every '
-        'seed, every leg\'s first cycle within 10 %, every later one within 5 %, and no cycle '
-        'more than 5 % above the set-point; a cell says what is not, and on which seeds. '
+        'then the second, and so on, the lowest and the highest over the legs. Met: in every '
+        'run, every leg\'s first cycle within 10 %, every later one within 5 %, and no cycle '
+        'more than 5 % above the set-point; a cell says what is not, and in which runs. '
         '`scripts/gait_report.sh RUN_DIR` prints each leg\'s cycles.',
         f'- **Standing**: `{stand["scenario"]}` at zero set-point for {stand["duration"]:g} s '
         f'from launch; travel = the largest horizontal distance of the trunk on the truth from '

@@ -27,6 +27,8 @@ def test_the_variant_is_the_pages_response_run_with_the_settings_on_top():
     assert {k: v for k, v in doc.items() if k != 'params'} == {
         k: v for k, v in page.items() if k != 'params'}
     assert variant_doc(WALK, info, plan, 1, {}) == page       # no setting: the page's run
+    # A later phase: the page's run of that phase.
+    assert variant_doc(WALK, info, plan, 1, {}, 2) == response_doc(WALK, info, plan, 1, 2)
 
 
 def test_it_keeps_the_report_lines_that_judge_each_set_point(tmp_path):

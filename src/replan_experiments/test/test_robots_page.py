@@ -92,12 +92,14 @@ def test_a_robot_that_falls_walking_is_reported_and_not_pushed(tmp_path):
     assert row['walks']['forward']['fell'] and row['walks']['forward']['fall_time_s'] == 2.9
     assert row['push'] is None and row['step_down'] == []
     assert row['skipped'] == 'falls walking forward on flat ground'
-    seeds = plan.tests['response']['seeds']
-    assert len(runner.docs) == 4 + len(seeds)        # three walks, the stand, the responses
+    seeds, phases = plan.tests['response']['seeds'], plan.tests['response']['phases']
+    responses = len(seeds) * phases
+    assert len(runner.docs) == 4 + responses      # three walks, the stand, the responses
     assert not row['stand']['fell'] and 'drift_m' not in row['stand']     # no bag here
-    assert [r['seed'] for r in row['response']] == seeds
+    assert [(r['seed'], r['phase']) for r in row['response']] == [
+        (seed, phase) for seed in seeds for phase in range(phases)]
     assert all(r['fell'] for r in row['response'])
-    assert row['timing']['runs'] == 4 + len(seeds)
+    assert row['timing']['runs'] == 4 + responses
 
 
 def test_a_robot_that_walks_is_measured_on_every_test(tmp_path):

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -75,6 +77,9 @@ def _mutated(tmp_path: Path, change) -> Path:
     (lambda d: d['full']['response'].update(seeds=[]), 'full.response.seeds: expected'),
     (lambda d: d['full']['response'].update(seeds=[1, -2]),
      'full.response.seeds[1]: expected a whole number >= 0'),
+    (lambda d: d['full']['response'].update(phases=0),
+     'full.response.phases: expected a whole number >= 1'),
+    (lambda d: d['full']['response'].pop('phases'), 'full.response.phases: missing'),
     (lambda d: d.update(seed=True), 'seed: expected a whole number >= 0'),
     (lambda d: d['robots']['go1'].pop('yaw'), 'robots.go1.yaw: missing'),
     (lambda d: d['robots']['go1'].update(forward=-0.1), 'robots.go1.forward: expected a pos'),
@@ -266,11 +271,30 @@ def test_the_crawls_documents_are_as_before_gaits_had_plans():
 
 def test_the_response_runs_once_per_seed_and_the_page_seeds_run_is_as_before():
     plan = load_robots_plan(PLAN)
+    plan = replace(plan, tests={**plan.tests, 'response': {**plan.tests['response'],
+                                                           'seeds': [plan.seed, 1, 2]}})
     info = synthetic()
-    assert plan.tests['response']['seeds'][0] == plan.seed
     docs = [response_doc(WALK, info, plan, seed) for seed in plan.tests['response']['seeds']]
-    assert [d['params']['sim']['noise_seed'] for d in docs] == plan.tests['response']['seeds']
+    assert [d['params']['sim']['noise_seed'] for d in docs] == [plan.seed, 1, 2]
     assert docs[0]['name'] == 'go1_response'
-    assert [d['name'] for d in docs[1:]] == [f'go1_response_seed{seed}'
-                                             for seed in plan.tests['response']['seeds'][1:]]
+    assert [d['name'] for d in docs[1:]] == ['go1_response_seed1', 'go1_response_seed2']
     assert all(d['events'] == docs[0]['events'] for d in docs)
+
+
+def test_each_phase_delays_both_changes_by_its_share_of_a_crawl_cycle():
+    plan = load_robots_plan(PLAN)
+    phases = plan.tests['response']['phases']
+    assert phases == 4                       # each leg in turn re-plans for a change first
+    info = synthetic()
+    docs = [response_doc(WALK, info, plan, plan.seed, k) for k in range(phases)]
+    assert [d['name'] for d in docs] == ['go1_response'] + [f'go1_response_phase{k}'
+                                                            for k in range(1, phases)]
+    times = np.array([[e['t'] for e in d['events']] for d in docs])
+    delays = times - times[0]
+    assert delays[:, 0] == pytest.approx(0.0)                   # the walk-off: from standing
+    for k in range(phases):
+        assert delays[k, 1:] == pytest.approx(k * info.cycle_s / phases, abs=1e-4)
+        assert docs[k]['duration'] - docs[0]['duration'] == pytest.approx(
+            k * info.cycle_s / phases, abs=1e-4)
+    with pytest.raises(ExperimentError, match='response phase 4 is not one of 0-3'):
+        response_doc(WALK, info, plan, plan.seed, phases)

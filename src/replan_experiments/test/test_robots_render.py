@@ -14,6 +14,7 @@ from replan_experiments.robots_render import (
     readme_block,
     render_page,
     response_cell,
+    run_labels,
     share_cell,
     standing_cell,
     step_cell,
@@ -244,3 +245,19 @@ def test_gait_cells_at_the_edges():
     assert share_cell({'run': 'r', 'ok': False}, 'forward', 'm/s') == 'run failed'
     assert standing_cell({'walk': few, 'standing': {'window_s': [1.0, 2.0]}}) == \
         'no truth in the bag'
+
+
+def test_response_runs_are_named_by_what_tells_them_apart():
+    met = {'legs': _legs([0.95, 1.02, 1.0]), 'first_error': 0.05, 'later_error': 0.02,
+           'overshoot': 0.02}
+    lag = {'legs': _legs([0.85, 1.0], [1.08, 1.0]), 'first_error': 0.15, 'later_error': 0.0,
+           'overshoot': 0.08}
+    phases = [{'seed': 0, 'phase': k, 'ok': True, 'fell': False,
+               'axes': {'lateral': lag if k % 2 else met}} for k in range(4)]
+    assert response_cell(phases, 'lateral') == (
+        '95 102 100 % / 85-108 100 % / 95 102 100 % / 85-108 100 % '
+        '(**first off on phases 1, 3; overshoot off on phases 1, 3**)')
+    both = [{'seed': s, 'phase': k} for s in (0, 1) for k in (0, 1)]
+    assert run_labels(both[1:3], both) == 'seed 0 phase 1, seed 1 phase 0'
+    assert run_labels(both[2:], both[2:]) == 'phases 0, 1'
+    assert run_labels(both[:1], [both[0], both[2]]) == 'seed 0'
