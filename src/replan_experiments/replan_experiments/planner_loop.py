@@ -54,24 +54,15 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
     from replan_core.mpc.support import implied_velocity
     from replan_core.robot.model import RobotModel
     from replan_core.robot.robot_file import robot_facts
-    from replan_ros.launch.param_files import check_run_files, profile_file, robot_parameters
     from replan_ros.params.convert import gait_params, mpc_settings
 
-    config = (root or project_root()) / 'config'
-    # The parameters as the launcher gives them to a run of this robot and profile.
-    profile_path = profile_file(config, profile)
-    layer = robot_parameters(config, robot, profile_path)
-    run = check_run_files(config, [profile_path, layer.derived, layer.overrides]).values
     # The loop's CoM sits base_offset ahead of its base, so that is the offset the position
     # term knows of (mpc.com_offset), unless the caller sets another.
     loop = {'mpc': {'com_offset': [float(v) for v in base_offset]}}
-    values = {node: {**run[node], **loop.get(node, {}), **(overrides or {}).get(node, {})}
-              for node in ('gait', 'mpc')}
-    unknown = {f'{node}.{key}' for node, keys in (overrides or {}).items()
-               for key in keys if node not in values or key not in run[node]}
-    if unknown:
-        raise ValueError(f'unknown parameters {sorted(unknown)} (gait.* and mpc.* only)')
-    spec = layer.spec
+    overrides = overrides or {}
+    values, spec = run_values(robot, profile, {
+        node: {**loop.get(node, {}), **overrides.get(node, {})} for node in ('gait', 'mpc')},
+        root, known=overrides)
     model = RobotModel(str(spec.urdf), spec.joints, spec.feet)
     gait = replace(gait_params(values['gait']),
                    hip_offsets=tuple((float(x), float(y)) for x, y in model.hip_offsets[:, :2]))
@@ -110,6 +101,26 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
         plan = compute_footholds(setpoint(t), feet, base(com, yaw), yaw, None, following, t,
                                  gait, stride_time_scale=scale)
     return log
+
+
+def run_values(robot: str, profile: str, overrides: dict[str, dict] | None = None,
+               root: Path | None = None, known: dict[str, dict] | None = None):
+    """The gait and mpc parameters (node -> {key: value}) the launcher gives a run of
+    ``robot`` on ``profile``, ``overrides`` on top, and the robot's spec. A key of ``known``
+    (default ``overrides``: the caller's settings) that the run does not have is refused."""
+    from replan_ros.launch.param_files import check_run_files, profile_file, robot_parameters
+
+    config = (root or project_root()) / 'config'
+    profile_path = profile_file(config, profile)
+    layer = robot_parameters(config, robot, profile_path)
+    run = check_run_files(config, [profile_path, layer.derived, layer.overrides]).values
+    checked = (overrides if known is None else known) or {}
+    unknown = {f'{node}.{key}' for node, keys in checked.items()
+               for key in keys if node not in ('gait', 'mpc') or key not in run[node]}
+    if unknown:
+        raise ValueError(f'unknown parameters {sorted(unknown)} (gait.* and mpc.* only)')
+    values = {node: {**run[node], **(overrides or {}).get(node, {})} for node in ('gait', 'mpc')}
+    return values, layer.spec
 
 
 def _to_body(vector: np.ndarray, yaw: float) -> tuple[float, float]:

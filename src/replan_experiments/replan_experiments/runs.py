@@ -52,6 +52,8 @@ _NOT_SHAPING = ('config/experiments.yaml', 'replan_experiments/page.py',
                 # Read finished runs' bags; no run imports them.
                 'replan_experiments/gait_report.py',
                 'replan_experiments/response_variants.py',
+                # Runs the cores alone, outside any run.
+                'replan_experiments/response_loop.py',
                 # Which domain a graph runs on, never what it does (one graph per domain).
                 'replan_ros/launch/domain.py',
                 # What a viewer is shown (the bag's derived /tf and markers), never what the
@@ -214,6 +216,15 @@ class Progress:
             self.stream.flush()
 
 
+def read_scenario(config_dir: Path, name: str) -> dict:
+    """The document of the scenario file ``config_dir/scenarios/<name>.yaml``."""
+    path = config_dir / 'scenarios' / f'{name}.yaml'
+    try:
+        return yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as err:
+        raise ExperimentError(f'cannot read scenario {path}: {err}') from err
+
+
 class Runner:
     """Makes scenario runs, at most ``jobs`` at a time, each on its own ROS_DOMAIN_ID."""
 
@@ -246,11 +257,7 @@ class Runner:
     def scenario(self, name: str) -> dict:
         """The scenario file ``name``; with ``robot``, its document runs that robot (a
         top-level ``robot:`` key; without one the document, and so its run key, is as before)."""
-        path = self.config_dir / 'scenarios' / f'{name}.yaml'
-        try:
-            doc = yaml.safe_load(path.read_text())
-        except (OSError, yaml.YAMLError) as err:
-            raise ExperimentError(f'cannot read scenario {path}: {err}') from err
+        doc = read_scenario(self.config_dir, name)
         if self.robot:
             doc['robot'] = self.robot
         return doc

@@ -1,0 +1,176 @@
+"""The robots page's response runs through the gait's and the MPC's cores alone: each robot's
+walk-off forward and its change to sideways, at every phase of the changes, judged as
+docs/robots.md judges them, in seconds instead of minutes.
+
+    scripts/response_loop.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--phase K ...]
+                             [--late S]
+
+The loop runs the gait node's own re-planner (``gait.replanner.GaitReplanner``: touchdown
+rule, speed feedback, step timing, foothold correction, idle stance) and the MPC
+(``mpc.lip_mpc.LipMpc``, started as the node starts it) at 250 Hz. The trunk is exactly on the
+CoM plan, the base ``mpc.com_offset`` behind the CoM; each foot lands on its target ``--late``
+s after its planned touchdown (the realistic haptic touchdown's 40 ms by default). Left out:
+the simulator's dynamics, the controller's tracking, the estimator, contact sensing and noise,
+DDS. The trunk's yaw is the yaw reference of the last step down, so a turning cycle reads the
+planned over the walked step period: the turning set-point is left out. The cycles are each
+leg's, from its touchdowns (``evaluation.metrics``), judged by the page's rule
+(``robots_page.response_axis``); docs/gait.md, "Response to a set-point change", says how close
+they come to the graph's. Neither the runs nor the pages import this module.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from replan_core.common.types import BaseState, ContactState
+from replan_core.evaluation.metrics import command_segments, tracking_errors
+from replan_core.gait.crawl import is_stand_plan
+from replan_core.gait.replanner import GaitReplanner
+from replan_core.mpc.lip_mpc import LipMpc, replan_start_state
+from replan_core.mpc.support import implied_velocity
+from replan_core.robot.model import RobotModel
+from replan_core.robot.robot_file import robot_facts
+from replan_experiments.gait_report import judged_line
+from replan_experiments.plan import ExperimentError, parse_settings
+from replan_experiments.planner_loop import run_values
+from replan_experiments.robot_info import robot_info
+from replan_experiments.robots_plan import load_robots_plan, response_doc
+from replan_experiments.runs import read_scenario
+from replan_ros.params.convert import gait_params, mpc_settings
+
+TICK = 0.004            # s, the control period
+LATE = 0.04             # s, a realistic touchdown after its planned time (docs/gait.md)
+
+
+def loop_run(robot: str, profile: str, events: list[tuple[float, np.ndarray]],
+             duration: float, overrides: dict[str, dict] | None = None, late: float = LATE,
+             root: Path | None = None) -> tuple[list[tuple[float, int]], np.ndarray,
+                                                 np.ndarray, np.ndarray]:
+    """One run of the gait's and the MPC's cores (module docstring) from the robot's standing
+    feet: ``events`` (t s, (vx, vy, wz)) are the set-points from t on. Returns the touchdowns
+    ((t s, leg), one per executed step), and per tick the times (s), base positions (m,
+    world xy) and yaws (rad)."""
+    values, spec = run_values(robot, profile, overrides, root)
+    model = RobotModel(str(spec.urdf), spec.joints, spec.feet)
+    params = gait_params(values['gait'])
+    params.hip_offsets = tuple((float(x), float(y)) for x, y in model.hip_offsets[:, :2])
+    gait = values['gait']
+    replanner = GaitReplanner(params, float(gait['min_swing_fraction']),
+                              float(gait['max_extension']), float(gait['start_delay']),
+                              plan_latency=float(gait['plan_latency']))
+    mpc = LipMpc(mpc_settings(values['mpc']))
+    com_offset = np.asarray(values['mpc']['com_offset'], dtype=float)     # m, body
+    height = float(values['mpc']['com_height'])
+    hips = np.asarray(model.hip_offsets, dtype=float)                     # (4, 3) m, body
+    feet = np.column_stack([np.asarray(robot_facts(spec).feet_xy, dtype=float), np.zeros(4)])
+    events = sorted(events, key=lambda e: e[0])
+
+    def setpoint(t: float) -> np.ndarray:
+        now = [v for start, v in events if start <= t + 1e-9]
+        return np.asarray(now[-1] if now else np.zeros(3), dtype=float)
+
+    com, vel = np.array([com_offset[0], com_offset[1], height]), np.zeros(3)
+    yaw, contact = 0.0, np.ones(4, dtype=bool)
+    steps, com_plan, stood = None, None, False
+    touchdowns, times, bases, yaws = [], [], [], []
+    for n in range(round(duration / TICK) + 1):
+        t = round(n * TICK, 9)
+        if com_plan is not None and com_plan.start_time <= t:
+            com, vel, _ = com_plan.sample(t)
+        rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+        base_xy = com[:2] - rotation @ com_offset
+        times.append(t)
+        bases.append(base_xy)
+        yaws.append(yaw)
+        # Each leg of the plan in force is in the air from its lift-off to `late` after its
+        # planned touchdown, and lands on its target.
+        down = np.ones(4, dtype=bool)
+        for step in steps or []:
+            if step.liftoff_time <= t < step.touchdown_time + late:
+                down[step.leg] = False
+        landed = down & ~contact
+        for step in steps or []:
+            if landed[step.leg] and step.liftoff_time <= t:
+                feet[step.leg] = step.target
+                yaw = float(step.yaw)
+                touchdowns.append((t, step.leg))
+                landed[step.leg] = False
+        state = ContactState(t, feet.copy(), np.zeros((4, 3)), down, down & ~contact,
+                             contact & ~down)
+        contact = down
+        replanner.tick(state)
+        if replanner.pending is None:
+            continue
+        quaternion = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
+        base = BaseState(t, np.array([base_xy[0], base_xy[1], height]), quaternion,
+                         vel.copy(), np.zeros(3))
+        turn = np.eye(3)
+        turn[:2, :2] = rotation
+        plan = replanner.plan_pending(base, base.position + hips @ turn.T, setpoint(t), 'loop')
+        if plan is None:
+            continue
+        replanner.adopt(plan)
+        steps = plan.steps
+        start = replan_start_state(t, com, vel, plan, com_plan, stood)
+        result = mpc.solve(t, *start, plan, v_ref=implied_velocity(plan))
+        if result.plan is not None:
+            com_plan = result.plan
+        stood = is_stand_plan(plan)
+    return touchdowns, np.array(times), np.array(bases), np.array(yaws)
+
+
+def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dict] | None,
+                   late: float = LATE, root: Path | None = None) -> list[str]:
+    """The judged line (``gait_report.judged_line``) of each translational set-point of the
+    robots page's response document ``doc`` run through ``loop_run``."""
+    events = [(float(e['t']), np.asarray(e['cmd_vel'], dtype=float)) for e in doc['events']]
+    touchdowns, times, bases, yaws = loop_run(robot, profile, events, float(doc['duration']),
+                                              overrides, late, root)
+    segments = command_segments([(t, tuple(v)) for t, v in events], end_time=times[-1])
+    rows = tracking_errors(times, bases, yaws, segments, settle=2.0, touchdowns=touchdowns)
+    return [judged_line(row) for row in rows if any(row['commanded'][:2])]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog='response_loop.sh', description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--set', action='append', default=[], metavar='NODE.KEY=VALUE',
+                        help='a gait or mpc parameter (repeatable)')
+    parser.add_argument('--robot', action='append', default=[], metavar='NAME',
+                        help='a robot of the plan (repeatable; default all)')
+    parser.add_argument('--phase', action='append', type=int, default=[], metavar='K',
+                        help="the phase of the changes (repeatable; default every phase of "
+                             "the plan's response)")
+    parser.add_argument('--late', type=float, default=LATE,
+                        help=f's each foot lands after its planned touchdown (default {LATE})')
+    args = parser.parse_args(argv)
+    if not 0.0 <= args.late < 1.0:
+        parser.error(f'--late must be 0 to 1 s, got {args.late}')
+    root = Path(os.environ.get('REPLAN_ROOT', '.')).resolve()
+    config_dir = Path(os.environ.get('REPLAN_CONFIG', root / 'config'))
+    try:
+        overrides = parse_settings(args.set)
+        plan = load_robots_plan(config_dir / 'robots_page.yaml', False, args.robot)
+        phases = args.phase or list(range(plan.tests['response']['phases']))
+        base = read_scenario(config_dir, plan.tests['response']['scenario'])
+        for name in plan.robots:
+            info = robot_info(config_dir, name, plan.profile)
+            for phase in phases:
+                doc = response_doc(base, info, plan, plan.seed, phase)
+                print(f'{name}, phase {phase}:', flush=True)
+                print('\n'.join(response_lines(name, plan.profile, doc, overrides, args.late,
+                                               root)), flush=True)
+    except (ExperimentError, ValueError, KeyError, OSError) as err:
+        print(f'response_loop: {err}', file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,44 @@
+"""response_loop: the robots page's response runs through the gait's and the MPC's cores."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from replan_core.common.types import LEGS
+from replan_experiments.response_loop import loop_run, main
+
+FORWARD = [(0.5, np.array([0.05, 0.0, 0.0]))]
+
+
+def test_the_gait_core_walks_the_crawl_at_the_set_point_on_the_plan():
+    """Go1 told 0.05 m/s forward at 0.5 s: it stands until then, walks its crawl sequence one
+    leg at a time, each foot landing `late` after its plan, and gets to the set-point."""
+    touchdowns, times, bases, yaws = loop_run('go1', 'realistic', FORWARD, 12.0, late=0.04)
+    assert np.all(np.diff(times) > 0) and times[-1] == pytest.approx(12.0)
+    assert touchdowns[0][0] > 0.5                         # still until told
+    legs = [leg for _, leg in touchdowns]
+    order = [LEGS.index(name) for name in ('lh', 'lf', 'rh', 'rf')]
+    assert legs == [order[k % 4] for k in range(len(legs))]
+    # The last whole cycle of lh (from one of its touchdowns to its next): at the set-point.
+    lh = [t for t, leg in touchdowns if leg == order[0]]
+    i0, i1 = np.searchsorted(times, lh[-2]), np.searchsorted(times, lh[-1])
+    speed = (bases[i1] - bases[i0]) / (times[i1] - times[i0])
+    assert speed[0] == pytest.approx(0.05, rel=0.03) and abs(speed[1]) < 0.002
+    assert np.all(yaws == 0.0)
+
+
+def test_the_later_touchdown_stretches_the_step_period():
+    """Feet landing 60 ms after their plan: the steps follow one another that much later
+    (the re-plan times the next steps from the actual touchdown)."""
+    on_time = loop_run('go1', 'realistic', FORWARD, 8.0, late=0.0)[0]
+    late = loop_run('go1', 'realistic', FORWARD, 8.0, late=0.06)[0]
+    period = [np.median(np.diff([t for t, _ in run])[2:]) for run in (on_time, late)]
+    assert period[1] - period[0] == pytest.approx(0.06, abs=0.005)
+
+
+def test_a_wrong_setting_or_phase_is_one_line(capsys):
+    assert main(['--robot', 'go1', '--set', 'gait.no_such_key=1']) == 2
+    assert 'unknown parameters' in capsys.readouterr().err
+    assert main(['--robot', 'go1', '--phase', '9']) == 2
+    assert 'response phase 9 is not one of' in capsys.readouterr().err
