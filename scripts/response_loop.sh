@@ -3,7 +3,7 @@
 # controller or DDS), every phase of the changes, each leg's forward and sideways cycles judged
 # as docs/robots.md judges them: a setting's effect on the response in seconds (docs/gait.md).
 #   scripts/response_loop.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--phase K ...]
-#                            [--late S]
+#                            [--late S] [--steps]
 source "$(dirname "${BASH_SOURCE[0]}")/preamble.sh"
 help_before_setup "$@"
 replan_env

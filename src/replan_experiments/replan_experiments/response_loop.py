@@ -3,7 +3,7 @@ walk-off forward and its change to sideways, at every phase of the changes, judg
 docs/robots.md judges them, in seconds instead of minutes.
 
     scripts/response_loop.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--phase K ...]
-                             [--late S]
+                             [--late S] [--steps]
 
 The loop runs the gait node's own re-planner (``gait.replanner.GaitReplanner``: touchdown
 rule, speed feedback, step timing, foothold correction, idle stance) and the MPC
@@ -125,16 +125,48 @@ def loop_run(robot: str, profile: str, events: list[tuple[float, np.ndarray]],
     return touchdowns, np.array(times), np.array(bases), np.array(yaws)
 
 
+def step_excess(touchdowns: list[tuple[float, int]], times: np.ndarray, bases: np.ndarray,
+                start: float, direction, steps: int = 4, legs: int = 4,
+                later: int = 3) -> list[tuple[float, float]]:
+    """Per step of the first ``steps`` after ``start`` (s; a step from one touchdown to the
+    next): its start (s after ``start``) and the trunk's travel along ``direction`` over it
+    less that over the step ``later`` crawl cycles (``legs`` steps each) on, at the same
+    phase of the steady walk (m). Their sum is the lag (-) or lead (+) built after a change."""
+    unit = np.asarray(direction, dtype=float)[:2]
+    unit = unit / np.linalg.norm(unit)
+    ticks = [int(np.searchsorted(times, t)) for t, _ in touchdowns]
+    first = next(i for i, (t, _) in enumerate(touchdowns) if t > start)
+
+    def travel(i: int) -> float:
+        return float((bases[ticks[i + 1]] - bases[ticks[i]]) @ unit)
+
+    return [(touchdowns[i][0] - start, travel(i) - travel(i + later * legs))
+            for i in range(first, first + steps) if i + later * legs + 1 < len(ticks)]
+
+
 def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dict] | None,
-                   late: float = LATE, root: Path | None = None) -> list[str]:
+                   late: float = LATE, root: Path | None = None,
+                   steps: bool = False) -> list[str]:
     """The judged line (``gait_report.judged_line``) of each translational set-point of the
-    robots page's response document ``doc`` run through ``loop_run``."""
+    robots page's response document ``doc`` run through ``loop_run``; with ``steps``, also
+    the ``step_excess`` of the first steps after each change of set-point (mm)."""
     events = [(float(e['t']), np.asarray(e['cmd_vel'], dtype=float)) for e in doc['events']]
     touchdowns, times, bases, yaws = loop_run(robot, profile, events, float(doc['duration']),
                                               overrides, late, root)
     segments = command_segments([(t, tuple(v)) for t, v in events], end_time=times[-1])
     rows = tracking_errors(times, bases, yaws, segments, settle=2.0, touchdowns=touchdowns)
-    return [judged_line(row) for row in rows if any(row['commanded'][:2])]
+    lines = []
+    for row in rows:
+        if not any(row['commanded'][:2]):
+            continue
+        lines.append(judged_line(row))
+        if steps:
+            excess = step_excess(touchdowns, times, bases, row['start_s'],
+                                 row['commanded'][:2])
+            lines.append('    travel of each step after the change less the steady step\'s '
+                         'at its phase (mm): ' + ', '.join(f'{1000 * dx:+.0f} from {t:.2f} s'
+                                                           for t, dx in excess))
+    return lines
 
 
 def main(argv=None) -> int:
@@ -147,6 +179,9 @@ def main(argv=None) -> int:
     parser.add_argument('--phase', action='append', type=int, default=[], metavar='K',
                         help="the phase of the changes (repeatable; default every phase of "
                              "the plan's response)")
+    parser.add_argument('--steps', action='store_true',
+                        help='also each of the first steps after a change against the steady '
+                             "step at its phase: the lag or lead it builds (mm)")
     parser.add_argument('--late', type=float, default=LATE,
                         help=f's each foot lands after its planned touchdown (default {LATE})')
     args = parser.parse_args(argv)
@@ -165,7 +200,7 @@ def main(argv=None) -> int:
                 doc = response_doc(base, info, plan, plan.seed, phase)
                 print(f'{name}, phase {phase}:', flush=True)
                 print('\n'.join(response_lines(name, plan.profile, doc, overrides, args.late,
-                                               root)), flush=True)
+                                               root, args.steps)), flush=True)
     except (ExperimentError, ValueError, KeyError, OSError) as err:
         print(f'response_loop: {err}', file=sys.stderr)
         return 2

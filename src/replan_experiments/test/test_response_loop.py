@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from replan_core.common.types import LEGS
-from replan_experiments.response_loop import loop_run, main
+from replan_experiments.response_loop import loop_run, main, step_excess
 
 FORWARD = [(0.5, np.array([0.05, 0.0, 0.0]))]
 
@@ -42,3 +42,16 @@ def test_a_wrong_setting_or_phase_is_one_line(capsys):
     assert 'unknown parameters' in capsys.readouterr().err
     assert main(['--robot', 'go1', '--phase', '9']) == 2
     assert 'response phase 9 is not one of' in capsys.readouterr().err
+
+
+def test_step_excess_is_each_steps_travel_against_the_steady_step_at_its_phase():
+    """A trunk at 0.1 m/s sideways with a sway of the 4 s cycle that falls 2 cm behind in the
+    first step after the change at 0.5 s and makes it up in the third."""
+    times = np.arange(0.0, 24.0, 0.004)
+    sway = 0.03 * np.sin(2 * np.pi * times / 4.0)
+    lag = -0.02 * np.clip(times - 1.0, 0.0, 1.0) + 0.02 * np.clip(times - 3.0, 0.0, 1.0)
+    bases = np.column_stack([np.zeros_like(times), 0.1 * times + sway + lag])
+    touchdowns = [(float(k), k % 4) for k in range(24)]
+    excess = step_excess(touchdowns, times, bases, 0.5, [0.0, 0.1])
+    assert [t for t, _ in excess] == pytest.approx([0.5, 1.5, 2.5, 3.5])
+    assert [dx for _, dx in excess] == pytest.approx([-0.02, 0.0, 0.02, 0.0], abs=1e-9)
