@@ -144,6 +144,15 @@ def step_excess(touchdowns: list[tuple[float, int]], times: np.ndarray, bases: n
             for i in range(first, first + steps) if i + later * legs + 1 < len(ticks)]
 
 
+def speed_along(times: np.ndarray, bases: np.ndarray, t: float, direction) -> float:
+    """The trunk's velocity (m/s) along ``direction`` at ``t`` (s), from the positions of the
+    ticks either side."""
+    unit = np.asarray(direction, dtype=float)[:2]
+    unit = unit / np.linalg.norm(unit)
+    i = int(np.clip(np.searchsorted(times, t), 1, len(times) - 2))
+    return float((bases[i + 1] - bases[i - 1]) @ unit / (times[i + 1] - times[i - 1]))
+
+
 def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dict] | None,
                    late: float = LATE, root: Path | None = None,
                    steps: bool = False) -> list[str]:
@@ -166,6 +175,12 @@ def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dic
             lines.append('    travel of each step after the change less the steady step\'s '
                          'at its phase (mm): ' + ', '.join(f'{1000 * dx:+.0f} from {t:.2f} s'
                                                            for t, dx in excess))
+            if excess:
+                at = row['start_s'] + excess[0][0]
+                speed = speed_along(times, bases, at, row['commanded'][:2])
+                lines.append(f'    the trunk at the first touchdown after the change '
+                             f'({at:.2f} s): {speed:+.3f} m/s along the set-point of '
+                             f'{float(np.linalg.norm(row["commanded"][:2])):.3f} m/s')
     return lines
 
 

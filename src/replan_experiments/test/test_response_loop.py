@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from replan_core.common.types import LEGS
-from replan_experiments.response_loop import loop_run, main, step_excess
+from replan_experiments.response_loop import loop_run, main, speed_along, step_excess
 
 FORWARD = [(0.5, np.array([0.05, 0.0, 0.0]))]
 
@@ -55,3 +55,6 @@ def test_step_excess_is_each_steps_travel_against_the_steady_step_at_its_phase()
     excess = step_excess(touchdowns, times, bases, 0.5, [0.0, 0.1])
     assert [t for t, _ in excess] == pytest.approx([0.5, 1.5, 2.5, 3.5])
     assert [dx for _, dx in excess] == pytest.approx([-0.02, 0.0, 0.02, 0.0], abs=1e-9)
+    # At 1.252 s (a tick) the trunk walks 0.1 m/s, less the lag's 0.02 m/s, plus the sway's.
+    expected = 0.1 - 0.02 + 0.03 * 2 * np.pi / 4.0 * np.cos(2 * np.pi * 1.252 / 4.0)
+    assert speed_along(times, bases, 1.252, [0.0, 1.0]) == pytest.approx(expected, abs=1e-5)
