@@ -244,11 +244,12 @@ def _response_runs(response: dict) -> str:
     seeds_text = (f'the sim\'s noise seed {seeds}' if len(response['seeds']) == 1
                   else f'each of the sim\'s noise seeds {seeds}')
     if phases == 1:
-        return f'one run on {seeds_text}'
-    return (f'one run per phase 0 to {phases - 1} on {seeds_text}: phase k delays the two '
-            f'changes by k / {phases} of a crawl cycle, so that each leg in turn is the first '
-            'to land after a change and the first to re-plan for it (the response depends on '
-            'which: docs/gait.md, "Response to a set-point change")')
+        return f'one run on {seeds_text}, separated by / in that order'
+    return (f'one run per phase 0 to {phases - 1} on {seeds_text}, separated by / in that '
+            f'order. Phase k delays the two changes by k / {phases} of a crawl cycle, so that '
+            'each leg in turn is the first to land after a change and the first to re-plan for '
+            'it (the response depends on which: docs/gait.md, "Response to a set-point '
+            'change")')
 
 
 def how_section(meta: dict) -> list[str]:
@@ -266,8 +267,8 @@ def how_section(meta: dict) -> list[str]:
         '`cycle_velocities`; yaw: the turn rate).',
         f'- **Response**: a run of `{response["scenario"]}` from standing: the robot\'s '
         f'forward set-point, then its lateral one, then its yaw one, each for '
-        f'{response["segment_cycles"]} of its crawl cycles; {_response_runs(response)}, '
-        'separated by / in that order. Each cell gives the commanded component\'s mean over '
+        f'{response["segment_cycles"]} of its crawl cycles; {_response_runs(response)}. '
+        'Each cell gives the commanded component\'s mean over '
         'each whole crawl cycle after the change, in per cent of the set-point. Each leg opens '
         'its own '
         'cycles: from each of its true touchdowns to its next (the run\'s '
