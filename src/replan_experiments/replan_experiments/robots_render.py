@@ -115,7 +115,7 @@ def response_cell(rows: list[dict] | None, axis: str) -> str:
     range over the legs that open them (``cycle_ranges``), one run per noise seed and phase
     of the changes (``response.seeds`` and ``phases``, in order, separated by /); met: in every
     run every leg's first within 10 %, every later one within 5 %, none more than 5 % above;
-    else the cell says what is not, and in which runs (``run_label``)."""
+    else the cell says what is not, and in which runs (``run_labels``)."""
     if not rows:
         return '-'
     parts, missed = [], {}
@@ -240,7 +240,7 @@ def results_table(robots: dict) -> list[str]:
 def _response_runs(response: dict) -> str:
     """How the response runs differ: the phases of the changes and the noise seeds."""
     seeds = ', '.join(str(seed) for seed in response['seeds'])
-    phases = response.get('phases', 1)
+    phases = response['phases']
     seeds_text = (f'the sim\'s noise seed {seeds}' if len(response['seeds']) == 1
                   else f'each of the sim\'s noise seeds {seeds}')
     if phases == 1:
@@ -268,10 +268,9 @@ def how_section(meta: dict) -> list[str]:
         f'- **Response**: a run of `{response["scenario"]}` from standing: the robot\'s '
         f'forward set-point, then its lateral one, then its yaw one, each for '
         f'{response["segment_cycles"]} of its crawl cycles; {_response_runs(response)}. '
-        'Each cell gives the commanded component\'s mean over '
-        'each whole crawl cycle after the change, in per cent of the set-point. Each leg opens '
-        'its own '
-        'cycles: from each of its true touchdowns to its next (the run\'s '
+        'Each cell gives the commanded component\'s mean over each whole crawl cycle after '
+        'the change, in per cent of the set-point. Each leg opens its own cycles: from each '
+        'of its true touchdowns to its next (the run\'s '
         '`leg_cycle_velocities`). The legs land a step apart, so their first cycles start at '
         'different points of the way to the new speed: one leg\'s can hold a lag and its '
         'catch-up and read the set-point, another\'s only the catch-up (docs/gait.md, '
