@@ -106,8 +106,9 @@ def walk(robot: str, profile: str, schedule: list[tuple[float, np.ndarray]], dur
 def run_values(robot: str, profile: str, overrides: dict[str, dict] | None = None,
                root: Path | None = None, known: dict[str, dict] | None = None):
     """The gait and mpc parameters (node -> {key: value}) the launcher gives a run of
-    ``robot`` on ``profile``, ``overrides`` on top, and the robot's spec. A key of ``known``
-    (default ``overrides``: the caller's settings) that the run does not have is refused."""
+    ``robot`` on ``profile``, ``overrides`` on top, the sim's (never overridden: its
+    ``control_period`` is the loops' tick), and the robot's spec. A key of ``known`` (default
+    ``overrides``: the caller's settings) that the run does not have is refused."""
     from replan_ros.launch.param_files import check_run_files, profile_file, robot_parameters
 
     config = (root or project_root()) / 'config'
@@ -120,6 +121,7 @@ def run_values(robot: str, profile: str, overrides: dict[str, dict] | None = Non
     if unknown:
         raise ValueError(f'unknown parameters {sorted(unknown)} (gait.* and mpc.* only)')
     values = {node: {**run[node], **(overrides or {}).get(node, {})} for node in ('gait', 'mpc')}
+    values['sim'] = dict(run['sim'])
     return values, layer.spec
 
 

@@ -5,17 +5,18 @@ docs/robots.md judges them, in seconds instead of minutes.
     scripts/response_loop.sh [--set NODE.KEY=VALUE ...] [--robot NAME ...] [--phase K ...]
                              [--late S] [--steps]
 
-The loop runs the gait node's own re-planner (``gait.replanner.GaitReplanner``: touchdown
-rule, speed feedback, step timing, foothold correction, idle stance) and the MPC
-(``mpc.lip_mpc.LipMpc``, started as the node starts it) at 250 Hz. The trunk is exactly on the
-CoM plan, the base ``mpc.com_offset`` behind the CoM; each foot lands on its target ``--late``
-s after its planned touchdown (the realistic haptic touchdown's 40 ms by default). Left out:
-the simulator's dynamics, the controller's tracking, the estimator, contact sensing and noise,
-DDS. The trunk's yaw is the yaw reference of the last step down, so a turning cycle reads the
-planned over the walked step period: the turning set-point is left out. The cycles are each
-leg's, from its touchdowns (``evaluation.metrics``), judged by the page's rule
-(``robots_page.response_axis``); docs/gait.md, "Response to a set-point change", says how close
-they come to the graph's. Neither the runs nor the pages import this module.
+The loop runs the gait node's own re-planner (``gait.replanner.GaitReplanner``: touchdown rule,
+speed feedback, step timing, foothold correction, idle stance) and the MPC
+(``mpc.lip_mpc.LipMpc``, started as the node starts it) at the sim's control period
+(``sim.control_period``). The trunk is exactly on the CoM plan, the base ``mpc.com_offset``
+behind the CoM; each foot lands on its target ``--late`` s after its planned touchdown (the
+realistic haptic touchdown's 40 ms by default). Left out: the simulator's dynamics, the
+controller's tracking, the estimator, contact sensing and noise, DDS. The trunk's yaw is the
+yaw reference of the last step down, so a turning cycle reads the planned over the walked step
+period: the turning set-point is left out. The cycles are each leg's, from its touchdowns
+(``evaluation.metrics``), judged by the page's rule (``robots_page.response_axis``);
+docs/gait.md, "Response to a set-point change", says how close they come to the graph's.
+Neither the runs nor the pages import this module.
 """
 
 from __future__ import annotations
@@ -44,7 +45,6 @@ from replan_experiments.robots_plan import load_robots_plan, response_doc
 from replan_experiments.runs import read_scenario
 from replan_ros.params.convert import gait_params, mpc_settings
 
-TICK = 0.004            # s, the control period
 LATE = 0.04             # s, a realistic touchdown after its planned time (docs/gait.md)
 
 
@@ -70,6 +70,7 @@ def loop_run(robot: str, profile: str, events: list[tuple[float, np.ndarray]],
     hips = np.asarray(model.hip_offsets, dtype=float)                     # (4, 3) m, body
     feet = np.column_stack([np.asarray(robot_facts(spec).feet_xy, dtype=float), np.zeros(4)])
     events = sorted(events, key=lambda e: e[0])
+    tick = float(values['sim']['control_period'])                         # s
 
     def setpoint(t: float) -> np.ndarray:
         now = [v for start, v in events if start <= t + 1e-9]
@@ -79,8 +80,8 @@ def loop_run(robot: str, profile: str, events: list[tuple[float, np.ndarray]],
     yaw, contact = 0.0, np.ones(4, dtype=bool)
     steps, com_plan, stood = None, None, False
     touchdowns, times, bases, yaws = [], [], [], []
-    for n in range(round(duration / TICK) + 1):
-        t = round(n * TICK, 9)
+    for n in range(round(duration / tick) + 1):
+        t = round(n * tick, 9)
         if com_plan is not None and com_plan.start_time <= t:
             com, vel, _ = com_plan.sample(t)
         rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])

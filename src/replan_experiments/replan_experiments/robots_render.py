@@ -102,12 +102,12 @@ def run_labels(runs: list[dict], rows: list[dict]) -> str:
     1, 3' where every run has one seed, 'seeds 0, 2' where every run has one phase of the
     changes, else 'seed 0 phase 1, seed 2 phase 0'."""
     one_seed = len({row['seed'] for row in rows}) == 1
-    one_phase = len({row.get('phase', 0) for row in rows}) == 1
+    one_phase = len({row['phase'] for row in rows}) == 1
     if one_seed or one_phase:
         kind = 'phase' if one_seed and not one_phase else 'seed'
-        values = [str(run.get(kind, 0)) for run in runs]
+        values = [str(run[kind]) for run in runs]
         return f'{kind}{"s" if len(values) > 1 else ""} {", ".join(values)}'
-    return ', '.join(f'seed {run["seed"]} phase {run.get("phase", 0)}' for run in runs)
+    return ', '.join(f'seed {run["seed"]} phase {run["phase"]}' for run in runs)
 
 
 def response_cell(rows: list[dict] | None, axis: str) -> str:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from replan_core.common.types import LEGS
+from replan_experiments.planner_loop import run_values
 from replan_experiments.response_loop import loop_run, main, speed_along, step_excess
 
 FORWARD = [(0.5, np.array([0.05, 0.0, 0.0]))]
@@ -13,9 +14,12 @@ FORWARD = [(0.5, np.array([0.05, 0.0, 0.0]))]
 
 def test_the_gait_core_walks_the_crawl_at_the_set_point_on_the_plan():
     """Go1 told 0.05 m/s forward at 0.5 s: it stands until then, walks its crawl sequence one
-    leg at a time, each foot landing `late` after its plan, and gets to the set-point."""
+    leg at a time, each foot landing `late` after its plan, and gets to the set-point, ticking
+    at the sim's control period."""
     touchdowns, times, bases, yaws = loop_run('go1', 'realistic', FORWARD, 12.0, late=0.04)
-    assert np.all(np.diff(times) > 0) and times[-1] == pytest.approx(12.0)
+    tick = float(run_values('go1', 'realistic')[0]['sim']['control_period'])
+    assert np.diff(times) == pytest.approx(np.full(len(times) - 1, tick))
+    assert times[-1] == pytest.approx(12.0)
     assert touchdowns[0][0] > 0.5                         # still until told
     legs = [leg for _, leg in touchdowns]
     order = [LEGS.index(name) for name in ('lh', 'lf', 'rh', 'rf')]

@@ -58,7 +58,7 @@ GO1 = {'robot': 'go1', 'skipped': None, 'cycle_s': 2.347,
        'stand': {'run': 'r', 'ok': True, 'fell': False, 'drift_m': 0.0035,
                  'travel_m': 0.0061, 'drift_window_s': [0.0, 12.0], 'touchdowns': 0,
                  'last_touchdown_s': None},
-       'response': [{'seed': 0, 'run': 'r', 'ok': True, 'fell': False, 'axes': {
+       'response': [{'seed': 0, 'phase': 0, 'run': 'r', 'ok': True, 'fell': False, 'axes': {
            'forward': {'legs': _legs([0.93, 0.98, 1.01]), 'first_error': 0.07,
                        'later_error': 0.02, 'overshoot': 0.01},
            'lateral': {'legs': _legs([0.85, 0.93, 0.99]), 'first_error': 0.15,
@@ -120,7 +120,7 @@ def test_push_and_step_cells_at_the_edges():
     # Two legs: the first cycles 93 and 107 %, the second 99 and 99.2 %, lh's third 100 %.
     overshoot = {'legs': _legs([0.93, 0.99, 1.0], [1.07, 0.992]), 'first_error': 0.07,
                  'later_error': 0.01, 'overshoot': 0.07}
-    row = {'seed': 0, 'ok': True, 'fell': False, 'axes': {'forward': overshoot}}
+    row = {'seed': 0, 'phase': 0, 'ok': True, 'fell': False, 'axes': {'forward': overshoot}}
     assert response_cell([row], 'forward') == '93-107 99 100 % (**overshoot off**)'
     met = {'legs': _legs([0.95, 1.02, 1.0]), 'first_error': 0.05, 'later_error': 0.02,
            'overshoot': 0.02}
@@ -128,7 +128,7 @@ def test_push_and_step_cells_at_the_edges():
             'overshoot': 0.0}
     seeds = [{**row, 'seed': 1, 'axes': {'forward': met}}, row,
              {**row, 'seed': 2, 'axes': {'forward': late}},
-             {'seed': 3, 'ok': True, 'fell': True, 'fall_time_s': 9.5}]
+             {'seed': 3, 'phase': 0, 'ok': True, 'fell': True, 'fall_time_s': 9.5}]
     assert response_cell(seeds, 'forward') == (
         '95 102 100 % / 93-107 99 100 % / 85 93 100 % / **fell** at 9.5 s '
         '(**overshoot off on seed 0; first off on seed 2; later off on seed 2**)')
