@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from replan_core.common.types import BaseState, ContactState
+from replan_core.common.types import LEGS, BaseState, ContactState
 from replan_core.evaluation.metrics import command_segments, tracking_errors
 from replan_core.gait.crawl import is_stand_plan
 from replan_core.gait.replanner import GaitReplanner
@@ -145,6 +145,33 @@ def step_excess(touchdowns: list[tuple[float, int]], times: np.ndarray, bases: n
             for i in range(first, first + steps) if i + later * legs + 1 < len(ticks)]
 
 
+def steady_cycle_travel(touchdowns: list[tuple[float, int]], times: np.ndarray,
+                        bases: np.ndarray, start: float, direction, legs: int = 4,
+                        later: int = 3) -> float | None:
+    """The trunk's travel (m) along ``direction`` over the whole cycle (``legs`` steps) that
+    begins ``later`` cycles after the first touchdown after ``start`` (s): the steady cycle
+    ``step_excess`` compares with. None if the run ends before it."""
+    unit = np.asarray(direction, dtype=float)[:2]
+    unit = unit / np.linalg.norm(unit)
+    first = next(i for i, (t, _) in enumerate(touchdowns) if t > start) + later * legs
+    if first + legs >= len(touchdowns):
+        return None
+    i0, i1 = (int(np.searchsorted(times, touchdowns[i][0])) for i in (first, first + legs))
+    return float((bases[i1] - bases[i0]) @ unit)
+
+
+def first_swing(touchdowns: list[tuple[float, int]], start: float, feet_xy,
+                direction) -> tuple[str, str]:
+    """The leg that swings in the first step of ``step_excess`` after ``start`` (s; from the
+    first touchdown after it to the second: the leg of the second), and its side of the trunk
+    along the set-point ``direction`` (body frame): 'leading' if its standing foot
+    (``feet_xy``, (4, 2) m, base frame) lies ahead of the base along it, else 'trailing'."""
+    first = next(i for i, (t, _) in enumerate(touchdowns) if t > start)
+    leg = touchdowns[first + 1][1]
+    ahead = float(np.dot(np.asarray(feet_xy, dtype=float)[leg], np.asarray(direction)[:2]))
+    return LEGS[leg], 'leading' if ahead > 0.0 else 'trailing'
+
+
 def speed_along(times: np.ndarray, bases: np.ndarray, t: float, direction) -> float:
     """The trunk's velocity (m/s) along ``direction`` at ``t`` (s), from the positions of the
     ticks either side."""
@@ -159,10 +186,12 @@ def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dic
                    steps: bool = False) -> list[str]:
     """The judged line (``gait_report.judged_line``) of each translational set-point of the
     robots page's response document ``doc`` run through ``loop_run``; with ``steps``, also
-    the ``step_excess`` of the first steps after each change of set-point (mm)."""
+    the ``step_excess`` of the first steps after each change of set-point (mm, and in % of
+    the ``steady_cycle_travel``) and the ``first_swing`` after it."""
     events = [(float(e['t']), np.asarray(e['cmd_vel'], dtype=float)) for e in doc['events']]
     touchdowns, times, bases, yaws = loop_run(robot, profile, events, float(doc['duration']),
                                               overrides, late, root)
+    feet_xy = robot_facts(run_values(robot, profile, overrides, root)[1]).feet_xy
     segments = command_segments([(t, tuple(v)) for t, v in events], end_time=times[-1])
     rows = tracking_errors(times, bases, yaws, segments, settle=2.0, touchdowns=touchdowns)
     lines = []
@@ -176,6 +205,14 @@ def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dic
             lines.append('    travel of each step after the change less the steady step\'s '
                          'at its phase (mm): ' + ', '.join(f'{1000 * dx:+.0f} from {t:.2f} s'
                                                            for t, dx in excess))
+            cycle = steady_cycle_travel(touchdowns, times, bases, row['start_s'],
+                                        row['commanded'][:2])
+            if excess and cycle:
+                leg, side = first_swing(touchdowns, row['start_s'], feet_xy,
+                                        row['commanded'][:2])
+                lines.append(f'    the same in % of a steady cycle\'s travel ({1000 * cycle:.0f} '
+                             'mm): ' + ' '.join(f'{100 * dx / cycle:+.0f}' for _, dx in excess)
+                             + f'; the first step\'s swing: {leg}, on the {side} side')
             if excess:
                 at = row['start_s'] + excess[0][0]
                 speed = speed_along(times, bases, at, row['commanded'][:2])
@@ -197,7 +234,8 @@ def main(argv=None) -> int:
                              "the plan's response)")
     parser.add_argument('--steps', action='store_true',
                         help='also each of the first steps after a change against the steady '
-                             "step at its phase: the lag or lead it builds (mm)")
+                             "step at its phase: the lag or lead it builds (mm, and in %% of a "
+                             "steady cycle's travel), and which leg swings first after it")
     parser.add_argument('--late', type=float, default=LATE,
                         help=f's each foot lands after its planned touchdown (default {LATE})')
     args = parser.parse_args(argv)

@@ -7,7 +7,14 @@ import pytest
 
 from replan_core.common.types import LEGS
 from replan_experiments.planner_loop import run_values
-from replan_experiments.response_loop import loop_run, main, speed_along, step_excess
+from replan_experiments.response_loop import (
+    first_swing,
+    loop_run,
+    main,
+    speed_along,
+    steady_cycle_travel,
+    step_excess,
+)
 
 FORWARD = [(0.5, np.array([0.05, 0.0, 0.0]))]
 
@@ -62,3 +69,18 @@ def test_step_excess_is_each_steps_travel_against_the_steady_step_at_its_phase()
     # At 1.252 s (a tick) the trunk walks 0.1 m/s, less the lag's 0.02 m/s, plus the sway's.
     expected = 0.1 - 0.02 + 0.03 * 2 * np.pi / 4.0 * np.cos(2 * np.pi * 1.252 / 4.0)
     assert speed_along(times, bases, 1.252, [0.0, 1.0]) == pytest.approx(expected, abs=1e-5)
+
+
+def test_the_steady_cycle_and_the_first_steps_swinging_leg():
+    """The trunk of the step_excess test: its steady cycle (4 steps, 3 cycles on) travels
+    0.4 m; the first step after 0.5 s ends with leg 2's touchdown, whose foot stands ahead of
+    the base along the set-point (+y) in one layout and behind it in the other."""
+    times = np.arange(0.0, 24.0, 0.004)
+    bases = np.column_stack([np.zeros_like(times), 0.1 * times])
+    touchdowns = [(float(k), k % 4) for k in range(24)]
+    assert steady_cycle_travel(touchdowns, times, bases, 0.5, [0.0, 0.1]) == \
+        pytest.approx(0.4)
+    assert steady_cycle_travel(touchdowns, times, bases, 20.5, [0.0, 0.1]) is None
+    feet = np.array([[0.3, 0.2], [0.3, -0.2], [-0.3, 0.2], [-0.3, -0.2]])
+    assert first_swing(touchdowns, 0.5, feet, [0.0, 0.1]) == (LEGS[2], 'leading')
+    assert first_swing(touchdowns, 0.5, feet, [0.0, -0.1]) == (LEGS[2], 'trailing')
