@@ -26,6 +26,7 @@ import math
 import os
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,14 +49,23 @@ from replan_ros.params.convert import gait_params, mpc_settings
 LATE = 0.04             # s, a realistic touchdown after its planned time (docs/gait.md)
 
 
+class LoopRun(NamedTuple):
+    """A ``loop_run``: the touchdowns ((t s, leg), one per executed step), per tick the times
+    (s), base positions (m, world xy) and yaws (rad), and the robot's standing feet (m, base
+    frame xy, (4, 2))."""
+
+    touchdowns: list[tuple[float, int]]
+    times: np.ndarray
+    bases: np.ndarray
+    yaws: np.ndarray
+    feet_xy: np.ndarray
+
+
 def loop_run(robot: str, profile: str, events: list[tuple[float, np.ndarray]],
              duration: float, overrides: dict[str, dict] | None = None, late: float = LATE,
-             root: Path | None = None) -> tuple[list[tuple[float, int]], np.ndarray,
-                                                 np.ndarray, np.ndarray]:
+             root: Path | None = None) -> LoopRun:
     """One run of the gait's and the MPC's cores (module docstring) from the robot's standing
-    feet: ``events`` (t s, (vx, vy, wz)) are the set-points from t on. Returns the touchdowns
-    ((t s, leg), one per executed step), and per tick the times (s), base positions (m,
-    world xy) and yaws (rad)."""
+    feet: ``events`` (t s, (vx, vy, wz)) are the set-points from t on."""
     values, spec = run_values(robot, profile, overrides, root)
     model = RobotModel(str(spec.urdf), spec.joints, spec.feet)
     params = gait_params(values['gait'])
@@ -68,7 +78,8 @@ def loop_run(robot: str, profile: str, events: list[tuple[float, np.ndarray]],
     com_offset = np.asarray(values['mpc']['com_offset'], dtype=float)     # m, body
     height = float(values['mpc']['com_height'])
     hips = np.asarray(model.hip_offsets, dtype=float)                     # (4, 3) m, body
-    feet = np.column_stack([np.asarray(robot_facts(spec).feet_xy, dtype=float), np.zeros(4)])
+    standing = np.asarray(robot_facts(spec).feet_xy, dtype=float)         # (4, 2) m, base
+    feet = np.column_stack([standing, np.zeros(4)])
     events = sorted(events, key=lambda e: e[0])
     tick = float(values['sim']['control_period'])                         # s
 
@@ -123,7 +134,22 @@ def loop_run(robot: str, profile: str, events: list[tuple[float, np.ndarray]],
         if result.plan is not None:
             com_plan = result.plan
         stood = is_stand_plan(plan)
-    return touchdowns, np.array(times), np.array(bases), np.array(yaws)
+    return LoopRun(touchdowns, np.array(times), np.array(bases), np.array(yaws), standing)
+
+
+def _first_after(touchdowns: list[tuple[float, int]], start: float) -> int:
+    """The index of the first touchdown after ``start`` (s)."""
+    return next(i for i, (t, _) in enumerate(touchdowns) if t > start)
+
+
+def _step_travels(touchdowns: list[tuple[float, int]], times: np.ndarray, bases: np.ndarray,
+                  direction) -> np.ndarray:
+    """The trunk's travel (m) along ``direction`` over each step, from one touchdown to the
+    next (one fewer than the touchdowns)."""
+    unit = np.asarray(direction, dtype=float)[:2]
+    unit = unit / np.linalg.norm(unit)
+    ticks = np.searchsorted(times, [t for t, _ in touchdowns])
+    return np.diff(bases[ticks] @ unit)
 
 
 def step_excess(touchdowns: list[tuple[float, int]], times: np.ndarray, bases: np.ndarray,
@@ -133,16 +159,10 @@ def step_excess(touchdowns: list[tuple[float, int]], times: np.ndarray, bases: n
     next): its start (s after ``start``) and the trunk's travel along ``direction`` over it
     less that over the step ``later`` crawl cycles (``legs`` steps each) on, at the same
     phase of the steady walk (m). Their sum is the lag (-) or lead (+) built after a change."""
-    unit = np.asarray(direction, dtype=float)[:2]
-    unit = unit / np.linalg.norm(unit)
-    ticks = [int(np.searchsorted(times, t)) for t, _ in touchdowns]
-    first = next(i for i, (t, _) in enumerate(touchdowns) if t > start)
-
-    def travel(i: int) -> float:
-        return float((bases[ticks[i + 1]] - bases[ticks[i]]) @ unit)
-
-    return [(touchdowns[i][0] - start, travel(i) - travel(i + later * legs))
-            for i in range(first, first + steps) if i + later * legs + 1 < len(ticks)]
+    travel = _step_travels(touchdowns, times, bases, direction)
+    first = _first_after(touchdowns, start)
+    return [(touchdowns[i][0] - start, float(travel[i] - travel[i + later * legs]))
+            for i in range(first, first + steps) if i + later * legs < len(travel)]
 
 
 def steady_cycle_travel(touchdowns: list[tuple[float, int]], times: np.ndarray,
@@ -151,13 +171,9 @@ def steady_cycle_travel(touchdowns: list[tuple[float, int]], times: np.ndarray,
     """The trunk's travel (m) along ``direction`` over the whole cycle (``legs`` steps) that
     begins ``later`` cycles after the first touchdown after ``start`` (s): the steady cycle
     ``step_excess`` compares with. None if the run ends before it."""
-    unit = np.asarray(direction, dtype=float)[:2]
-    unit = unit / np.linalg.norm(unit)
-    first = next(i for i, (t, _) in enumerate(touchdowns) if t > start) + later * legs
-    if first + legs >= len(touchdowns):
-        return None
-    i0, i1 = (int(np.searchsorted(times, touchdowns[i][0])) for i in (first, first + legs))
-    return float((bases[i1] - bases[i0]) @ unit)
+    travel = _step_travels(touchdowns, times, bases, direction)
+    first = _first_after(touchdowns, start) + later * legs
+    return float(np.sum(travel[first:first + legs])) if first + legs <= len(travel) else None
 
 
 def first_swing(touchdowns: list[tuple[float, int]], start: float, feet_xy,
@@ -166,8 +182,7 @@ def first_swing(touchdowns: list[tuple[float, int]], start: float, feet_xy,
     first touchdown after it to the second: the leg of the second), and its side of the trunk
     along the set-point ``direction`` (body frame): 'leading' if its standing foot
     (``feet_xy``, (4, 2) m, base frame) lies ahead of the base along it, else 'trailing'."""
-    first = next(i for i, (t, _) in enumerate(touchdowns) if t > start)
-    leg = touchdowns[first + 1][1]
+    leg = touchdowns[_first_after(touchdowns, start) + 1][1]
     ahead = float(np.dot(np.asarray(feet_xy, dtype=float)[leg], np.asarray(direction)[:2]))
     return LEGS[leg], 'leading' if ahead > 0.0 else 'trailing'
 
@@ -189,9 +204,9 @@ def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dic
     the ``step_excess`` of the first steps after each change of set-point (mm, and in % of
     the ``steady_cycle_travel``) and the ``first_swing`` after it."""
     events = [(float(e['t']), np.asarray(e['cmd_vel'], dtype=float)) for e in doc['events']]
-    touchdowns, times, bases, yaws = loop_run(robot, profile, events, float(doc['duration']),
-                                              overrides, late, root)
-    feet_xy = robot_facts(run_values(robot, profile, overrides, root)[1]).feet_xy
+    touchdowns, times, bases, yaws, feet_xy = loop_run(robot, profile, events,
+                                                       float(doc['duration']), overrides, late,
+                                                       root)
     segments = command_segments([(t, tuple(v)) for t, v in events], end_time=times[-1])
     rows = tracking_errors(times, bases, yaws, segments, settle=2.0, touchdowns=touchdowns)
     lines = []

@@ -23,7 +23,8 @@ def test_the_gait_core_walks_the_crawl_at_the_set_point_on_the_plan():
     """Go1 told 0.05 m/s forward at 0.5 s: it stands until then, walks its crawl sequence one
     leg at a time, each foot landing `late` after its plan, and gets to the set-point, ticking
     at the sim's control period."""
-    touchdowns, times, bases, yaws = loop_run('go1', 'realistic', FORWARD, 12.0, late=0.04)
+    touchdowns, times, bases, yaws, _ = loop_run('go1', 'realistic', FORWARD, 12.0,
+                                                 late=0.04)
     tick = float(run_values('go1', 'realistic')[0]['sim']['control_period'])
     assert np.diff(times) == pytest.approx(np.full(len(times) - 1, tick))
     assert times[-1] == pytest.approx(12.0)
