@@ -42,7 +42,9 @@ from replan_experiments.gait_report import judged_line
 from replan_experiments.plan import ExperimentError, parse_settings
 from replan_experiments.planner_loop import run_values
 from replan_experiments.robot_info import robot_info
+from replan_experiments.robots_page import response_axis
 from replan_experiments.robots_plan import load_robots_plan, response_doc
+from replan_experiments.robots_render import response_misses
 from replan_experiments.runs import read_scenario
 from replan_ros.params.convert import gait_params, mpc_settings
 
@@ -198,22 +200,25 @@ def speed_along(times: np.ndarray, bases: np.ndarray, t: float, direction) -> fl
 
 def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dict] | None,
                    late: float = LATE, root: Path | None = None,
-                   steps: bool = False) -> list[str]:
+                   steps: bool = False) -> tuple[list[str], list[tuple[str, list[str]]]]:
     """The judged line (``gait_report.judged_line``) of each translational set-point of the
     robots page's response document ``doc`` run through ``loop_run``; with ``steps``, also
     the ``step_excess`` of the first steps after each change of set-point (mm, and in % of
-    the ``steady_cycle_travel``) and the ``first_swing`` after it."""
+    the ``steady_cycle_travel``) and the ``first_swing`` after it. Also each set-point's axis
+    and what it misses (``robots_render.response_misses``), for ``tally``."""
     events = [(float(e['t']), np.asarray(e['cmd_vel'], dtype=float)) for e in doc['events']]
     touchdowns, times, bases, yaws, feet_xy = loop_run(robot, profile, events,
                                                        float(doc['duration']), overrides, late,
                                                        root)
     segments = command_segments([(t, tuple(v)) for t, v in events], end_time=times[-1])
     rows = tracking_errors(times, bases, yaws, segments, settle=2.0, touchdowns=touchdowns)
-    lines = []
+    lines, verdicts = [], []
     for row in rows:
         if not any(row['commanded'][:2]):
             continue
         lines.append(judged_line(row))
+        axis, cell = response_axis(row)
+        verdicts.append((axis, response_misses(cell)))
         if steps:
             excess = step_excess(touchdowns, times, bases, row['start_s'],
                                  row['commanded'][:2])
@@ -234,7 +239,22 @@ def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dic
                 lines.append(f'    the trunk at the first touchdown after the change '
                              f'({at:.2f} s): {speed:+.3f} m/s along the set-point of '
                              f'{float(np.linalg.norm(row["commanded"][:2])):.3f} m/s')
-    return lines
+    return lines, verdicts
+
+
+def tally(verdicts: list[tuple[str, list[str]]]) -> str:
+    """One line: per axis, how many cells (an axis of one run) meet the page's rule (no miss
+    of ``robots_render.response_misses``), and how many meet it with the first cycle's
+    shortfall allowed (no 'later' and no 'overshoot' miss: every cycle from the second
+    within 5 %, none more than 5 % above the set-point)."""
+    axes = list(dict.fromkeys(axis for axis, _ in verdicts))
+
+    def count(axis: str, allowed: set[str]) -> str:
+        cells = [misses for a, misses in verdicts if a == axis]
+        return f'{axis} {sum(not set(m) - allowed for m in cells)} of {len(cells)}'
+    return ('cells met by the page\'s rule: ' + ', '.join(count(a, set()) for a in axes)
+            + '; with the first cycle\'s shortfall allowed (from the second cycle within 5 %, '
+            'none over 105 %): ' + ', '.join(count(a, {'first'}) for a in axes))
 
 
 def main(argv=None) -> int:
@@ -263,13 +283,17 @@ def main(argv=None) -> int:
         plan = load_robots_plan(config_dir / 'robots_page.yaml', False, args.robot)
         phases = args.phase or list(range(plan.tests['response']['phases']))
         base = read_scenario(config_dir, plan.tests['response']['scenario'])
+        verdicts = []
         for name in plan.robots:
             info = robot_info(config_dir, name, plan.profile)
             for phase in phases:
                 doc = response_doc(base, info, plan, plan.seed, phase)
                 print(f'{name}, phase {phase}:', flush=True)
-                print('\n'.join(response_lines(name, plan.profile, doc, overrides, args.late,
-                                               root, args.steps)), flush=True)
+                lines, judged = response_lines(name, plan.profile, doc, overrides, args.late,
+                                               root, args.steps)
+                verdicts += judged
+                print('\n'.join(lines), flush=True)
+        print(tally(verdicts))
     except (ExperimentError, ValueError, KeyError, OSError) as err:
         print(f'response_loop: {err}', file=sys.stderr)
         return 2

@@ -14,6 +14,7 @@ from replan_experiments.response_loop import (
     speed_along,
     steady_cycle_travel,
     step_excess,
+    tally,
 )
 
 FORWARD = [(0.5, np.array([0.05, 0.0, 0.0]))]
@@ -85,3 +86,14 @@ def test_the_steady_cycle_and_the_first_steps_swinging_leg():
     feet = np.array([[0.3, 0.2], [0.3, -0.2], [-0.3, 0.2], [-0.3, -0.2]])
     assert first_swing(touchdowns, 0.5, feet, [0.0, 0.1]) == (LEGS[2], 'leading')
     assert first_swing(touchdowns, 0.5, feet, [0.0, -0.1]) == (LEGS[2], 'trailing')
+
+
+def test_the_tally_counts_cells_by_the_pages_rule_and_with_the_first_cycle_short():
+    """A first cycle off alone is allowed in the second count; a later one or an overshoot
+    fails both."""
+    verdicts = [('forward', []), ('lateral', ['first']), ('lateral', ['first', 'overshoot']),
+                ('forward', ['later']), ('lateral', ['no whole cycle'])]
+    assert tally(verdicts) == (
+        "cells met by the page's rule: forward 1 of 2, lateral 0 of 3; with the first "
+        "cycle's shortfall allowed (from the second cycle within 5 %, none over 105 %): "
+        "forward 1 of 2, lateral 1 of 3")
