@@ -115,14 +115,21 @@ def cycle_splits(boundaries: list[float], speed: float, direction: np.ndarray,
 def judged_line(segment: dict) -> str:
     """A set-point's whole cycles opened by each leg (the run's ``leg_cycle_velocities``), in
     per cent of the set-point, judged as docs/robots.md judges them."""
+    return judged(segment)[0]
+
+
+def judged(segment: dict) -> tuple[str, str, list[str]]:
+    """``judged_line``, the set-point's axis and what it misses
+    (``robots_render.response_misses``)."""
     axis, cell = response_axis(segment)
     misses = response_misses(cell)
     legs = '; '.join(f'{leg["leg"]} at {leg["start_s"] - segment["start_s"]:.2f} s '
                      + ' '.join(f'{100 * x:.0f}' for x in leg['shares'])
                      for leg in cell['legs'])
-    return (f'  {axis}: each whole cycle opened by each leg, % of the set-point, as '
+    line = (f'  {axis}: each whole cycle opened by each leg, % of the set-point, as '
             f'docs/robots.md judges them: {legs or "none"}'
             + (f' ({", ".join(misses)} off)' if misses else ' (met)'))
+    return line, axis, misses
 
 
 def first_strides(plan, direction: np.ndarray) -> list[tuple[int, float]]:

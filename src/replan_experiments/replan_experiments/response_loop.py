@@ -38,13 +38,11 @@ from replan_core.mpc.lip_mpc import LipMpc, replan_start_state
 from replan_core.mpc.support import implied_velocity
 from replan_core.robot.model import RobotModel
 from replan_core.robot.robot_file import robot_facts
-from replan_experiments.gait_report import judged_line
+from replan_experiments.gait_report import judged
 from replan_experiments.plan import ExperimentError, parse_settings
 from replan_experiments.planner_loop import run_values
 from replan_experiments.robot_info import robot_info
-from replan_experiments.robots_page import response_axis
 from replan_experiments.robots_plan import load_robots_plan, response_doc
-from replan_experiments.robots_render import response_misses
 from replan_experiments.runs import read_scenario
 from replan_ros.params.convert import gait_params, mpc_settings
 
@@ -216,9 +214,9 @@ def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dic
     for row in rows:
         if not any(row['commanded'][:2]):
             continue
-        lines.append(judged_line(row))
-        axis, cell = response_axis(row)
-        verdicts.append((axis, response_misses(cell)))
+        line, axis, misses = judged(row)
+        lines.append(line)
+        verdicts.append((axis, misses))
         if steps:
             excess = step_excess(touchdowns, times, bases, row['start_s'],
                                  row['commanded'][:2])
