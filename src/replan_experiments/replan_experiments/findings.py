@@ -394,8 +394,7 @@ def preregistration_section(prereg: dict | None, verdicts: list[dict],
             f'{", ".join(str(s) for s in block["pilot_seeds"])} | {hashes.get(name, "-")} |')
     lines += ['', '## Verdicts', '',
               _families(verdicts) + ' **holds**: Holm-significant with the claim\'s sign '
-              'and the point estimate at least the smallest effect (the rule for "beyond the '
-              'smallest effect": the estimate, not the whole interval); **opposite**: '
+              'and the whole 95 % interval beyond the smallest effect; **opposite**: '
               'Holm-significant with the other sign; **negligible**: the 95 % interval inside '
               '± the smallest effect (an equivalence test: both one-sided tests of TOST at '
               '0.025, so TOST at 0.05); **not resolved**: otherwise. Every other comparison '

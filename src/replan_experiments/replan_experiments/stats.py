@@ -279,9 +279,8 @@ def against_paper(mean_ms: float, paper_ms: float = PAPER_QP_MS,
 # One family: every claim's primary test (config/experiments.yaml, ``primary``), Holm's
 # step-down correction over them. Outcomes, in this order of precedence:
 #   opposite     Holm-significant with the other sign than the claim's
-#   holds        Holm-significant with the claim's sign and the point estimate at least the
-#                smallest effect that matters (the rule: significance plus a point estimate
-#                beyond the smallest effect, not the whole interval beyond it)
+#   holds        Holm-significant with the claim's sign and the whole 95 % interval beyond
+#                the smallest effect that matters (its nearer end at least that effect)
 #   negligible   the 95 % interval inside +- the smallest effect (this implies the two one-sided
 #                tests of TOST, each at 0.025, so TOST at 0.05)
 #   not resolved otherwise
@@ -445,7 +444,7 @@ def outcome(estimate: float, interval: tuple[float, float], significant: bool,
     sign = 1.0 if direction == 'higher' else -1.0
     if significant and sign * estimate < 0:
         return 'opposite'
-    if significant and sign * estimate >= smallest:
+    if significant and min(sign * interval[0], sign * interval[1]) >= smallest:
         return 'holds'
     if -smallest < interval[0] and interval[1] < smallest:
         return 'negligible'

@@ -106,6 +106,8 @@ def test_fisher_exact_and_newcombes_interval():
     (0.6, (0.3, 1.3), True, 'higher', 'not resolved'),     # significant, too small, CI out
     (-0.6, (-0.9, -0.3), True, 'higher', 'opposite'),      # significant with the other sign
     (-2.0, (-2.8, -1.2), True, 'lower', 'holds'),
+    (1.5, (0.8, 2.2), True, 'higher', 'not resolved'),     # estimate beyond, interval not
+    (-1.5, (-2.2, -0.8), True, 'lower', 'not resolved'),
     (0.1, (-0.5, 0.7), False, 'higher', 'negligible'),     # the equivalence: CI in +-1
     (0.1, (-1.5, 1.7), False, 'higher', 'not resolved'),   # the CI reaches beyond +-1
 ])
@@ -121,7 +123,10 @@ def test_verdicts_correct_over_the_whole_family():
                     {**block, 'sample': [1.0, 2.0, 3.0, 4.0]}])
     assert [v['p_holm'] for v in out] == pytest.approx([0.061, 0.061], abs=1e-3)
     assert [v['outcome'] for v in out] == ['not resolved', 'not resolved']
-    assert verdicts([{**block, 'sample': [1.0, 2.0, 3.0, 4.0]}])[0]['outcome'] == 'holds'
+    # Alone it is significant, but its interval (0.45 to 4.55) reaches below the smallest
+    # effect: not resolved; a tighter sample's interval (1.72 to 3.78) is beyond it: holds.
+    assert verdicts([{**block, 'sample': [1.0, 2.0, 3.0, 4.0]}])[0]['outcome'] == 'not resolved'
+    assert verdicts([{**block, 'sample': [2.0, 2.5, 3.0, 3.5]}])[0]['outcome'] == 'holds'
     # A claim that cannot be judged still counts in the family, with p = 1.
     out = verdicts([{**block, 'sample': [1.0, 2.0, 3.0, 4.0]},
                     {**block, 'sample': None, 'reason': 'not run'}])
