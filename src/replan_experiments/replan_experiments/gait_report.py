@@ -112,15 +112,10 @@ def cycle_splits(boundaries: list[float], speed: float, direction: np.ndarray,
     return rows
 
 
-def judged_line(segment: dict) -> str:
-    """A set-point's whole cycles opened by each leg (the run's ``leg_cycle_velocities``), in
-    per cent of the set-point, judged as docs/robots.md judges them."""
-    return judged(segment)[0]
-
-
 def judged(segment: dict) -> tuple[str, str, list[str]]:
-    """``judged_line``, the set-point's axis and what it misses
-    (``robots_render.response_misses``)."""
+    """A set-point's whole cycles opened by each leg (the run's ``leg_cycle_velocities``), in
+    per cent of the set-point, judged as docs/robots.md judges them: the report's line, the
+    set-point's axis and what it misses (``robots_render.response_misses``)."""
     axis, cell = response_axis(segment)
     misses = response_misses(cell)
     legs = '; '.join(f'{leg["leg"]} at {leg["start_s"] - segment["start_s"]:.2f} s '
@@ -222,7 +217,7 @@ def report(run: Path, after: float, late: float) -> list[str]:
         lines += _segment_lines(segment, sensed_times, trunk, trunk_velocity, yaws, feet,
                                 plans)
         if any(segment['commanded']):
-            lines.append(judged_line(segment))
+            lines.append(judged(segment)[0])
         last = next((row for row in reversed(corrections) if row[0] < segment['end_s']), None)
         if any(segment['commanded']) and last is not None and last[0] > segment['start_s']:
             stamp, x, y = last

@@ -199,7 +199,7 @@ def speed_along(times: np.ndarray, bases: np.ndarray, t: float, direction) -> fl
 def response_lines(robot: str, profile: str, doc: dict, overrides: dict[str, dict] | None,
                    late: float = LATE, root: Path | None = None,
                    steps: bool = False) -> tuple[list[str], list[tuple[str, list[str]]]]:
-    """The judged line (``gait_report.judged_line``) of each translational set-point of the
+    """The judged line (``gait_report.judged``) of each translational set-point of the
     robots page's response document ``doc`` run through ``loop_run``; with ``steps``, also
     the ``step_excess`` of the first steps after each change of set-point (mm, and in % of
     the ``steady_cycle_travel``) and the ``first_swing`` after it. Also each set-point's axis
